@@ -1,0 +1,230 @@
+//! The unloaded reference (C0) of each taxel: taken by averaging N sample sets (tare), optionally
+//! followed slowly while the taxel is unloaded.
+
+use crate::calibration::{FaultThresholds, TemperatureLaw, TAXEL_COUNT};
+use crate::reading::SplitCapacitance;
+
+/// One taxel's baseline.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Baseline {
+    tared_capacitance: SplitCapacitance,
+    // Kept apart from the tared capacitance so that steps far below its f32 resolution add up.
+    tracked_drift_pf: f32,
+    tared_sensor_pf: f32,
+    sensor_pf: f32,
+    inverse_sensor_pf: f32,
+    permittivity_ratio: f32,
+    temperature_c: f32,
+}
+
+/// Why a baseline was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BaselineError {
+    /// The capacitance or temperature is not finite.
+    NotFinite,
+    /// The sensor capacitance (baseline minus parasitic) is below the open-lead threshold, zero
+    /// or negative: nothing to divide by.
+    ImplausiblySmall,
+    /// Too few valid sample sets were seen during the tare.
+    TooFewSamples,
+}
+
+impl Baseline {
+    /// A baseline from an unloaded capacitance measured at `temperature_c`.
+    pub fn new(
+        capacitance: SplitCapacitance,
+        parasitic_pf: f32,
+        temperature_c: f32,
+        law: &TemperatureLaw,
+        thresholds: &FaultThresholds,
+    ) -> Result<Self, BaselineError> {
+        if !capacitance.offset_pf.is_finite()
+            || !capacitance.fine_pf.is_finite()
+            || !temperature_c.is_finite()
+        {
+            return Err(BaselineError::NotFinite);
+        }
+        let sensor_pf = (capacitance.offset_pf - parasitic_pf) + capacitance.fine_pf;
+        if !(sensor_pf >= thresholds.open_below_pf) || !(sensor_pf > 0.0) {
+            return Err(BaselineError::ImplausiblySmall);
+        }
+        let temperature_c =
+            temperature_c.clamp(law.characterised_min_c(), law.characterised_max_c());
+        Ok(Self {
+            tared_capacitance: capacitance,
+            tracked_drift_pf: 0.0,
+            tared_sensor_pf: sensor_pf,
+            sensor_pf,
+            inverse_sensor_pf: 1.0 / sensor_pf,
+            permittivity_ratio: law.permittivity_ratio(temperature_c),
+            temperature_c,
+        })
+    }
+
+    /// The capacitance measured at the tare.
+    pub fn tared_capacitance(&self) -> SplitCapacitance {
+        self.tared_capacitance
+    }
+
+    /// How far tracking has moved the baseline from the tare, pF.
+    pub fn tracked_drift_pf(&self) -> f32 {
+        self.tracked_drift_pf
+    }
+
+    /// The sensor's own unloaded capacitance C0 (baseline minus parasitic), pF.
+    pub fn sensor_pf(&self) -> f32 {
+        self.sensor_pf
+    }
+
+    /// Temperature at the tare, °C.
+    pub fn temperature_c(&self) -> f32 {
+        self.temperature_c
+    }
+
+    /// dC/C0 of a reading, both brought to the reference temperature.
+    ///
+    /// With k = eps(T) / eps(T0), the sensor part scales by k and the parasitic does not, so
+    /// `dC/C0 = (C - Cp) / (k (C0 - Cp)) - 1`, formed as `dC * s / C0 + (s - 1)` with
+    /// `s = 1 / k`: the change `dC` is taken part by part (no cancellation) and no division is
+    /// left for the hot path.
+    #[inline]
+    pub fn relative_change(
+        &self,
+        reading: SplitCapacitance,
+        inverse_permittivity_ratio: f32,
+    ) -> f32 {
+        let scale = self.permittivity_ratio * inverse_permittivity_ratio;
+        (reading.minus(self.tared_capacitance) - self.tracked_drift_pf)
+            * scale
+            * self.inverse_sensor_pf
+            + (scale - 1.0)
+    }
+
+    /// Moves the baseline by `fraction` of the reading's offset from it (tracking), bounded to
+    /// `max_drift_relative` of C0 away from the tared value. Returns whether the bound was hit.
+    fn track(&mut self, relative_change: f32, tracking: &BaselineTracking) -> bool {
+        let step_pf = relative_change * self.sensor_pf * tracking.rate_per_sample;
+        let limit_pf = tracking.max_drift_relative * self.tared_sensor_pf;
+        let drift_pf = self.tracked_drift_pf + step_pf;
+        let bounded_drift_pf = drift_pf.clamp(-limit_pf, limit_pf);
+        self.tracked_drift_pf = bounded_drift_pf;
+        self.sensor_pf = self.tared_sensor_pf + bounded_drift_pf;
+        self.inverse_sensor_pf = 1.0 / self.sensor_pf;
+        bounded_drift_pf != drift_pf
+    }
+}
+
+/// Slow baseline tracking while a taxel is unloaded; off by default.
+///
+/// It only moves while |dC/C0| stays below `contact_threshold_relative` (so a static contact
+/// above the threshold freezes it, however long it lasts), by `rate_per_sample` of the offset per
+/// sample, and never further than `max_drift_relative` of C0 from the tared value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BaselineTracking {
+    /// Whether tracking runs.
+    pub enabled: bool,
+    /// Above this |dC/C0| the taxel counts as touched and tracking stops (default 0.005, about
+    /// 0.6 kPa on the article's curve).
+    pub contact_threshold_relative: f32,
+    /// Fraction of the offset applied per sample (default 1e-4: a time constant of 25 s at
+    /// 400 sample sets per second).
+    pub rate_per_sample: f32,
+    /// Largest total drift from the tared value, as a fraction of C0 (default 0.02).
+    pub max_drift_relative: f32,
+}
+
+impl Default for BaselineTracking {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            contact_threshold_relative: 0.005,
+            rate_per_sample: 1.0e-4,
+            max_drift_relative: 0.02,
+        }
+    }
+}
+
+impl BaselineTracking {
+    /// Applies one tracking step; returns whether the drift bound was hit.
+    pub(crate) fn update(&self, baseline: &mut Baseline, relative_change: f32) -> bool {
+        if !self.enabled || !(relative_change.abs() < self.contact_threshold_relative) {
+            return false;
+        }
+        baseline.track(relative_change, self)
+    }
+}
+
+/// Averages unloaded sample sets into baselines.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TareAccumulator {
+    requested: u16,
+    seen: u16,
+    offset_sums_pf: [f64; TAXEL_COUNT],
+    fine_sums_pf: [f64; TAXEL_COUNT],
+    counts: [u16; TAXEL_COUNT],
+    temperature_sum_c: f64,
+}
+
+impl TareAccumulator {
+    /// Starts a tare over `sample_sets` sets (at least 1).
+    pub fn new(sample_sets: u16) -> Self {
+        Self {
+            requested: sample_sets.max(1),
+            seen: 0,
+            offset_sums_pf: [0.0; TAXEL_COUNT],
+            fine_sums_pf: [0.0; TAXEL_COUNT],
+            counts: [0; TAXEL_COUNT],
+            temperature_sum_c: 0.0,
+        }
+    }
+
+    /// Sample sets still to come.
+    pub fn remaining(&self) -> u16 {
+        self.requested - self.seen
+    }
+
+    /// Adds one sample set: the usable capacitances (None for a faulted taxel) and the
+    /// temperature used for it. Returns true when the tare has seen enough sets.
+    pub fn add(
+        &mut self,
+        capacitances: &[Option<SplitCapacitance>; TAXEL_COUNT],
+        temperature_c: f32,
+    ) -> bool {
+        for (taxel, capacitance) in capacitances.iter().enumerate() {
+            if let Some(capacitance) = capacitance {
+                self.offset_sums_pf[taxel] += capacitance.offset_pf as f64;
+                self.fine_sums_pf[taxel] += capacitance.fine_pf as f64;
+                self.counts[taxel] += 1;
+            }
+        }
+        self.temperature_sum_c += temperature_c as f64;
+        self.seen = self.seen.saturating_add(1).min(self.requested);
+        self.seen >= self.requested
+    }
+
+    /// The baselines, per taxel; a taxel needs valid readings in at least half of the sets.
+    pub fn finish(
+        &self,
+        parasitic_pf: &[f32; TAXEL_COUNT],
+        law: &TemperatureLaw,
+        thresholds: &FaultThresholds,
+    ) -> [Result<Baseline, BaselineError>; TAXEL_COUNT] {
+        let temperature_c = (self.temperature_sum_c / self.seen.max(1) as f64) as f32;
+        let needed = self.requested.div_ceil(2).max(1);
+        core::array::from_fn(|taxel| {
+            let count = self.counts[taxel];
+            if count < needed {
+                return Err(BaselineError::TooFewSamples);
+            }
+            let mean = SplitCapacitance {
+                offset_pf: (self.offset_sums_pf[taxel] / count as f64) as f32,
+                fine_pf: (self.fine_sums_pf[taxel] / count as f64) as f32,
+            };
+            Baseline::new(mean, parasitic_pf[taxel], temperature_c, law, thresholds)
+        })
+    }
+}

@@ -1,0 +1,182 @@
+//! Inversion tiers: relative capacitance change dC/C0 to pressure, behind one interface.
+//!
+//! Every tier is built once from a validated [`CalibrationCurve`] and evaluated per reading. The
+//! caller classifies the reading first, so a tier is only asked for `0 ..= top relative change`;
+//! each still clamps its result to `0 ..= top pressure` so that no input can produce NaN or a
+//! pressure outside the curve.
+
+mod cubic;
+mod linear;
+mod piecewise_linear;
+mod saturating;
+mod table;
+
+pub use cubic::MonotoneCubicInverse;
+pub use linear::LinearInverse;
+pub use piecewise_linear::PiecewiseLinearInverse;
+pub use saturating::{Libm, LnBackend, Micromath, SaturatingFit, SaturatingInverse};
+pub use table::{TableInverse, TABLE_INTERVALS};
+
+use crate::calibration::CalibrationCurve;
+
+/// An inverse of a calibration curve: relative change to pressure.
+pub trait InverseCurve {
+    /// Pressure in kPa for a relative change in `0 ..= top`; always finite and within
+    /// `0 ..= top pressure`.
+    fn pressure_kpa(&self, relative_change: f32) -> f32;
+}
+
+/// The available inversion tiers, cheapest-first is not implied: see [`Tier::ALL`] and the
+/// performance report for measured cost and error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum Tier {
+    /// One sensitivity: the secant from the origin to the top calibration point.
+    Linear = 0,
+    /// Straight lines between the calibration points.
+    PiecewiseLinear = 1,
+    /// Exact inverse of the monotone (Fritsch–Carlson) cubic through the calibration points:
+    /// the reference curve of the model.
+    #[default]
+    MonotoneCubic = 2,
+    /// Fitted dC/C0 = A (1 - exp(-P / B)), inverted in closed form with libm's logf.
+    Saturating = 3,
+    /// The same fitted model, inverted with micromath's fast ln.
+    SaturatingMicromath = 4,
+    /// A dense table of the monotone cubic's inverse with linear interpolation: built for speed.
+    Table = 5,
+}
+
+impl Tier {
+    /// Every tier, in id order.
+    pub const ALL: [Tier; 6] = [
+        Tier::Linear,
+        Tier::PiecewiseLinear,
+        Tier::MonotoneCubic,
+        Tier::Saturating,
+        Tier::SaturatingMicromath,
+        Tier::Table,
+    ];
+
+    /// Stable name used on the command line and in files.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Tier::Linear => "linear",
+            Tier::PiecewiseLinear => "piecewise-linear",
+            Tier::MonotoneCubic => "monotone-cubic",
+            Tier::Saturating => "saturating",
+            Tier::SaturatingMicromath => "saturating-micromath",
+            Tier::Table => "table",
+        }
+    }
+
+    /// The tier with this name.
+    pub fn from_name(name: &str) -> Option<Tier> {
+        Tier::ALL.into_iter().find(|tier| tier.name() == name)
+    }
+
+    /// The tier with this wire id.
+    pub fn from_id(id: u8) -> Option<Tier> {
+        Tier::ALL.into_iter().find(|tier| *tier as u8 == id)
+    }
+
+    /// Whether the tier passes exactly through the calibration points. The table does not: it
+    /// samples the monotone cubic on a uniform grid, so it is within its interpolation error
+    /// (measured in the performance report) of them.
+    pub const fn interpolates_points(self) -> bool {
+        matches!(self, Tier::PiecewiseLinear | Tier::MonotoneCubic)
+    }
+}
+
+/// All tiers of one taxel, built once from its curve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TaxelInverses {
+    linear: LinearInverse,
+    piecewise_linear: PiecewiseLinearInverse,
+    monotone_cubic: MonotoneCubicInverse,
+    saturating: Option<SaturatingFit>,
+    table: TableInverse,
+    top_pressure_kpa: f32,
+}
+
+impl TaxelInverses {
+    /// Builds every tier for a curve.
+    pub fn new(curve: &CalibrationCurve) -> Self {
+        let monotone_cubic = MonotoneCubicInverse::new(curve);
+        Self {
+            linear: LinearInverse::new(curve),
+            piecewise_linear: PiecewiseLinearInverse::new(curve),
+            table: TableInverse::new(&monotone_cubic, curve),
+            saturating: SaturatingFit::new(curve),
+            monotone_cubic,
+            top_pressure_kpa: curve.top().pressure_kpa,
+        }
+    }
+
+    /// Whether a tier can be used for this curve (the saturating fit needs a concave curve).
+    pub fn supports(&self, tier: Tier) -> bool {
+        !matches!(tier, Tier::Saturating | Tier::SaturatingMicromath) || self.saturating.is_some()
+    }
+
+    /// Pressure for a relative change through the given tier. A tier the curve does not support
+    /// falls back to the monotone cubic (callers check [`TaxelInverses::supports`] first).
+    #[inline]
+    pub fn pressure_kpa(&self, tier: Tier, relative_change: f32) -> f32 {
+        match (tier, &self.saturating) {
+            (Tier::Linear, _) => self.linear.pressure_kpa(relative_change),
+            (Tier::PiecewiseLinear, _) => self.piecewise_linear.pressure_kpa(relative_change),
+            (Tier::Table, _) => self.table.pressure_kpa(relative_change),
+            (Tier::Saturating, Some(fit)) => {
+                SaturatingInverse::<Libm>::new(fit, self.top_pressure_kpa)
+                    .pressure_kpa(relative_change)
+            }
+            (Tier::SaturatingMicromath, Some(fit)) => {
+                SaturatingInverse::<Micromath>::new(fit, self.top_pressure_kpa)
+                    .pressure_kpa(relative_change)
+            }
+            _ => self.monotone_cubic.pressure_kpa(relative_change),
+        }
+    }
+
+    /// The reference forward curve: relative change at a pressure (monotone cubic).
+    pub fn relative_change_at(&self, pressure_kpa: f32) -> f32 {
+        self.monotone_cubic.forward().value_at(pressure_kpa)
+    }
+
+    /// The saturating fit, if the curve allows one.
+    pub fn saturating_fit(&self) -> Option<&SaturatingFit> {
+        self.saturating.as_ref()
+    }
+
+    /// The linear tier.
+    pub fn linear(&self) -> &LinearInverse {
+        &self.linear
+    }
+
+    /// The piecewise-linear tier.
+    pub fn piecewise_linear(&self) -> &PiecewiseLinearInverse {
+        &self.piecewise_linear
+    }
+
+    /// The monotone cubic tier.
+    pub fn monotone_cubic(&self) -> &MonotoneCubicInverse {
+        &self.monotone_cubic
+    }
+
+    /// The table tier.
+    pub fn table(&self) -> &TableInverse {
+        &self.table
+    }
+}
+
+/// Clamps a tier's raw result into `0 ..= top`, mapping NaN to 0.
+#[inline]
+pub(crate) fn clamp_pressure(pressure_kpa: f32, top_pressure_kpa: f32) -> f32 {
+    if pressure_kpa > 0.0 {
+        pressure_kpa.min(top_pressure_kpa)
+    } else {
+        0.0
+    }
+}

@@ -1,0 +1,54 @@
+//! Raw readings of a 2x2 capacitive tactile pad (TI FDC1004 codes, or recorded capacitances) to
+//! pressure per taxel, with temperature correction, a baseline (tare), status flags for every way
+//! a reading can be wrong, and several inversion tiers with measured speed and error.
+//!
+//! `no_std`, no allocation, no HAL: the same code runs in the firmware, in the desktop simulator
+//! and in the host tools.
+//!
+//! ```
+//! use model_core::{Calibration, PadModel, SampleInput, TaxelReading};
+//!
+//! let mut pad = PadModel::new(Calibration::default());
+//! let unloaded = SampleInput::new([TaxelReading::CapacitancePf(4.5); 4], Some(25.0));
+//! pad.start_tare(1);
+//! pad.process(&unloaded);
+//! let pressed = SampleInput::new(
+//!     [
+//!         TaxelReading::CapacitancePf(4.5 * 1.0829),
+//!         TaxelReading::CapacitancePf(4.5),
+//!         TaxelReading::CapacitancePf(4.5),
+//!         TaxelReading::CapacitancePf(4.5),
+//!     ],
+//!     Some(25.0),
+//! );
+//! let output = pad.process(&pressed);
+//! let pressure_kpa = output.taxels[0].pressure_kpa().unwrap_or(f32::NAN);
+//! assert!((pressure_kpa - 10.0).abs() < 1e-3);
+//! ```
+#![no_std]
+#![deny(missing_docs)]
+
+pub mod baseline;
+pub mod calibration;
+pub mod flags;
+pub mod inverse;
+pub mod monotone_cubic;
+pub mod pad;
+pub mod reading;
+pub mod taxel;
+pub mod temperature;
+pub mod use_case;
+
+pub use baseline::{Baseline, BaselineError, BaselineTracking};
+pub use calibration::{
+    Calibration, CalibrationCurve, CalibrationError, CalibrationSpec, CurvePoint, FaultThresholds,
+    PermittivityPoint, TaxelCalibration, TaxelCalibrationSpec, TemperatureLaw, ARTICLE_TABLE_1,
+    TAXEL_COUNT, TAXEL_NAMES,
+};
+pub use flags::TaxelFlags;
+pub use inverse::{InverseCurve, TaxelInverses, Tier};
+pub use pad::{PadModel, PadOutput, SampleInput, TareStatus, TierUnavailable};
+pub use reading::{ReadingValue, SplitCapacitance, TaxelReading};
+pub use taxel::{TaxelModel, TaxelOutput};
+pub use temperature::{TemperatureTracker, TemperatureUsed, REFERENCE_TEMPERATURE_C};
+pub use use_case::{select_tier, SelectionError, TierChoice, UseCase};

@@ -1,0 +1,178 @@
+//! Fritsch–Carlson monotone cubic interpolation through strictly increasing points.
+//!
+//! Built once (in f64, so construction rounding never shows), evaluated in f32 as one cubic
+//! polynomial per interval in the local coordinate `s = x - x_k`, which needs no division.
+
+use crate::calibration::MAX_CURVE_POINTS;
+
+/// One interval's cubic `y = c0 + s (c1 + s (c2 + s c3))`, `s = x - x_start`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CubicSegment {
+    /// Interval start on the x axis.
+    pub x_start: f32,
+    /// Interval width on the x axis.
+    pub width: f32,
+    /// Polynomial coefficients, constant first.
+    pub coefficients: [f32; 4],
+}
+
+impl CubicSegment {
+    /// Value at local coordinate `s` (0 ..= width).
+    #[inline]
+    pub fn value_at(&self, s: f32) -> f32 {
+        let [c0, c1, c2, c3] = self.coefficients;
+        c0 + s * (c1 + s * (c2 + s * c3))
+    }
+
+    /// Derivative at local coordinate `s`.
+    #[inline]
+    pub fn slope_at(&self, s: f32) -> f32 {
+        let [_, c1, c2, c3] = self.coefficients;
+        c1 + s * (2.0 * c2 + s * (3.0 * c3))
+    }
+}
+
+/// A monotone piecewise cubic through up to [`MAX_CURVE_POINTS`] points.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MonotoneCubic {
+    segments: [CubicSegment; MAX_CURVE_POINTS - 1],
+    segment_count: usize,
+    x_end: f32,
+    y_end: f32,
+}
+
+impl MonotoneCubic {
+    /// Interpolant through `(xs[i], ys[i])`. Both must be strictly increasing, of equal length,
+    /// 2 ..= [`MAX_CURVE_POINTS`] long; the caller (a validated curve) guarantees it, and anything
+    /// else gives an interpolant over the valid prefix rather than a panic.
+    pub fn new(xs: &[f64], ys: &[f64]) -> Self {
+        let count = xs.len().min(ys.len()).min(MAX_CURVE_POINTS);
+        let mut secant_slopes = [0.0f64; MAX_CURVE_POINTS - 1];
+        for k in 0..count.saturating_sub(1) {
+            secant_slopes[k] = (ys[k + 1] - ys[k]) / (xs[k + 1] - xs[k]);
+        }
+        let mut tangents = [0.0f64; MAX_CURVE_POINTS];
+        if count >= 2 {
+            tangents[0] = secant_slopes[0];
+            tangents[count - 1] = secant_slopes[count - 2];
+        }
+        for k in 1..count.saturating_sub(1) {
+            let (left, right) = (secant_slopes[k - 1], secant_slopes[k]);
+            tangents[k] = if left * right <= 0.0 {
+                0.0
+            } else {
+                0.5 * (left + right)
+            };
+        }
+        // Fritsch–Carlson: keep (alpha, beta) inside the circle of radius 3, which is
+        // sufficient for the cubic on each interval to be monotone.
+        for k in 0..count.saturating_sub(1) {
+            let secant = secant_slopes[k];
+            if secant == 0.0 {
+                tangents[k] = 0.0;
+                tangents[k + 1] = 0.0;
+                continue;
+            }
+            let alpha = tangents[k] / secant;
+            let beta = tangents[k + 1] / secant;
+            let radius_squared = alpha * alpha + beta * beta;
+            if radius_squared > 9.0 {
+                let tau = 3.0 / libm::sqrt(radius_squared);
+                tangents[k] = tau * alpha * secant;
+                tangents[k + 1] = tau * beta * secant;
+            }
+        }
+        let mut segments = [CubicSegment::default(); MAX_CURVE_POINTS - 1];
+        for k in 0..count.saturating_sub(1) {
+            let width = xs[k + 1] - xs[k];
+            let secant = secant_slopes[k];
+            let (start_tangent, end_tangent) = (tangents[k], tangents[k + 1]);
+            segments[k] = CubicSegment {
+                x_start: xs[k] as f32,
+                width: width as f32,
+                coefficients: [
+                    ys[k] as f32,
+                    start_tangent as f32,
+                    ((3.0 * secant - 2.0 * start_tangent - end_tangent) / width) as f32,
+                    ((start_tangent + end_tangent - 2.0 * secant) / (width * width)) as f32,
+                ],
+            };
+        }
+        let last = count.saturating_sub(1);
+        Self {
+            segments,
+            segment_count: count.saturating_sub(1),
+            x_end: xs.get(last).copied().unwrap_or(0.0) as f32,
+            y_end: ys.get(last).copied().unwrap_or(0.0) as f32,
+        }
+    }
+
+    /// The interval segments in x order.
+    pub fn segments(&self) -> &[CubicSegment] {
+        &self.segments[..self.segment_count]
+    }
+
+    /// Index of the segment holding `x` (x below the start gives 0, above the end the last).
+    #[inline]
+    pub fn segment_index(&self, x: f32) -> usize {
+        let mut index = 0;
+        while index + 1 < self.segment_count && x >= self.segments[index + 1].x_start {
+            index += 1;
+        }
+        index
+    }
+
+    /// Value at `x`, with `x` clamped to the interpolated range.
+    #[inline]
+    pub fn value_at(&self, x: f32) -> f32 {
+        if !(x < self.x_end) {
+            return self.y_end;
+        }
+        let segment = &self.segments[self.segment_index(x)];
+        segment.value_at((x - segment.x_start).max(0.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PRESSURE_KPA: [f64; 6] = [0.0, 10.0, 20.0, 30.0, 40.0, 50.0];
+    const RELATIVE_CHANGE: [f64; 6] = [0.0, 0.0829, 0.1475, 0.1981, 0.2317, 0.2563];
+
+    #[test]
+    fn reproduces_the_points() {
+        let cubic = MonotoneCubic::new(&PRESSURE_KPA, &RELATIVE_CHANGE);
+        for (x, y) in PRESSURE_KPA.iter().zip(RELATIVE_CHANGE) {
+            assert!(
+                (cubic.value_at(*x as f32) - y as f32).abs() < 1e-6,
+                "at {x}"
+            );
+        }
+    }
+
+    #[test]
+    fn is_monotone_on_a_fine_grid() {
+        let cubic = MonotoneCubic::new(&PRESSURE_KPA, &RELATIVE_CHANGE);
+        let mut previous = f32::NEG_INFINITY;
+        for step in 0..=5000 {
+            let value = cubic.value_at(step as f32 * 0.01);
+            assert!(value >= previous, "not monotone at step {step}");
+            previous = value;
+        }
+    }
+
+    #[test]
+    fn stays_monotone_on_data_that_tempts_overshoot() {
+        let xs = [0.0, 1.0, 2.0, 3.0, 4.0];
+        let ys = [0.0, 0.001, 0.002, 10.0, 10.001];
+        let cubic = MonotoneCubic::new(&xs, &ys);
+        let mut previous = f32::NEG_INFINITY;
+        for step in 0..=4000 {
+            let value = cubic.value_at(step as f32 * 0.001);
+            assert!(value >= previous - 1e-6);
+            assert!((-1e-6..=10.001 + 1e-5).contains(&value));
+            previous = value;
+        }
+    }
+}

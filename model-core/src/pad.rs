@@ -1,0 +1,270 @@
+//! The whole pad: four taxel models, their baselines, the temperature, the tare in progress and
+//! the chosen tier. One call per converter cycle turns four readings into four pressures.
+
+use crate::baseline::{Baseline, BaselineError, BaselineTracking, TareAccumulator};
+use crate::calibration::{Calibration, TAXEL_COUNT};
+use crate::flags::TaxelFlags;
+use crate::inverse::Tier;
+use crate::reading::{ReadingValue, TaxelReading};
+use crate::taxel::{TaxelModel, TaxelOutput};
+use crate::temperature::{TemperatureTracker, TemperatureUsed};
+
+/// One converter cycle's input.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SampleInput {
+    /// The four readings in pad order.
+    pub readings: [TaxelReading; TAXEL_COUNT],
+    /// Flags the acquisition already knows (CONVERTER_ERROR, STUCK), per taxel.
+    pub reading_flags: [TaxelFlags; TAXEL_COUNT],
+    /// Pad temperature in °C, if one was read.
+    pub temperature_c: Option<f32>,
+}
+
+impl SampleInput {
+    /// Four readings with no acquisition flags.
+    pub fn new(readings: [TaxelReading; TAXEL_COUNT], temperature_c: Option<f32>) -> Self {
+        Self {
+            readings,
+            reading_flags: [TaxelFlags::empty(); TAXEL_COUNT],
+            temperature_c,
+        }
+    }
+}
+
+/// One converter cycle's result.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PadOutput {
+    /// The four taxels in pad order.
+    pub taxels: [TaxelOutput; TAXEL_COUNT],
+    /// The temperature the sample was corrected with.
+    pub temperature: TemperatureUsed,
+}
+
+/// State of the tare.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TareStatus {
+    /// No tare has been asked for.
+    Never,
+    /// A tare is averaging; this many sample sets are still to come.
+    Running {
+        /// Sets still to come.
+        remaining: u16,
+    },
+    /// The last tare finished; per taxel whether it produced a baseline (a taxel that failed
+    /// keeps its previous baseline, if any).
+    Finished {
+        /// Bit n set = taxel n was tared.
+        tared_mask: u8,
+    },
+}
+
+/// The model of the whole pad.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PadModel {
+    calibration: Calibration,
+    taxels: [TaxelModel; TAXEL_COUNT],
+    baselines: [Option<Baseline>; TAXEL_COUNT],
+    tier: Tier,
+    tracking: BaselineTracking,
+    temperature: TemperatureTracker,
+    tare: Option<TareAccumulator>,
+    tare_status: TareStatus,
+    last_tare_errors: [Option<BaselineError>; TAXEL_COUNT],
+}
+
+/// A tier the calibration cannot provide.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TierUnavailable(pub Tier);
+
+impl PadModel {
+    /// A model with the default tier, no baselines and tracking off.
+    pub fn new(calibration: Calibration) -> Self {
+        let taxels = core::array::from_fn(|taxel| TaxelModel::new(&calibration.taxels()[taxel]));
+        Self {
+            calibration,
+            taxels,
+            baselines: [None; TAXEL_COUNT],
+            tier: Tier::default(),
+            tracking: BaselineTracking::default(),
+            temperature: TemperatureTracker::default(),
+            tare: None,
+            tare_status: TareStatus::Never,
+            last_tare_errors: [None; TAXEL_COUNT],
+        }
+    }
+
+    /// Replaces the calibration; baselines are kept (the capacitance they hold does not depend on
+    /// the curve), but a tier the new curves cannot provide falls back to the default.
+    pub fn set_calibration(&mut self, calibration: Calibration) {
+        let tier = self.tier;
+        *self = Self {
+            baselines: self.baselines,
+            tracking: self.tracking,
+            temperature: self.temperature,
+            tare: self.tare.take(),
+            tare_status: self.tare_status,
+            last_tare_errors: self.last_tare_errors,
+            ..Self::new(calibration)
+        };
+        if self.set_tier(tier).is_err() {
+            self.tier = Tier::default();
+        }
+    }
+
+    /// The calibration in use.
+    pub fn calibration(&self) -> &Calibration {
+        &self.calibration
+    }
+
+    /// The taxel models.
+    pub fn taxels(&self) -> &[TaxelModel; TAXEL_COUNT] {
+        &self.taxels
+    }
+
+    /// Selects an inversion tier for all taxels.
+    pub fn set_tier(&mut self, tier: Tier) -> Result<(), TierUnavailable> {
+        if self
+            .taxels
+            .iter()
+            .all(|taxel| taxel.inverses().supports(tier))
+        {
+            self.tier = tier;
+            Ok(())
+        } else {
+            Err(TierUnavailable(tier))
+        }
+    }
+
+    /// The tier in use.
+    pub fn tier(&self) -> Tier {
+        self.tier
+    }
+
+    /// Configures slow baseline tracking.
+    pub fn set_baseline_tracking(&mut self, tracking: BaselineTracking) {
+        self.tracking = tracking;
+    }
+
+    /// Starts a tare over the next `sample_sets` sample sets (the pad must be unloaded).
+    pub fn start_tare(&mut self, sample_sets: u16) {
+        let accumulator = TareAccumulator::new(sample_sets);
+        self.tare_status = TareStatus::Running {
+            remaining: accumulator.remaining(),
+        };
+        self.tare = Some(accumulator);
+    }
+
+    /// State of the tare.
+    pub fn tare_status(&self) -> TareStatus {
+        self.tare_status
+    }
+
+    /// Why the last tare failed per taxel (None = succeeded or never ran).
+    pub fn last_tare_errors(&self) -> [Option<BaselineError>; TAXEL_COUNT] {
+        self.last_tare_errors
+    }
+
+    /// Baselines per taxel.
+    pub fn baselines(&self) -> &[Option<Baseline>; TAXEL_COUNT] {
+        &self.baselines
+    }
+
+    /// Sets one taxel's baseline directly (e.g. restored from a recording).
+    pub fn set_baseline(&mut self, taxel: usize, baseline: Baseline) {
+        if let Some(slot) = self.baselines.get_mut(taxel) {
+            *slot = Some(baseline);
+        }
+    }
+
+    /// Converts one converter cycle.
+    pub fn process(&mut self, sample: &SampleInput) -> PadOutput {
+        let tare_temperature_c = self
+            .baselines
+            .iter()
+            .flatten()
+            .next()
+            .map(Baseline::temperature_c);
+        let temperature = self.temperature.resolve(
+            sample.temperature_c,
+            tare_temperature_c,
+            self.calibration.temperature_law(),
+        );
+        let inverse_permittivity_ratio = 1.0 / temperature.permittivity_ratio;
+        let thresholds = *self.calibration.thresholds();
+        let mut tare_capacitances = [None; TAXEL_COUNT];
+        let taxels = core::array::from_fn(|taxel| {
+            let value = sample.readings[taxel].value();
+            let acquisition_flags = sample.reading_flags[taxel];
+            let output = self.taxels[taxel]
+                .convert(
+                    self.tier,
+                    value,
+                    self.baselines[taxel].as_ref(),
+                    inverse_permittivity_ratio,
+                    &thresholds,
+                )
+                .with_flags(acquisition_flags | temperature.flags);
+            let unusable_for_tare = TaxelFlags::FAULTS.difference(TaxelFlags::NOT_TARED);
+            if let ReadingValue::Capacitance(capacitance) = value {
+                if !output.flags().intersects(unusable_for_tare) {
+                    tare_capacitances[taxel] = Some(capacitance);
+                }
+            }
+            let tracking_hit_limit = match (output.relative_change(), &mut self.baselines[taxel]) {
+                (Some(relative_change), Some(baseline)) if !output.flags().is_fault() => {
+                    self.tracking.update(baseline, relative_change)
+                }
+                _ => false,
+            };
+            if tracking_hit_limit {
+                output.with_flags(TaxelFlags::BASELINE_TRACKING_LIMIT)
+            } else {
+                output
+            }
+        });
+        self.advance_tare(&tare_capacitances, temperature.temperature_c);
+        PadOutput {
+            taxels,
+            temperature,
+        }
+    }
+
+    fn advance_tare(
+        &mut self,
+        capacitances: &[Option<crate::reading::SplitCapacitance>; TAXEL_COUNT],
+        temperature_c: f32,
+    ) {
+        let Some(accumulator) = self.tare.as_mut() else {
+            return;
+        };
+        if !accumulator.add(capacitances, temperature_c) {
+            self.tare_status = TareStatus::Running {
+                remaining: accumulator.remaining(),
+            };
+            return;
+        }
+        let parasitic_pf = core::array::from_fn(|taxel| self.taxels[taxel].parasitic_pf());
+        let results = accumulator.finish(
+            &parasitic_pf,
+            self.calibration.temperature_law(),
+            self.calibration.thresholds(),
+        );
+        let mut tared_mask = 0u8;
+        for (taxel, result) in results.into_iter().enumerate() {
+            match result {
+                Ok(baseline) => {
+                    self.baselines[taxel] = Some(baseline);
+                    self.last_tare_errors[taxel] = None;
+                    tared_mask |= 1 << taxel;
+                }
+                Err(error) => self.last_tare_errors[taxel] = Some(error),
+            }
+        }
+        self.tare = None;
+        self.tare_status = TareStatus::Finished { tared_mask };
+    }
+}

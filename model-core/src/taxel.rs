@@ -1,0 +1,148 @@
+//! One taxel's conversion: a classified reading, its baseline and the temperature in; a pressure
+//! (or a fault) and flags out. This is the hot path measured in the performance report.
+
+use crate::baseline::Baseline;
+use crate::calibration::{FaultThresholds, TaxelCalibration};
+use crate::flags::TaxelFlags;
+use crate::inverse::{TaxelInverses, Tier};
+use crate::reading::ReadingValue;
+
+/// The result for one taxel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TaxelOutput {
+    pressure_kpa: f32,
+    capacitance_pf: Option<f32>,
+    relative_change: Option<f32>,
+    flags: TaxelFlags,
+}
+
+impl TaxelOutput {
+    /// A faulted output: no pressure.
+    pub fn fault(flags: TaxelFlags, capacitance_pf: Option<f32>) -> Self {
+        Self {
+            pressure_kpa: 0.0,
+            capacitance_pf,
+            relative_change: None,
+            flags,
+        }
+    }
+
+    /// Pressure in kPa, within `0 ..= top of the curve`; `None` when a fault flag is set, so a
+    /// faulted taxel can never be read as a pressure.
+    pub fn pressure_kpa(&self) -> Option<f32> {
+        if self.flags.is_fault() {
+            None
+        } else {
+            Some(self.pressure_kpa)
+        }
+    }
+
+    /// The measured capacitance, pF, when the converter gave one.
+    pub fn capacitance_pf(&self) -> Option<f32> {
+        self.capacitance_pf
+    }
+
+    /// dC/C0 referenced to 25 °C, when it could be formed.
+    pub fn relative_change(&self) -> Option<f32> {
+        self.relative_change
+    }
+
+    /// Status flags.
+    pub fn flags(&self) -> TaxelFlags {
+        self.flags
+    }
+
+    /// Adds flags (e.g. the sample's temperature flags, the acquisition's converter flags).
+    pub fn with_flags(mut self, flags: TaxelFlags) -> Self {
+        self.flags |= flags;
+        self
+    }
+}
+
+/// A taxel's calibration, ready to convert readings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TaxelModel {
+    inverses: TaxelInverses,
+    parasitic_pf: f32,
+    top_relative_change: f32,
+    top_pressure_kpa: f32,
+}
+
+impl TaxelModel {
+    /// Builds every tier for the taxel's curve.
+    pub fn new(calibration: &TaxelCalibration) -> Self {
+        let top = calibration.curve.top();
+        Self {
+            inverses: TaxelInverses::new(&calibration.curve),
+            parasitic_pf: calibration.parasitic_pf,
+            top_relative_change: top.relative_change,
+            top_pressure_kpa: top.pressure_kpa,
+        }
+    }
+
+    /// The inversion tiers.
+    pub fn inverses(&self) -> &TaxelInverses {
+        &self.inverses
+    }
+
+    /// Parasitic capacitance, pF.
+    pub fn parasitic_pf(&self) -> f32 {
+        self.parasitic_pf
+    }
+
+    /// Converts one reading. `inverse_permittivity_ratio` is eps(25 °C) / eps(T) for the
+    /// sample's temperature (computed once per sample set).
+    #[inline]
+    pub fn convert(
+        &self,
+        tier: Tier,
+        reading: ReadingValue,
+        baseline: Option<&Baseline>,
+        inverse_permittivity_ratio: f32,
+        thresholds: &FaultThresholds,
+    ) -> TaxelOutput {
+        let capacitance = match reading {
+            ReadingValue::Capacitance(capacitance) => capacitance,
+            ReadingValue::Saturated => return TaxelOutput::fault(TaxelFlags::SATURATED, None),
+            ReadingValue::Invalid => return TaxelOutput::fault(TaxelFlags::INVALID_INPUT, None),
+            ReadingValue::Unavailable => {
+                return TaxelOutput::fault(TaxelFlags::CONVERTER_ERROR, None)
+            }
+        };
+        let total_pf = capacitance.total_pf();
+        if total_pf < 0.0 {
+            return TaxelOutput::fault(TaxelFlags::SHORTED, Some(total_pf));
+        }
+        let sensor_pf = (capacitance.offset_pf - self.parasitic_pf) + capacitance.fine_pf;
+        if !(sensor_pf >= thresholds.open_below_pf) {
+            return TaxelOutput::fault(TaxelFlags::OPEN, Some(total_pf));
+        }
+        let Some(baseline) = baseline else {
+            return TaxelOutput::fault(TaxelFlags::NOT_TARED, Some(total_pf));
+        };
+        let relative_change = baseline.relative_change(capacitance, inverse_permittivity_ratio);
+        let (pressure_kpa, flags) = if !relative_change.is_finite() {
+            (0.0, TaxelFlags::INVALID_INPUT)
+        } else if relative_change < -thresholds.shorted_below_relative {
+            (0.0, TaxelFlags::SHORTED)
+        } else if relative_change < -thresholds.dead_band_relative {
+            (0.0, TaxelFlags::BELOW_BASELINE)
+        } else if relative_change <= 0.0 {
+            (0.0, TaxelFlags::empty())
+        } else if relative_change > self.top_relative_change {
+            (self.top_pressure_kpa, TaxelFlags::OVER_RANGE)
+        } else {
+            (
+                self.inverses.pressure_kpa(tier, relative_change),
+                TaxelFlags::empty(),
+            )
+        };
+        TaxelOutput {
+            pressure_kpa,
+            capacitance_pf: Some(total_pf),
+            relative_change: Some(relative_change),
+            flags,
+        }
+    }
+}

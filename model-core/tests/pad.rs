@@ -1,0 +1,420 @@
+//! The whole conversion: tare, temperature correction, flags, baseline tracking and the hard
+//! cases of the model-core issue (tiny and subnormal changes, huge CAPDAC offsets, bad baselines,
+//! bad temperatures, saturation codes, arbitrary input bits).
+
+use model_core::baseline::BaselineTracking;
+use model_core::reading::{SATURATED_HIGH_CODE, SATURATED_LOW_CODE};
+use model_core::{
+    Baseline, BaselineError, Calibration, CalibrationSpec, FaultThresholds, PadModel, SampleInput,
+    SplitCapacitance, TareStatus, TaxelFlags, TaxelReading, TemperatureLaw, Tier,
+};
+use proptest::prelude::*;
+
+const SENSOR_PF: f32 = 4.5;
+
+fn tared_pad(unloaded_pf: f32, temperature_c: f32) -> PadModel {
+    let mut pad = PadModel::new(Calibration::default());
+    pad.start_tare(4);
+    let unloaded = SampleInput::new(
+        [TaxelReading::CapacitancePf(unloaded_pf); 4],
+        Some(temperature_c),
+    );
+    for _ in 0..4 {
+        pad.process(&unloaded);
+    }
+    assert_eq!(
+        pad.tare_status(),
+        TareStatus::Finished { tared_mask: 0b1111 }
+    );
+    pad
+}
+
+fn one_taxel(
+    pad: &mut PadModel,
+    capacitance_pf: f32,
+    temperature_c: Option<f32>,
+) -> model_core::TaxelOutput {
+    let reading = SampleInput::new(
+        [
+            TaxelReading::CapacitancePf(capacitance_pf),
+            TaxelReading::CapacitancePf(SENSOR_PF),
+            TaxelReading::CapacitancePf(SENSOR_PF),
+            TaxelReading::CapacitancePf(SENSOR_PF),
+        ],
+        temperature_c,
+    );
+    pad.process(&reading).taxels[0]
+}
+
+#[test]
+fn before_a_tare_every_taxel_is_a_fault() {
+    let mut pad = PadModel::new(Calibration::default());
+    let output = pad.process(&SampleInput::new(
+        [TaxelReading::CapacitancePf(SENSOR_PF); 4],
+        Some(25.0),
+    ));
+    for taxel in output.taxels {
+        assert_eq!(taxel.pressure_kpa(), None);
+        assert!(taxel.flags().contains(TaxelFlags::NOT_TARED));
+    }
+}
+
+#[test]
+fn calibration_points_come_out_as_their_pressures() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    for point in model_core::ARTICLE_TABLE_1 {
+        let output = one_taxel(
+            &mut pad,
+            SENSOR_PF * (1.0 + point.relative_change),
+            Some(25.0),
+        );
+        let pressure = output.pressure_kpa().unwrap();
+        assert!(
+            (pressure - point.pressure_kpa).abs() < 2e-3,
+            "{point:?}: {pressure}"
+        );
+    }
+}
+
+#[test]
+fn small_and_large_negative_changes_are_told_apart() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    let noise = one_taxel(&mut pad, SENSOR_PF * (1.0 - 0.001), Some(25.0));
+    assert_eq!(noise.pressure_kpa(), Some(0.0));
+    assert_eq!(noise.flags(), TaxelFlags::empty());
+    let drift = one_taxel(&mut pad, SENSOR_PF * (1.0 - 0.05), Some(25.0));
+    assert_eq!(drift.pressure_kpa(), Some(0.0));
+    assert_eq!(drift.flags(), TaxelFlags::BELOW_BASELINE);
+    let conducting = one_taxel(&mut pad, SENSOR_PF * (1.0 - 0.3), Some(25.0));
+    assert_eq!(conducting.pressure_kpa(), None);
+    assert!(conducting.flags().contains(TaxelFlags::SHORTED));
+    let negative = one_taxel(&mut pad, -0.8, Some(25.0));
+    assert_eq!(negative.pressure_kpa(), None);
+    assert!(negative.flags().contains(TaxelFlags::SHORTED));
+    let open = one_taxel(&mut pad, 0.2, Some(25.0));
+    assert_eq!(open.pressure_kpa(), None);
+    assert!(open.flags().contains(TaxelFlags::OPEN));
+}
+
+#[test]
+fn over_range_is_clamped_to_the_top_and_flagged() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    let just_above = one_taxel(&mut pad, SENSOR_PF * 1.2564, Some(25.0));
+    assert_eq!(just_above.pressure_kpa(), Some(50.0));
+    assert_eq!(just_above.flags(), TaxelFlags::OVER_RANGE);
+    let far_above = one_taxel(&mut pad, SENSOR_PF * 3.0, Some(25.0));
+    assert_eq!(far_above.pressure_kpa(), Some(50.0));
+    assert_eq!(far_above.flags(), TaxelFlags::OVER_RANGE);
+    let at_top = one_taxel(&mut pad, SENSOR_PF * 1.2563, Some(25.0));
+    assert!(at_top.pressure_kpa().unwrap() > 49.99);
+}
+
+#[test]
+fn tiny_and_subnormal_changes_give_tiny_pressures_of_the_right_sign() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    let up = one_taxel(
+        &mut pad,
+        f32::from_bits(SENSOR_PF.to_bits() + 1),
+        Some(25.0),
+    );
+    let pressure = up.pressure_kpa().unwrap();
+    assert!(pressure > 0.0 && pressure < 1e-4, "{pressure}");
+    let down = one_taxel(
+        &mut pad,
+        f32::from_bits(SENSOR_PF.to_bits() - 1),
+        Some(25.0),
+    );
+    assert_eq!(down.pressure_kpa(), Some(0.0));
+    assert_eq!(down.flags(), TaxelFlags::empty());
+    for subnormal in [
+        f32::from_bits(1),
+        f32::MIN_POSITIVE / 2.0,
+        -f32::from_bits(1),
+    ] {
+        // Subnormal capacitances are open leads, never pressures.
+        let output = one_taxel(&mut pad, subnormal, Some(25.0));
+        assert_eq!(output.pressure_kpa(), None);
+        assert!(output
+            .flags()
+            .intersects(TaxelFlags::OPEN | TaxelFlags::SHORTED));
+    }
+}
+
+#[test]
+fn one_code_on_top_of_the_largest_capdac_is_resolved_with_sign_and_size() {
+    let mut spec = CalibrationSpec::default();
+    let base_code = 1_234_567;
+    let capdac = 31;
+    let baseline_pf = 96.875 + base_code as f64 / 524_288.0;
+    for taxel in spec.taxels.iter_mut() {
+        taxel.parasitic_pf = (baseline_pf - SENSOR_PF as f64) as f32;
+    }
+    let mut pad = PadModel::new(Calibration::new(&spec).unwrap());
+    let raw = |code| SampleInput::new([TaxelReading::Raw { code, capdac }; 4], Some(25.0));
+    pad.start_tare(1);
+    pad.process(&raw(base_code));
+    let up = pad.process(&raw(base_code + 1)).taxels[0];
+    let relative = up.relative_change().unwrap();
+    let expected_relative = (1.0 / 524_288.0) / (SENSOR_PF as f64);
+    assert!(
+        ((relative as f64 - expected_relative) / expected_relative).abs() < 0.05,
+        "{relative} vs {expected_relative}"
+    );
+    let sensitivity_per_kpa = 0.0829 / 10.0;
+    let expected_kpa = expected_relative / sensitivity_per_kpa;
+    let pressure = up.pressure_kpa().unwrap() as f64;
+    assert!(
+        pressure > 0.0 && (pressure / expected_kpa - 1.0).abs() < 0.2,
+        "{pressure} vs {expected_kpa}"
+    );
+    let down = pad.process(&raw(base_code - 1)).taxels[0];
+    assert!(down.relative_change().unwrap() < 0.0);
+    assert_eq!(down.pressure_kpa(), Some(0.0));
+}
+
+#[test]
+fn saturation_codes_are_faults() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    for code in [SATURATED_HIGH_CODE, SATURATED_LOW_CODE] {
+        let output = pad.process(&SampleInput::new(
+            [TaxelReading::Raw { code, capdac: 1 }; 4],
+            Some(25.0),
+        ));
+        for taxel in output.taxels {
+            assert_eq!(taxel.pressure_kpa(), None);
+            assert!(taxel.flags().contains(TaxelFlags::SATURATED));
+        }
+    }
+}
+
+#[test]
+fn zero_negative_and_nan_baselines_are_refused() {
+    let law = TemperatureLaw::article_default();
+    let thresholds = FaultThresholds::default();
+    for capacitance_pf in [0.0, -4.5, f32::NAN, f32::INFINITY, 0.5] {
+        let split = SplitCapacitance {
+            offset_pf: 0.0,
+            fine_pf: capacitance_pf,
+        };
+        assert!(
+            Baseline::new(split, 0.0, 25.0, &law, &thresholds).is_err(),
+            "{capacitance_pf}"
+        );
+    }
+    let ok = SplitCapacitance {
+        offset_pf: 0.0,
+        fine_pf: SENSOR_PF,
+    };
+    assert_eq!(
+        Baseline::new(ok, 0.0, f32::NAN, &law, &thresholds),
+        Err(BaselineError::NotFinite)
+    );
+    // A tare over zero readings fails and leaves the taxel untared.
+    let mut pad = PadModel::new(Calibration::default());
+    pad.start_tare(2);
+    for _ in 0..2 {
+        pad.process(&SampleInput::new(
+            [TaxelReading::CapacitancePf(0.0); 4],
+            Some(25.0),
+        ));
+    }
+    assert_eq!(pad.tare_status(), TareStatus::Finished { tared_mask: 0 });
+    assert_eq!(
+        pad.last_tare_errors()[0],
+        Some(BaselineError::TooFewSamples)
+    );
+    assert!(pad.baselines().iter().all(Option::is_none));
+}
+
+#[test]
+fn a_tare_with_a_missing_temperature_uses_the_reference_and_stays_usable() {
+    let mut pad = PadModel::new(Calibration::default());
+    pad.start_tare(1);
+    let output = pad.process(&SampleInput::new(
+        [TaxelReading::CapacitancePf(SENSOR_PF); 4],
+        None,
+    ));
+    assert!(output.taxels[0]
+        .flags()
+        .contains(TaxelFlags::TEMPERATURE_MISSING));
+    let loaded = one_taxel(&mut pad, SENSOR_PF * 1.0829, None);
+    assert!((loaded.pressure_kpa().unwrap() - 10.0).abs() < 1e-2);
+    assert!(loaded.flags().contains(TaxelFlags::TEMPERATURE_MISSING));
+}
+
+#[test]
+fn uncorrected_temperature_would_cost_kilopascals_and_correction_removes_it() {
+    let law = TemperatureLaw::article_default();
+    // Tare at 25 °C, unloaded pad warms to 55 °C: the sensor capacitance falls by 3.24 %.
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    let warm_unloaded = one_taxel(
+        &mut pad,
+        SENSOR_PF * law.permittivity_ratio(55.0),
+        Some(55.0),
+    );
+    assert_eq!(warm_unloaded.pressure_kpa(), Some(0.0));
+    assert_eq!(warm_unloaded.flags(), TaxelFlags::empty());
+    // Without the temperature it would read as a large drop below baseline.
+    let mut blind = tared_pad(SENSOR_PF, 25.0);
+    let uncorrected = one_taxel(
+        &mut blind,
+        SENSOR_PF * law.permittivity_ratio(55.0),
+        Some(25.0),
+    );
+    assert!(uncorrected.flags().contains(TaxelFlags::BELOW_BASELINE));
+}
+
+#[test]
+fn tracking_is_off_by_default() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    for _ in 0..10_000 {
+        one_taxel(&mut pad, SENSOR_PF * 1.002, Some(25.0));
+    }
+    let output = one_taxel(&mut pad, SENSOR_PF * 1.002, Some(25.0));
+    assert!(output.pressure_kpa().unwrap() > 0.2);
+}
+
+#[test]
+fn tracking_follows_slow_drift_but_never_erases_a_long_static_contact() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    pad.set_baseline_tracking(BaselineTracking {
+        enabled: true,
+        ..BaselineTracking::default()
+    });
+    // A drift of +0.2 % (below the contact threshold) is absorbed...
+    for _ in 0..100_000 {
+        one_taxel(&mut pad, SENSOR_PF * 1.002, Some(25.0));
+    }
+    let drifted = one_taxel(&mut pad, SENSOR_PF * 1.002, Some(25.0));
+    assert!(drifted.pressure_kpa().unwrap() < 0.01, "{drifted:?}");
+    // ...but a 5 kPa press held for 100 000 sample sets (over 4 minutes at 400 S/s) is not.
+    let pressed_pf = SENSOR_PF * 1.002 * 1.045;
+    let first = one_taxel(&mut pad, pressed_pf, Some(25.0))
+        .pressure_kpa()
+        .unwrap();
+    for _ in 0..100_000 {
+        one_taxel(&mut pad, pressed_pf, Some(25.0));
+    }
+    let last = one_taxel(&mut pad, pressed_pf, Some(25.0))
+        .pressure_kpa()
+        .unwrap();
+    assert!(
+        first > 4.0 && (first - last).abs() < 1e-4,
+        "{first} -> {last}"
+    );
+}
+
+#[test]
+fn tracking_is_bounded_and_says_so() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    pad.set_baseline_tracking(BaselineTracking {
+        enabled: true,
+        contact_threshold_relative: 0.05,
+        rate_per_sample: 0.01,
+        max_drift_relative: 0.01,
+    });
+    let mut last = None;
+    for _ in 0..5_000 {
+        last = Some(one_taxel(&mut pad, SENSOR_PF * 1.03, Some(25.0)));
+    }
+    let last = last.unwrap();
+    assert!(last.flags().contains(TaxelFlags::BASELINE_TRACKING_LIMIT));
+    // 3 % over the tare, at most 1 % absorbed: about 2 % remains.
+    let remaining = last.relative_change().unwrap();
+    assert!((remaining - 0.0198).abs() < 1e-3, "{remaining}");
+}
+
+#[test]
+fn acquisition_flags_turn_a_reading_into_a_fault() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    let mut sample = SampleInput::new(
+        [TaxelReading::CapacitancePf(SENSOR_PF * 1.05); 4],
+        Some(25.0),
+    );
+    sample.reading_flags[1] = TaxelFlags::STUCK;
+    sample.readings[2] = TaxelReading::Unavailable;
+    let output = pad.process(&sample);
+    assert!(output.taxels[0].pressure_kpa().is_some());
+    assert_eq!(output.taxels[1].pressure_kpa(), None);
+    assert_eq!(output.taxels[2].pressure_kpa(), None);
+    assert!(output.taxels[2]
+        .flags()
+        .contains(TaxelFlags::CONVERTER_ERROR));
+}
+
+#[test]
+fn every_tier_gives_the_reference_pressure_at_the_points_through_the_whole_pad() {
+    for tier in Tier::ALL {
+        let mut pad = tared_pad(SENSOR_PF, 25.0);
+        pad.set_tier(tier).unwrap();
+        let output = one_taxel(&mut pad, SENSOR_PF * 1.1475, Some(25.0));
+        let pressure = output.pressure_kpa().unwrap();
+        let tolerance = if tier == Tier::Linear { 12.0 } else { 1.5 };
+        assert!((pressure - 20.0).abs() < tolerance, "{tier:?}: {pressure}");
+    }
+}
+
+/// Sensor at pressure P and temperature T, with a parasitic that does not follow eps_r.
+fn synthetic_pf(pad: &PadModel, parasitic_pf: f32, pressure_kpa: f32, temperature_c: f32) -> f32 {
+    let law = pad.calibration().temperature_law();
+    let relative = pad.taxels()[0].inverses().relative_change_at(pressure_kpa);
+    parasitic_pf + SENSOR_PF * (1.0 + relative) * law.permittivity_ratio(temperature_c)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+
+    /// A reading at T with the tare at T0 gives the same pressure as both at 25 °C.
+    #[test]
+    fn temperature_correction_is_consistent(
+        pressure_kpa in 0.0f32..50.0,
+        temperature_c in 5.0f32..=55.0,
+        tare_temperature_c in 5.0f32..=55.0,
+        parasitic_pf in 0.0f32..20.0,
+    ) {
+        let mut spec = CalibrationSpec::default();
+        for taxel in spec.taxels.iter_mut() {
+            taxel.parasitic_pf = parasitic_pf;
+        }
+        let mut pad = PadModel::new(Calibration::new(&spec).unwrap());
+        let unloaded = synthetic_pf(&pad, parasitic_pf, 0.0, tare_temperature_c);
+        pad.start_tare(1);
+        pad.process(&SampleInput::new([TaxelReading::CapacitancePf(unloaded); 4], Some(tare_temperature_c)));
+        let loaded = synthetic_pf(&pad, parasitic_pf, pressure_kpa, temperature_c);
+        let output = pad.process(&SampleInput::new([TaxelReading::CapacitancePf(loaded); 4], Some(temperature_c)));
+        let pressure = output.taxels[0].pressure_kpa();
+        prop_assert!(pressure.is_some(), "{:?}", output.taxels[0]);
+        // f32 rounding of C (about 1e-6 relative of up to 25 pF) over a sensitivity of
+        // 0.0025 / kPa bounds the agreement at a few hundredths of a kPa near the top.
+        let error = (pressure.unwrap_or(f32::NAN) - pressure_kpa).abs();
+        prop_assert!(error < 0.03, "P {} T {} T0 {}: got {:?}", pressure_kpa, temperature_c, tare_temperature_c, pressure);
+    }
+
+    /// Every f32 bit pattern as a capacitance and as a temperature: no panic, no NaN or inf, and
+    /// a pressure within the curve unless the taxel is flagged as a fault.
+    #[test]
+    fn arbitrary_bits_never_look_like_good_data(
+        capacitance_bits in any::<[u32; 4]>(),
+        temperature_bits in any::<u32>(),
+        code in any::<i32>(),
+        capdac in any::<u8>(),
+    ) {
+        let mut pad = tared_pad(SENSOR_PF, 25.0);
+        let mut readings = capacitance_bits.map(|bits| TaxelReading::CapacitancePf(f32::from_bits(bits)));
+        readings[3] = TaxelReading::Raw { code, capdac };
+        let output = pad.process(&SampleInput::new(readings, Some(f32::from_bits(temperature_bits))));
+        prop_assert!(output.temperature.temperature_c.is_finite());
+        for taxel in output.taxels {
+            match taxel.pressure_kpa() {
+                Some(pressure) => {
+                    prop_assert!(pressure.is_finite() && (0.0..=50.0).contains(&pressure));
+                    prop_assert!(!taxel.flags().is_fault());
+                }
+                None => prop_assert!(taxel.flags().is_fault()),
+            }
+            if let Some(capacitance) = taxel.capacitance_pf() {
+                prop_assert!(capacitance.is_finite());
+            }
+        }
+    }
+}
