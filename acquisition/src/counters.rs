@@ -1,0 +1,46 @@
+//! Event counters that travel with every sample set, so a consumer sees what the loop went
+//! through even when it missed the sets in between.
+
+use fdc1004::Error;
+
+/// Counts since start; every counter wraps at 2^32.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Counters {
+    /// Sample sets the consumer's queue could not take.
+    pub dropped_sets: u32,
+    /// Converter initialisations, the first one included.
+    pub converter_inits: u32,
+    /// I2C transfers to the converter that failed.
+    pub i2c_errors: u32,
+    /// Converter cycles whose DONE bits did not all set in time.
+    pub done_timeouts: u32,
+    /// Initialisations refused because the ID or the configuration read back wrong.
+    pub converter_check_failures: u32,
+    /// Reads that returned zero on all four channels.
+    pub zero_reads: u32,
+    /// Cycles in which a stuck channel was detected.
+    pub stuck_events: u32,
+    /// Failed temperature reads (primary or fallback).
+    pub temperature_errors: u32,
+}
+
+impl Counters {
+    /// Counts one converter error by kind.
+    pub(crate) fn count_converter_error<E>(&mut self, error: &Error<E>) {
+        let counter = match error {
+            Error::I2c(_) => &mut self.i2c_errors,
+            Error::DoneTimeout { .. } => &mut self.done_timeouts,
+            Error::WrongDeviceId { .. }
+            | Error::ConfigMismatch { .. }
+            | Error::ResetTimeout
+            | Error::InvalidConfig => &mut self.converter_check_failures,
+        };
+        *counter = counter.wrapping_add(1);
+    }
+
+    /// Converter re-initialisations after the first one.
+    pub fn converter_reinits(&self) -> u32 {
+        self.converter_inits.saturating_sub(1)
+    }
+}

@@ -1,0 +1,305 @@
+//! The acquisition loop, written against traits so that the firmware and the desktop simulator
+//! run the same code: every converter cycle reads the FDC1004 and a temperature source, runs
+//! model-core, stamps the result and hands it to a consumer without ever waiting for it.
+//!
+//! Recovery is part of the loop: a converter error, an all-zero read or a stuck channel flags the
+//! affected sample set, counts the event and re-initialises the converter on the next cycle; a
+//! temperature sensor that stops answering degrades to the fallback source. Nothing here ever
+//! stops the stream.
+#![no_std]
+#![deny(missing_docs)]
+
+mod counters;
+mod sink;
+mod stuck;
+
+pub use counters::Counters;
+pub use sink::{SampleSink, SinkFull};
+pub use stuck::StuckDetector;
+
+use embedded_hal_async::delay::DelayNs;
+use embedded_hal_async::i2c::I2c;
+use fdc1004::{Fdc1004, Rate};
+use model_core::{PadModel, PadOutput, SampleInput, TaxelFlags, TaxelReading, TAXEL_COUNT};
+use tmp117::TemperatureSource;
+
+/// A monotonic clock in microseconds.
+pub trait Clock {
+    /// Microseconds since an arbitrary start; never goes backwards.
+    fn now_us(&self) -> u64;
+}
+
+/// Where a sample set's temperature came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TemperatureOrigin {
+    /// The primary sensor (the TMP117 on the pad).
+    Primary,
+    /// The fallback sensor (the MCU's internal sensor): flagged, less accurate.
+    Fallback,
+    /// Neither answered; the model used the last valid temperature.
+    None,
+}
+
+/// One converter cycle, as read and as converted.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ProcessedSample {
+    /// Increments every cycle, including cycles that produced only faults; a gap at the
+    /// consumer means sets were dropped.
+    pub sequence: u32,
+    /// When the converter's results were read, µs.
+    pub timestamp_us: u64,
+    /// The readings handed to the model.
+    pub input: SampleInput,
+    /// Where the temperature came from.
+    pub temperature_origin: TemperatureOrigin,
+    /// The model's result.
+    pub output: PadOutput,
+    /// Counters as of this set.
+    pub counters: Counters,
+}
+
+/// Tunables of the loop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AcquisitionConfig {
+    /// A channel repeating the same code for this many cycles while another channel moves is
+    /// flagged stuck and the converter is re-initialised.
+    pub stuck_after_cycles: u16,
+    /// While the primary temperature sensor is failing, try it again every this many cycles.
+    pub primary_temperature_retry_cycles: u16,
+    /// Wait after a failed converter initialisation before the next attempt, µs.
+    pub reinit_backoff_us: u32,
+    /// Sample sets averaged by the tare taken automatically at start (0 = none).
+    pub tare_sets_at_start: u16,
+}
+
+impl Default for AcquisitionConfig {
+    fn default() -> Self {
+        Self {
+            stuck_after_cycles: 50,
+            primary_temperature_retry_cycles: 100,
+            reinit_backoff_us: 20_000,
+            tare_sets_at_start: 16,
+        }
+    }
+}
+
+/// The acquisition loop's state: the converter, the temperature sources, the clock and the model.
+pub struct Acquisition<I2C, D, T, F, K> {
+    converter: Fdc1004<I2C, D>,
+    primary_temperature: T,
+    fallback_temperature: F,
+    clock: K,
+    pad: PadModel,
+    config: AcquisitionConfig,
+    counters: Counters,
+    stuck: StuckDetector,
+    sequence: u32,
+    converter_ready: bool,
+    primary_failing_cycles: Option<u16>,
+    delay_after_failure: D,
+}
+
+impl<I2C, D, T, F, K> Acquisition<I2C, D, T, F, K>
+where
+    I2C: I2c,
+    D: DelayNs,
+    T: TemperatureSource,
+    F: TemperatureSource,
+    K: Clock,
+{
+    /// Assembles the loop. The converter is initialised on the first cycle; `backoff_delay`
+    /// waits between failed initialisations.
+    pub fn new(
+        converter: Fdc1004<I2C, D>,
+        primary_temperature: T,
+        fallback_temperature: F,
+        clock: K,
+        pad: PadModel,
+        config: AcquisitionConfig,
+        backoff_delay: D,
+    ) -> Self {
+        let mut acquisition = Self {
+            converter,
+            primary_temperature,
+            fallback_temperature,
+            clock,
+            pad,
+            config,
+            counters: Counters::default(),
+            stuck: StuckDetector::new(config.stuck_after_cycles),
+            sequence: 0,
+            converter_ready: false,
+            primary_failing_cycles: None,
+            delay_after_failure: backoff_delay,
+        };
+        if config.tare_sets_at_start > 0 {
+            acquisition.pad.start_tare(config.tare_sets_at_start);
+        }
+        acquisition
+    }
+
+    /// The model (tier, calibration, tare) for commands between cycles.
+    pub fn pad_mut(&mut self) -> &mut PadModel {
+        &mut self.pad
+    }
+
+    /// The model.
+    pub fn pad(&self) -> &PadModel {
+        &self.pad
+    }
+
+    /// The counters so far.
+    pub fn counters(&self) -> Counters {
+        self.counters
+    }
+
+    /// The converter's sample rate.
+    pub fn rate(&self) -> Rate {
+        self.converter.config().rate
+    }
+
+    /// Changes the converter's rate; takes effect through a re-initialisation on the next cycle.
+    pub fn set_rate(&mut self, rate: Rate) {
+        let mut config = *self.converter.config();
+        config.rate = rate;
+        self.converter.set_config(config);
+        self.converter_ready = false;
+    }
+
+    /// Counts a sample set the consumer could not take.
+    pub fn count_dropped(&mut self) {
+        self.counters.dropped_sets = self.counters.dropped_sets.wrapping_add(1);
+    }
+
+    /// Runs cycles forever, handing each to `sink` without waiting for it (a full sink drops the
+    /// set and counts it). `between_cycles` runs after each cycle with the loop itself, for
+    /// commands and watchdog feeding.
+    pub async fn run<S: SampleSink>(
+        &mut self,
+        sink: &mut S,
+        mut between_cycles: impl FnMut(&mut Self),
+    ) -> ! {
+        loop {
+            let sample = self.cycle().await;
+            if sink.try_push(sample).is_err() {
+                self.count_dropped();
+            }
+            between_cycles(self);
+        }
+    }
+
+    /// One converter cycle: (re-)initialise if needed, read, check, convert.
+    pub async fn cycle(&mut self) -> ProcessedSample {
+        let mut reading_flags = [TaxelFlags::empty(); TAXEL_COUNT];
+        let readings = match self.read_converter().await {
+            Some(codes) => {
+                let capdac = self.converter.config().capdac;
+                let stuck = self.stuck.update(&codes);
+                for (taxel, is_stuck) in stuck.iter().enumerate() {
+                    if *is_stuck {
+                        reading_flags[taxel] |= TaxelFlags::STUCK;
+                    }
+                }
+                if stuck.iter().any(|is_stuck| *is_stuck) {
+                    self.counters.stuck_events = self.counters.stuck_events.wrapping_add(1);
+                    self.converter_ready = false;
+                }
+                core::array::from_fn(|taxel| TaxelReading::Raw {
+                    code: codes[taxel],
+                    capdac: capdac[taxel],
+                })
+            }
+            None => {
+                reading_flags = [TaxelFlags::CONVERTER_ERROR; TAXEL_COUNT];
+                [TaxelReading::Unavailable; TAXEL_COUNT]
+            }
+        };
+        let (temperature_c, temperature_origin) = self.read_temperature().await;
+        let input = SampleInput {
+            readings,
+            reading_flags,
+            temperature_c,
+        };
+        let output = self.pad.process(&input);
+        let sample = ProcessedSample {
+            sequence: self.sequence,
+            timestamp_us: self.clock.now_us(),
+            input,
+            temperature_origin,
+            output,
+            counters: self.counters,
+        };
+        self.sequence = self.sequence.wrapping_add(1);
+        sample
+    }
+
+    async fn read_converter(&mut self) -> Option<[i32; TAXEL_COUNT]> {
+        if !self.converter_ready {
+            self.counters.converter_inits = self.counters.converter_inits.wrapping_add(1);
+            if let Err(error) = self.converter.init().await {
+                self.counters.count_converter_error(&error);
+                self.delay_after_failure
+                    .delay_us(self.config.reinit_backoff_us)
+                    .await;
+                return None;
+            }
+            self.stuck.reset();
+            self.converter_ready = true;
+        }
+        match self.converter.read_measurements().await {
+            Ok(measurements) if measurements.all_zero() => {
+                self.counters.zero_reads = self.counters.zero_reads.wrapping_add(1);
+                self.converter_ready = false;
+                None
+            }
+            Ok(measurements) => Some(measurements.codes.map(|code| code.0)),
+            Err(error) => {
+                self.counters.count_converter_error(&error);
+                self.converter_ready = false;
+                None
+            }
+        }
+    }
+
+    async fn read_temperature(&mut self) -> (Option<f32>, TemperatureOrigin) {
+        let try_primary = match self.primary_failing_cycles {
+            None => true,
+            Some(cycles) => cycles >= self.config.primary_temperature_retry_cycles,
+        };
+        if try_primary {
+            match self.primary_temperature.read_temperature_c().await {
+                Ok(temperature_c) if temperature_c.is_finite() => {
+                    self.primary_failing_cycles = None;
+                    return (Some(temperature_c), TemperatureOrigin::Primary);
+                }
+                _ => {
+                    self.counters.temperature_errors =
+                        self.counters.temperature_errors.wrapping_add(1);
+                    self.primary_failing_cycles = Some(0);
+                }
+            }
+        } else if let Some(cycles) = self.primary_failing_cycles.as_mut() {
+            *cycles = cycles.saturating_add(1);
+        }
+        match self.fallback_temperature.read_temperature_c().await {
+            Ok(temperature_c) if temperature_c.is_finite() => {
+                (Some(temperature_c), TemperatureOrigin::Fallback)
+            }
+            _ => {
+                self.counters.temperature_errors = self.counters.temperature_errors.wrapping_add(1);
+                (None, TemperatureOrigin::None)
+            }
+        }
+    }
+}
+
+/// Convenience: the model's output of a processed set.
+impl ProcessedSample {
+    /// The model's result.
+    pub fn pad_output(&self) -> &PadOutput {
+        &self.output
+    }
+}

@@ -1,0 +1,268 @@
+//! Commands from the host to the device, the calibration they carry, the error codes the
+//! device answers with, and the argument checks the device applies before acting.
+
+use heapless::Vec;
+use serde::{Deserialize, Serialize};
+
+use crate::error::DecodeError;
+use crate::TAXEL_COUNT;
+
+/// The most calibration points one taxel calibration holds.
+pub const CALIBRATION_POINTS_MAX: usize = 16;
+
+/// The number of [`Command`] variants; a discriminant at or above it is
+/// [`ErrorCode::UnknownCommand`].
+pub const COMMAND_COUNT: u32 = 13;
+
+/// Why the device refused a request.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ErrorCode {
+    /// The command discriminant is not one this firmware knows.
+    UnknownCommand,
+    /// The request id was readable but the rest of the body was not.
+    Malformed,
+    /// The command is known and well formed but an argument is out of range.
+    InvalidArgument,
+    /// The device cannot do this now (for example a tare is already running).
+    Busy,
+    /// Writing or reading the calibration flash failed.
+    FlashError,
+    /// The firmware does not implement this (for example an unknown model tier id).
+    NotSupported,
+}
+
+/// The sample-set rates the device supports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SampleRate {
+    /// 100 sample sets per second.
+    Sps100,
+    /// 200 sample sets per second.
+    Sps200,
+    /// 400 sample sets per second.
+    Sps400,
+}
+
+impl SampleRate {
+    /// The rate for a value in sample sets per second, if it is supported.
+    pub const fn from_sps(rate_sps: u16) -> Option<SampleRate> {
+        match rate_sps {
+            100 => Some(SampleRate::Sps100),
+            200 => Some(SampleRate::Sps200),
+            400 => Some(SampleRate::Sps400),
+            _ => None,
+        }
+    }
+
+    /// This rate in sample sets per second.
+    pub const fn sps(self) -> u16 {
+        match self {
+            SampleRate::Sps100 => 100,
+            SampleRate::Sps200 => 200,
+            SampleRate::Sps400 => 400,
+        }
+    }
+}
+
+/// The measurement task the host asks the device to choose a model tier for.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct UseCase {
+    /// The highest pressure to be measured, in kPa.
+    pub pressure_max_kpa: f32,
+    /// The lowest operating temperature, in °C.
+    pub temperature_min_c: f32,
+    /// The highest operating temperature, in °C.
+    pub temperature_max_c: f32,
+    /// The largest acceptable pressure error, in kPa.
+    pub error_budget_kpa: f32,
+}
+
+/// The calibration of one taxel: its loading curve and its parasitic capacitance.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TaxelCalibrationWire {
+    /// `(pressure_kpa, relative_change)` pairs, relative change = ΔC/C0, pressure ascending.
+    pub points: Vec<(f32, f32), CALIBRATION_POINTS_MAX>,
+    /// The capacitance in pF that does not belong to the sensor (cable, pads).
+    pub parasitic_pf: f32,
+}
+
+/// A taxel calibration together with the taxel it belongs to and the calibration id.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TaxelCalibrationRecord {
+    /// The taxel, 0..=3 for C11, C12, C21, C22.
+    pub taxel_index: u8,
+    /// The calibration id reported by [`crate::InfoFrame::calibration_id`] once this is in use.
+    pub calibration_id: u32,
+    /// The calibration.
+    pub calibration: TaxelCalibrationWire,
+}
+
+impl TaxelCalibrationRecord {
+    /// The largest encoding: taxel 1 + id 5 (varint u32) + point count 1 + 16 points x 8
+    /// + parasitic 4.
+    pub const MAX_LEN: usize = 1 + 5 + 1 + CALIBRATION_POINTS_MAX * 8 + 4;
+
+    /// Checks what the wire can check: a taxel index below 4, at least two points, finite
+    /// values, pressure and relative change both strictly increasing, and a finite,
+    /// non-negative parasitic capacitance. The device's model may refuse more.
+    pub fn check(&self) -> Result<(), ErrorCode> {
+        let points = &self.calibration.points;
+        let parasitic_pf = self.calibration.parasitic_pf;
+        let strictly_increasing = points
+            .windows(2)
+            .all(|pair| pair[1].0 > pair[0].0 && pair[1].1 > pair[0].1);
+        let finite = points.iter().all(|(pressure_kpa, relative_change)| {
+            pressure_kpa.is_finite() && relative_change.is_finite()
+        });
+        if usize::from(self.taxel_index) < TAXEL_COUNT
+            && points.len() >= 2
+            && finite
+            && strictly_increasing
+            && parasitic_pf.is_finite()
+            && parasitic_pf >= 0.0
+        {
+            Ok(())
+        } else {
+            Err(ErrorCode::InvalidArgument)
+        }
+    }
+}
+
+/// A command from the host. The postcard discriminant of each variant is its position here,
+/// starting at 0; new commands are only ever appended.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Command {
+    /// Replies [`crate::ReplyPayload::Info`].
+    Info,
+    /// Replies [`crate::ReplyPayload::Counters`].
+    ReadCounters,
+    /// Starts sending sample frames (or CSV lines in text mode). Replies Ack.
+    StartStreaming,
+    /// Stops sending samples. Replies Ack.
+    StopStreaming,
+    /// Sets the sample-set rate; 100, 200 or 400, anything else is
+    /// [`ErrorCode::InvalidArgument`]. Replies Ack.
+    SetRate {
+        /// The rate in sample sets per second.
+        rate_sps: u16,
+    },
+    /// Takes the unloaded reference of every taxel as the mean of this many sample sets
+    /// (at least 1). Replies Ack when done.
+    Tare {
+        /// The number of sample sets to average.
+        sample_sets: u16,
+    },
+    /// Selects a model tier by id; an id the firmware lacks is [`ErrorCode::NotSupported`].
+    /// Replies Ack.
+    SetModelTier {
+        /// The tier id.
+        tier: u8,
+    },
+    /// Lets the device choose the tier for a use case. Replies
+    /// [`crate::ReplyPayload::ModelTier`], or [`ErrorCode::NotSupported`] if no tier fits.
+    SetUseCase(UseCase),
+    /// Replies [`crate::ReplyPayload::Calibration`] for one taxel.
+    ReadCalibration {
+        /// The taxel, 0..=3.
+        taxel_index: u8,
+    },
+    /// Replaces one taxel's calibration in RAM (calibration source becomes Host). Replies Ack.
+    WriteCalibration(TaxelCalibrationRecord),
+    /// Writes the calibration in use to flash. Replies Ack, or [`ErrorCode::FlashError`].
+    SaveCalibration,
+    /// Replaces the calibration in RAM by the built-in defaults (flash is untouched until
+    /// [`Command::SaveCalibration`]). Replies Ack.
+    RestoreDefaults,
+    /// Switches text mode (CSV lines instead of binary frames) on or off. Replies Ack, sent
+    /// as a binary frame in either mode.
+    SetTextMode {
+        /// Text mode on.
+        enabled: bool,
+    },
+}
+
+impl Command {
+    /// Checks the arguments the wire protocol constrains; `Err` is the error code to reply.
+    pub fn check_arguments(&self) -> Result<(), ErrorCode> {
+        match self {
+            Command::SetRate { rate_sps } => match SampleRate::from_sps(*rate_sps) {
+                Some(_) => Ok(()),
+                None => Err(ErrorCode::InvalidArgument),
+            },
+            Command::Tare { sample_sets } if *sample_sets == 0 => Err(ErrorCode::InvalidArgument),
+            Command::SetUseCase(use_case) => {
+                let valid = use_case.pressure_max_kpa.is_finite()
+                    && use_case.pressure_max_kpa > 0.0
+                    && use_case.temperature_min_c.is_finite()
+                    && use_case.temperature_max_c.is_finite()
+                    && use_case.temperature_min_c < use_case.temperature_max_c
+                    && use_case.error_budget_kpa.is_finite()
+                    && use_case.error_budget_kpa > 0.0;
+                if valid {
+                    Ok(())
+                } else {
+                    Err(ErrorCode::InvalidArgument)
+                }
+            }
+            Command::ReadCalibration { taxel_index }
+                if usize::from(*taxel_index) >= TAXEL_COUNT =>
+            {
+                Err(ErrorCode::InvalidArgument)
+            }
+            Command::WriteCalibration(record) => record.check(),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// A command with the id its reply will carry.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Request {
+    /// Chosen by the host (typically incrementing); echoed in [`crate::ReplyFrame::request_id`].
+    pub request_id: u16,
+    /// What to do.
+    pub command: Command,
+}
+
+impl Request {
+    /// The largest body, a calibration write: request id 3 + command tag 1
+    /// + [`TaxelCalibrationRecord::MAX_LEN`].
+    pub const MAX_BODY_LEN: usize = 3 + 1 + TaxelCalibrationRecord::MAX_LEN;
+    /// The largest encoded frame, delimiter included.
+    pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
+
+    /// Parses a request body. When the request id is readable but the command is not, the
+    /// error is [`DecodeError::InvalidRequest`] so that the device can still answer.
+    pub(crate) fn from_body(body: &[u8]) -> Result<Request, DecodeError> {
+        match postcard::take_from_bytes::<Request>(body) {
+            Ok((request, [])) => Ok(request),
+            Ok((request, _)) => Err(DecodeError::InvalidRequest {
+                request_id: request.request_id,
+                error: ErrorCode::Malformed,
+            }),
+            Err(error) => match postcard::take_from_bytes::<u16>(body) {
+                Ok((request_id, rest)) => {
+                    let unknown = matches!(
+                        postcard::take_from_bytes::<u32>(rest),
+                        Ok((discriminant, _)) if discriminant >= COMMAND_COUNT
+                    );
+                    Err(DecodeError::InvalidRequest {
+                        request_id,
+                        error: if unknown {
+                            ErrorCode::UnknownCommand
+                        } else {
+                            ErrorCode::Malformed
+                        },
+                    })
+                }
+                Err(_) => Err(DecodeError::Postcard(error)),
+            },
+        }
+    }
+}

@@ -1,0 +1,200 @@
+//! Frames sent by the device to the host, except the sample frame (see `sample.rs`): identity,
+//! health counters, replies to commands and asynchronous events. Their bodies are plain derived
+//! postcard encodings.
+
+use serde::{Deserialize, Serialize};
+
+use crate::command::{ErrorCode, TaxelCalibrationRecord};
+use crate::sample::{SampleFrame, TemperatureSource};
+
+/// A frame from the device to the host.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DeviceFrame {
+    /// Identity and state; sent unsolicited when the host opens the port and after a frame
+    /// with an unsupported protocol version. Kind [`crate::kind::INFO`].
+    Info(InfoFrame),
+    /// One sample set. Kind [`crate::kind::SAMPLE`].
+    Sample(SampleFrame),
+    /// Health counters. Kind [`crate::kind::COUNTERS`].
+    Counters(CountersFrame),
+    /// The answer to one request. Kind [`crate::kind::REPLY`].
+    Reply(ReplyFrame),
+    /// An asynchronous event. Kind [`crate::kind::EVENT`].
+    Event(EventFrame),
+}
+
+/// A firmware version, semantic-versioning style.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FirmwareVersion {
+    /// Incompatible changes.
+    pub major: u8,
+    /// Compatible additions.
+    pub minor: u8,
+    /// Fixes.
+    pub patch: u8,
+}
+
+/// Where the calibration in use came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CalibrationSource {
+    /// Loaded from the device's flash at boot.
+    Flash,
+    /// The built-in defaults (nothing was saved, or restore-defaults was requested).
+    Defaults,
+    /// The built-in defaults because the flash copy failed its integrity check at boot.
+    DefaultsAfterCorruptFlash,
+    /// Written by the host since boot and not necessarily saved.
+    Host,
+}
+
+/// Device identity and state.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct InfoFrame {
+    /// The protocol version the firmware speaks ([`crate::PROTOCOL_VERSION`]).
+    pub protocol_version: u8,
+    /// The firmware version.
+    pub firmware_version: FirmwareVersion,
+    /// The MCU's 96-bit unique device ID, in the byte order it is read from memory.
+    pub board_serial: [u8; 12],
+    /// Identifies the calibration in use (chosen by whoever wrote it).
+    pub calibration_id: u32,
+    /// Where the calibration in use came from.
+    pub calibration_source: CalibrationSource,
+    /// The sample-set rate in sample sets per second.
+    pub rate_sps: u16,
+    /// The id of the pressure-model tier in use.
+    pub model_tier: u8,
+    /// Whether sample frames are being sent.
+    pub streaming: bool,
+    /// Whether the device prints CSV lines instead of binary frames.
+    pub text_mode: bool,
+}
+
+impl InfoFrame {
+    /// The largest body: 1 + 3 + 12 + 5 (varint u32) + 1 + 3 (varint u16) + 1 + 1 + 1.
+    pub const MAX_BODY_LEN: usize = 1 + 3 + 12 + 5 + 1 + 3 + 1 + 1 + 1;
+    /// The largest encoded frame, delimiter included.
+    pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
+}
+
+/// Health counters since boot; each saturates at `u32::MAX`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CountersFrame {
+    /// Sample sets produced but not sent because the output queue was full.
+    pub dropped_sample_sets: u32,
+    /// Times the converter was reset and reconfigured after an error.
+    pub converter_reinits: u32,
+    /// Failed I2C transfers (converter and temperature sensor).
+    pub i2c_errors: u32,
+    /// Failed or implausible temperature-sensor readings.
+    pub temperature_sensor_errors: u32,
+    /// Frames discarded because no host had the port open.
+    pub frames_dropped_no_host: u32,
+    /// Frames from the host that were rejected without a reply (bad COBS, CRC, version, kind).
+    pub host_frames_rejected: u32,
+}
+
+impl CountersFrame {
+    /// The largest body: six varint u32 of 5 bytes.
+    pub const MAX_BODY_LEN: usize = 6 * 5;
+    /// The largest encoded frame, delimiter included.
+    pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
+}
+
+/// What a successful request returns.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ReplyPayload {
+    /// Done, nothing to return.
+    Ack,
+    /// The answer to [`crate::Command::Info`].
+    Info(InfoFrame),
+    /// The answer to [`crate::Command::ReadCounters`].
+    Counters(CountersFrame),
+    /// The answer to [`crate::Command::ReadCalibration`].
+    Calibration(TaxelCalibrationRecord),
+    /// The answer to [`crate::Command::SetUseCase`]: the model tier the device selected.
+    ModelTier(u8),
+}
+
+/// The answer to one request.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ReplyFrame {
+    /// The request id of the request this answers.
+    pub request_id: u16,
+    /// The outcome.
+    pub result: Result<ReplyPayload, ErrorCode>,
+}
+
+impl ReplyFrame {
+    /// The largest body, a calibration reply with 16 points: request id 3 + result tag 1
+    /// + payload tag 1 + [`TaxelCalibrationRecord::MAX_LEN`].
+    pub const MAX_BODY_LEN: usize = 3 + 1 + 1 + TaxelCalibrationRecord::MAX_LEN;
+    /// The largest encoded frame, delimiter included (more than one USB packet).
+    pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
+    /// The largest encoded frame of every reply except calibration replies with more than
+    /// [`ReplyFrame::CALIBRATION_POINTS_IN_ONE_PACKET`] points: a reply carrying an info frame.
+    pub const MAX_ENCODED_LEN_WITHOUT_CALIBRATION: usize =
+        crate::frame_encoded_len_bound(3 + 1 + 1 + InfoFrame::MAX_BODY_LEN);
+    /// The most calibration points a calibration reply can carry and still fit one 63-byte
+    /// frame in the worst case of its other fields.
+    pub const CALIBRATION_POINTS_IN_ONE_PACKET: usize = 5;
+}
+
+/// An asynchronous device event.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DeviceEvent {
+    /// The converter was reset and reconfigured after an error; samples were lost.
+    ConverterReinitialised {
+        /// The total count since boot, as in [`CountersFrame::converter_reinits`].
+        reinit_count: u32,
+    },
+    /// The temperature source changed: a fallback when it is no longer the TMP117, a recovery
+    /// when it is again.
+    TemperatureSourceChanged {
+        /// The source now in use.
+        source: TemperatureSource,
+    },
+    /// At boot the calibration in flash failed its integrity check; defaults are in use.
+    CalibrationFlashCorrupt,
+}
+
+/// An asynchronous device event with the time it happened.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct EventFrame {
+    /// The device clock when the event happened, in microseconds since boot.
+    pub timestamp_us: u64,
+    /// What happened.
+    pub event: DeviceEvent,
+}
+
+impl EventFrame {
+    /// The largest body: timestamp 10 (varint u64) + event tag 1 + count 5 (varint u32).
+    pub const MAX_BODY_LEN: usize = 10 + 1 + 5;
+    /// The largest encoded frame, delimiter included.
+    pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
+}
+
+impl DeviceFrame {
+    /// The largest encoded device frame, delimiter included (a calibration reply).
+    pub const MAX_ENCODED_LEN: usize = ReplyFrame::MAX_ENCODED_LEN;
+
+    /// The kind byte of this frame.
+    pub const fn kind(&self) -> u8 {
+        match self {
+            DeviceFrame::Info(_) => crate::kind::INFO,
+            DeviceFrame::Sample(_) => crate::kind::SAMPLE,
+            DeviceFrame::Counters(_) => crate::kind::COUNTERS,
+            DeviceFrame::Reply(_) => crate::kind::REPLY,
+            DeviceFrame::Event(_) => crate::kind::EVENT,
+        }
+    }
+}

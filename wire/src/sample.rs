@@ -1,0 +1,205 @@
+//! The sample frame: one sample set of the four taxels, laid out so that its worst case
+//! (every value present) encodes to 63 bytes and therefore always fits one 64-byte USB packet
+//! without a zero-length packet.
+//!
+//! The body is not a derived postcard struct: a status byte says which optional values follow,
+//! and the integers are fixed-width little-endian because their varint worst cases
+//! (5 bytes for a u32, 10 for a u64, 3 for a u16) would not fit the packet.
+
+use core::fmt;
+
+use serde::de::{Error as _, SeqAccess, Visitor};
+use serde::ser::SerializeTuple;
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+use crate::TAXEL_COUNT;
+
+/// Where the temperature of a sample set came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum TemperatureSource {
+    /// No temperature is known; the model ran without temperature correction.
+    None = 0,
+    /// The TMP117 next to the pad (the normal case).
+    Tmp117 = 1,
+    /// The MCU's internal sensor, a fallback while the TMP117 does not answer.
+    McuInternal = 2,
+    /// The last valid reading, held while no sensor answers.
+    LastKnown = 3,
+}
+
+impl TemperatureSource {
+    /// The 2-bit code of this source (also its postcard discriminant).
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The source of a 2-bit code; only the two low bits are read, so every byte maps to a source.
+    pub const fn from_code(code: u8) -> TemperatureSource {
+        match code & 0b11 {
+            0 => TemperatureSource::None,
+            1 => TemperatureSource::Tmp117,
+            2 => TemperatureSource::McuInternal,
+            _ => TemperatureSource::LastKnown,
+        }
+    }
+}
+
+/// One taxel of a sample set.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TaxelSample {
+    /// The pressure in kPa; `None` when the taxel is faulted (never sent as a number then).
+    pub pressure_kpa: Option<f32>,
+    /// The measured capacitance in pF, parasitic capacitance included.
+    pub capacitance_pf: f32,
+    /// The raw taxel flag bits, see [`crate::flags`].
+    pub flags: u16,
+}
+
+/// One sample set: the four taxels at one instant, with temperature and timing.
+///
+/// Its serde implementation is the wire layout and is meant for postcard: absent values are
+/// left out of a tuple, which other serde formats would see as a tuple of varying length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SampleFrame {
+    /// Increments by one per sample set produced (dropped sets leave a gap); wraps at `u32::MAX`.
+    pub sequence: u32,
+    /// The device clock at the end of the conversion, in microseconds since boot.
+    pub timestamp_us: u64,
+    /// The temperature used for this sample set, in °C.
+    pub temperature_c: Option<f32>,
+    /// Where `temperature_c` came from.
+    pub temperature_source: TemperatureSource,
+    /// The taxels C11, C12, C21, C22.
+    pub taxels: [TaxelSample; TAXEL_COUNT],
+}
+
+/// Status byte bits 0..=3: the pressure of taxel 0..=3 follows.
+const STATUS_PRESSURE_PRESENT_MASK: u8 = 0b0000_1111;
+/// Status byte bit 4: the temperature follows.
+const STATUS_TEMPERATURE_PRESENT: u8 = 1 << 4;
+/// Status byte bits 5..=6: the temperature source code.
+const STATUS_TEMPERATURE_SOURCE_SHIFT: u32 = 5;
+/// Status byte bit 7: reserved, must be zero in version 1.
+const STATUS_RESERVED: u8 = 1 << 7;
+
+/// Status, sequence, timestamp, temperature, then pressure, capacitance, flags per taxel.
+const SAMPLE_ELEMENT_COUNT_MAX: usize = 4 + 3 * TAXEL_COUNT;
+
+impl SampleFrame {
+    /// The largest body: status 1 + sequence 4 + timestamp 8 + temperature 4
+    /// + 4 x (pressure 4 + capacitance 4 + flags 2).
+    pub const MAX_BODY_LEN: usize = 1 + 4 + 8 + 4 + TAXEL_COUNT * (4 + 4 + 2);
+    /// The largest encoded frame, delimiter included (63 bytes: one USB packet, no ZLP needed).
+    pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
+
+    /// The status byte that leads the body.
+    pub fn status_byte(&self) -> u8 {
+        let mut status = self.temperature_source.code() << STATUS_TEMPERATURE_SOURCE_SHIFT;
+        if self.temperature_c.is_some() {
+            status |= STATUS_TEMPERATURE_PRESENT;
+        }
+        for (index, taxel) in self.taxels.iter().enumerate() {
+            if taxel.pressure_kpa.is_some() {
+                status |= 1 << index;
+            }
+        }
+        status
+    }
+}
+
+impl Serialize for SampleFrame {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        // postcard writes tuple elements back to back without a count, so optional elements are
+        // simply left out; the status byte tells the reader which ones are there.
+        let mut tuple = serializer.serialize_tuple(SAMPLE_ELEMENT_COUNT_MAX)?;
+        tuple.serialize_element(&self.status_byte())?;
+        tuple.serialize_element(&self.sequence.to_le_bytes())?;
+        tuple.serialize_element(&self.timestamp_us.to_le_bytes())?;
+        if let Some(temperature_c) = self.temperature_c {
+            tuple.serialize_element(&temperature_c)?;
+        }
+        for taxel in &self.taxels {
+            if let Some(pressure_kpa) = taxel.pressure_kpa {
+                tuple.serialize_element(&pressure_kpa)?;
+            }
+            tuple.serialize_element(&taxel.capacitance_pf)?;
+            tuple.serialize_element(&taxel.flags.to_le_bytes())?;
+        }
+        tuple.end()
+    }
+}
+
+impl<'de> Deserialize<'de> for SampleFrame {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        deserializer.deserialize_tuple(SAMPLE_ELEMENT_COUNT_MAX, SampleVisitor)
+    }
+}
+
+struct SampleVisitor;
+
+/// Reads the tuple elements in order and counts them for the error message.
+struct Elements<A> {
+    access: A,
+    read: usize,
+}
+
+impl<'de, A: SeqAccess<'de>> Elements<A> {
+    fn next<T: Deserialize<'de>>(&mut self) -> Result<T, A::Error> {
+        let index = self.read;
+        self.read += 1;
+        self.access
+            .next_element()?
+            .ok_or_else(|| A::Error::invalid_length(index, &"a sample frame body"))
+    }
+}
+
+impl<'de> Visitor<'de> for SampleVisitor {
+    type Value = SampleFrame;
+
+    fn expecting(&self, formatter: &mut fmt::Formatter<'_>) -> fmt::Result {
+        formatter.write_str("a sample frame body")
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, access: A) -> Result<SampleFrame, A::Error> {
+        let mut elements = Elements { access, read: 0 };
+        let status: u8 = elements.next()?;
+        if status & STATUS_RESERVED != 0 {
+            return Err(A::Error::custom("reserved status bit set"));
+        }
+        let sequence = u32::from_le_bytes(elements.next()?);
+        let timestamp_us = u64::from_le_bytes(elements.next()?);
+        let temperature_c = if status & STATUS_TEMPERATURE_PRESENT != 0 {
+            Some(elements.next::<f32>()?)
+        } else {
+            None
+        };
+        let temperature_source =
+            TemperatureSource::from_code(status >> STATUS_TEMPERATURE_SOURCE_SHIFT);
+        let mut taxels = [TaxelSample {
+            pressure_kpa: None,
+            capacitance_pf: 0.0,
+            flags: 0,
+        }; TAXEL_COUNT];
+        for (taxel_index, taxel) in taxels.iter_mut().enumerate() {
+            let pressure_present = status & STATUS_PRESSURE_PRESENT_MASK & (1 << taxel_index) != 0;
+            taxel.pressure_kpa = if pressure_present {
+                Some(elements.next::<f32>()?)
+            } else {
+                None
+            };
+            taxel.capacitance_pf = elements.next()?;
+            taxel.flags = u16::from_le_bytes(elements.next()?);
+        }
+        Ok(SampleFrame {
+            sequence,
+            timestamp_us,
+            temperature_c,
+            temperature_source,
+            taxels,
+        })
+    }
+}

@@ -1,0 +1,131 @@
+//! Text mode: the device prints one CSV line per sample set so that a plain serial terminal or
+//! plotter works, and listens for the line `binary` to go back to binary frames.
+
+use core::fmt::Write;
+
+use heapless::String;
+
+use crate::sample::SampleFrame;
+
+/// The CSV column names, printed by the device when text mode starts (followed by `\r\n`).
+pub const CSV_HEADER: &str =
+    "seq,time_s,temp_c,p11_kpa,p12_kpa,p21_kpa,p22_kpa,flags11,flags12,flags21,flags22";
+
+/// The longest line [`format_csv_line`] can produce, `\r\n` included: sequence 10 + time 21
+/// + five numbers of 44 (`-f32::MAX` with three decimals) + four flags of 5 + 10 commas + 2.
+pub const CSV_LINE_MAX_LEN: usize = 10 + 21 + 5 * 44 + 4 * 5 + 10 + 2;
+
+/// The line did not fit the string given to [`format_csv_line`]; the string was left empty.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CsvLineTooLong;
+
+impl core::fmt::Display for CsvLineTooLong {
+    fn fmt(&self, formatter: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        formatter.write_str("CSV line longer than the string capacity")
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for CsvLineTooLong {}
+
+fn write_optional<W: Write>(line: &mut W, value: Option<f32>) -> core::fmt::Result {
+    match value {
+        Some(value) => write!(line, ",{value:.3}"),
+        // `nan` is read as not-a-number by spreadsheets, numpy and pandas, so a missing value
+        // can never be mistaken for a measurement.
+        None => line.write_str(",nan"),
+    }
+}
+
+fn write_line<W: Write>(sample: &SampleFrame, line: &mut W) -> core::fmt::Result {
+    write!(
+        line,
+        "{},{}.{:06}",
+        sample.sequence,
+        sample.timestamp_us / 1_000_000,
+        sample.timestamp_us % 1_000_000
+    )?;
+    write_optional(line, sample.temperature_c)?;
+    for taxel in &sample.taxels {
+        write_optional(line, taxel.pressure_kpa)?;
+    }
+    for taxel in &sample.taxels {
+        write!(line, ",{}", taxel.flags)?;
+    }
+    line.write_str("\r\n")
+}
+
+/// Replaces the content of `line` by the CSV line of `sample`, `\r\n` included, columns as in
+/// [`CSV_HEADER`]: time in seconds with 6 decimals, temperature and pressures with 3 decimals
+/// or `nan` when absent, flags in decimal. A capacity of [`CSV_LINE_MAX_LEN`] always suffices.
+pub fn format_csv_line<const N: usize>(
+    sample: &SampleFrame,
+    line: &mut String<N>,
+) -> Result<(), CsvLineTooLong> {
+    line.clear();
+    let result = write_line(sample, line);
+    if result.is_err() {
+        line.clear();
+        return Err(CsvLineTooLong);
+    }
+    Ok(())
+}
+
+/// The longest text line [`TextCommandParser`] considers; longer lines are ignored.
+pub const TEXT_COMMAND_LINE_MAX_LEN: usize = 16;
+
+/// A command typed as a text line while the device is in text mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TextCommand {
+    /// The line `binary`: leave text mode.
+    Binary,
+}
+
+/// Recognises text commands in the received byte stream.
+///
+/// Feed it every received byte while in text mode (in addition to the frame decoder). A line
+/// ends at `\n`, `\r` or 0x00; surrounding spaces and letter case are ignored.
+#[derive(Debug, Clone, Default)]
+pub struct TextCommandParser {
+    line: [u8; TEXT_COMMAND_LINE_MAX_LEN],
+    length: usize,
+    overflowed: bool,
+}
+
+impl TextCommandParser {
+    /// An empty parser.
+    pub const fn new() -> Self {
+        TextCommandParser {
+            line: [0; TEXT_COMMAND_LINE_MAX_LEN],
+            length: 0,
+            overflowed: false,
+        }
+    }
+
+    /// Takes one received byte; returns the command when it completed one.
+    pub fn push(&mut self, byte: u8) -> Option<TextCommand> {
+        if matches!(byte, b'\n' | b'\r' | 0) {
+            let line = self.line.get(..self.length).unwrap_or_default();
+            let command = if !self.overflowed && line.trim_ascii().eq_ignore_ascii_case(b"binary") {
+                Some(TextCommand::Binary)
+            } else {
+                None
+            };
+            self.length = 0;
+            self.overflowed = false;
+            return command;
+        }
+        if !self.overflowed {
+            match self.line.get_mut(self.length) {
+                Some(slot) => {
+                    *slot = byte;
+                    self.length += 1;
+                }
+                None => self.overflowed = true,
+            }
+        }
+        None
+    }
+}

@@ -1,0 +1,188 @@
+//! The command set: discriminants fixed by the protocol document, and the argument checks the
+//! device applies before acting.
+
+mod common;
+
+use common::*;
+use wire::{
+    decode_frame, Command, ErrorCode, Request, SampleRate, TaxelCalibrationRecord,
+    TaxelCalibrationWire, UseCase, COMMAND_COUNT,
+};
+
+fn use_case() -> UseCase {
+    UseCase {
+        pressure_max_kpa: 50.0,
+        temperature_min_c: 15.0,
+        temperature_max_c: 35.0,
+        error_budget_kpa: 0.5,
+    }
+}
+
+fn record(points: &[(f32, f32)]) -> TaxelCalibrationRecord {
+    TaxelCalibrationRecord {
+        taxel_index: 3,
+        calibration_id: 42,
+        calibration: TaxelCalibrationWire {
+            points: points.iter().copied().collect(),
+            parasitic_pf: 1.5,
+        },
+    }
+}
+
+const TABLE_1: [(f32, f32); 6] = [
+    (0.0, 0.0),
+    (10.0, 0.0829),
+    (20.0, 0.1475),
+    (30.0, 0.1981),
+    (40.0, 0.2317),
+    (50.0, 0.2563),
+];
+
+#[test]
+fn command_discriminants_are_the_documented_ones() {
+    let commands = [
+        Command::Info,
+        Command::ReadCounters,
+        Command::StartStreaming,
+        Command::StopStreaming,
+        Command::SetRate { rate_sps: 100 },
+        Command::Tare { sample_sets: 1 },
+        Command::SetModelTier { tier: 0 },
+        Command::SetUseCase(use_case()),
+        Command::ReadCalibration { taxel_index: 0 },
+        Command::WriteCalibration(record(&TABLE_1)),
+        Command::SaveCalibration,
+        Command::RestoreDefaults,
+        Command::SetTextMode { enabled: true },
+    ];
+    assert_eq!(commands.len() as u32, COMMAND_COUNT);
+    for (discriminant, command) in commands.into_iter().enumerate() {
+        let request = Request {
+            request_id: 5,
+            command,
+        };
+        let frame = encode(&request);
+        let mut payload = frame.clone();
+        // decode in place leaves the payload at the start of the buffer
+        let decoded: Request = decode_frame(&mut payload).unwrap();
+        assert_eq!(decoded, request);
+        assert_eq!(payload[0], wire::PROTOCOL_VERSION);
+        assert_eq!(payload[1], wire::kind::REQUEST);
+        assert_eq!(payload[2], 5, "request id");
+        assert_eq!(
+            usize::from(payload[3]),
+            discriminant,
+            "{:?}",
+            request.command
+        );
+    }
+}
+
+#[test]
+fn only_100_200_and_400_samples_per_second_are_rates() {
+    for rate_sps in 0..=u16::MAX {
+        let supported = matches!(rate_sps, 100 | 200 | 400);
+        assert_eq!(SampleRate::from_sps(rate_sps).is_some(), supported);
+        let expected = if supported {
+            Ok(())
+        } else {
+            Err(ErrorCode::InvalidArgument)
+        };
+        assert_eq!(Command::SetRate { rate_sps }.check_arguments(), expected);
+    }
+    for rate in [SampleRate::Sps100, SampleRate::Sps200, SampleRate::Sps400] {
+        assert_eq!(SampleRate::from_sps(rate.sps()), Some(rate));
+    }
+}
+
+#[test]
+fn arguments_out_of_range_are_invalid() {
+    let invalid = Err(ErrorCode::InvalidArgument);
+    assert_eq!(Command::Tare { sample_sets: 0 }.check_arguments(), invalid);
+    assert_eq!(Command::Tare { sample_sets: 1 }.check_arguments(), Ok(()));
+    assert_eq!(
+        Command::ReadCalibration { taxel_index: 3 }.check_arguments(),
+        Ok(())
+    );
+    assert_eq!(
+        Command::ReadCalibration { taxel_index: 4 }.check_arguments(),
+        invalid
+    );
+    assert_eq!(Command::SetUseCase(use_case()).check_arguments(), Ok(()));
+    for broken in [
+        UseCase {
+            pressure_max_kpa: 0.0,
+            ..use_case()
+        },
+        UseCase {
+            pressure_max_kpa: f32::NAN,
+            ..use_case()
+        },
+        UseCase {
+            temperature_min_c: 35.0,
+            ..use_case()
+        },
+        UseCase {
+            temperature_max_c: f32::INFINITY,
+            ..use_case()
+        },
+        UseCase {
+            error_budget_kpa: -0.1,
+            ..use_case()
+        },
+    ] {
+        assert_eq!(
+            Command::SetUseCase(broken).check_arguments(),
+            invalid,
+            "{broken:?}"
+        );
+    }
+}
+
+#[test]
+fn calibration_writes_are_checked() {
+    let invalid = Err(ErrorCode::InvalidArgument);
+    assert_eq!(
+        Command::WriteCalibration(record(&TABLE_1)).check_arguments(),
+        Ok(())
+    );
+    assert_eq!(record(&TABLE_1[..2]).check(), Ok(()));
+    assert_eq!(record(&TABLE_1[..1]).check(), invalid);
+    assert_eq!(record(&[]).check(), invalid);
+
+    let mut wrong_taxel = record(&TABLE_1);
+    wrong_taxel.taxel_index = 4;
+    assert_eq!(wrong_taxel.check(), invalid);
+
+    let mut pressure_not_increasing = TABLE_1;
+    pressure_not_increasing[3].0 = 20.0;
+    assert_eq!(record(&pressure_not_increasing).check(), invalid);
+
+    let mut change_not_increasing = TABLE_1;
+    change_not_increasing[4].1 = 0.1;
+    assert_eq!(record(&change_not_increasing).check(), invalid);
+
+    let mut not_finite = TABLE_1;
+    not_finite[5].1 = f32::NAN;
+    assert_eq!(record(&not_finite).check(), invalid);
+
+    let mut negative_parasitic = record(&TABLE_1);
+    negative_parasitic.calibration.parasitic_pf = -1.0;
+    assert_eq!(negative_parasitic.check(), invalid);
+}
+
+#[test]
+fn commands_without_arguments_are_always_acceptable() {
+    for command in [
+        Command::Info,
+        Command::ReadCounters,
+        Command::StartStreaming,
+        Command::StopStreaming,
+        Command::SetModelTier { tier: 255 },
+        Command::SaveCalibration,
+        Command::RestoreDefaults,
+        Command::SetTextMode { enabled: false },
+    ] {
+        assert_eq!(command.check_arguments(), Ok(()));
+    }
+}

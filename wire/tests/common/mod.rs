@@ -1,0 +1,424 @@
+//! Shared test helpers: a deterministic proptest configuration, strategies for every message
+//! type (floats drawn from every bit pattern, NaN and infinities included) and worst cases.
+#![allow(dead_code)]
+#![allow(
+    clippy::unwrap_used,
+    reason = "test helpers: a failure is a test failure"
+)]
+
+use core::fmt::Debug;
+
+use proptest::prelude::*;
+use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
+use wire::{
+    decode_frame, encode_frame, CalibrationSource, Command, CountersFrame, DeviceEvent,
+    DeviceFrame, ErrorCode, EventFrame, FirmwareVersion, FrameDecoder, InfoFrame, ReplyFrame,
+    ReplyPayload, Request, SampleFrame, TaxelCalibrationRecord, TaxelCalibrationWire, TaxelSample,
+    TemperatureSource, UseCase, WireMessage, CALIBRATION_POINTS_MAX, MAX_FRAME_ENCODED_LEN,
+};
+
+/// A fixed seed and no regression files, so every run draws the same cases.
+pub fn config(cases: u32) -> Config {
+    Config {
+        cases,
+        rng_algorithm: RngAlgorithm::ChaCha,
+        rng_seed: RngSeed::Fixed(0x7A8E_2024),
+        failure_persistence: None,
+        ..Config::default()
+    }
+}
+
+/// Any f32 bit pattern, with the special values made frequent.
+pub fn any_f32() -> impl Strategy<Value = f32> {
+    prop_oneof![
+        4 => any::<u32>().prop_map(f32::from_bits),
+        1 => prop::sample::select(vec![
+            f32::NAN,
+            -f32::NAN,
+            f32::from_bits(0x7F80_0001),
+            f32::from_bits(0xFFBF_FFFF),
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            0.0,
+            -0.0,
+            f32::MAX,
+            f32::MIN,
+            f32::MIN_POSITIVE,
+            f32::from_bits(1),
+        ]),
+    ]
+}
+
+pub fn temperature_source() -> impl Strategy<Value = TemperatureSource> {
+    prop::sample::select(vec![
+        TemperatureSource::None,
+        TemperatureSource::Tmp117,
+        TemperatureSource::McuInternal,
+        TemperatureSource::LastKnown,
+    ])
+}
+
+pub fn taxel_sample(float: BoxedStrategy<f32>) -> impl Strategy<Value = TaxelSample> {
+    (prop::option::of(float.clone()), float, any::<u16>()).prop_map(
+        |(pressure_kpa, capacitance_pf, flags)| TaxelSample {
+            pressure_kpa,
+            capacitance_pf,
+            flags,
+        },
+    )
+}
+
+pub fn sample_frame_with(float: BoxedStrategy<f32>) -> impl Strategy<Value = SampleFrame> {
+    (
+        any::<u32>(),
+        any::<u64>(),
+        prop::option::of(float.clone()),
+        temperature_source(),
+        prop::array::uniform4(taxel_sample(float)),
+    )
+        .prop_map(
+            |(sequence, timestamp_us, temperature_c, temperature_source, taxels)| SampleFrame {
+                sequence,
+                timestamp_us,
+                temperature_c,
+                temperature_source,
+                taxels,
+            },
+        )
+}
+
+pub fn sample_frame() -> impl Strategy<Value = SampleFrame> {
+    sample_frame_with(any_f32().boxed())
+}
+
+pub fn calibration_source() -> impl Strategy<Value = CalibrationSource> {
+    prop::sample::select(vec![
+        CalibrationSource::Flash,
+        CalibrationSource::Defaults,
+        CalibrationSource::DefaultsAfterCorruptFlash,
+        CalibrationSource::Host,
+    ])
+}
+
+pub fn info_frame() -> impl Strategy<Value = InfoFrame> {
+    (
+        any::<u8>(),
+        any::<[u8; 3]>(),
+        any::<[u8; 12]>(),
+        any::<u32>(),
+        calibration_source(),
+        any::<u16>(),
+        any::<u8>(),
+        any::<bool>(),
+        any::<bool>(),
+    )
+        .prop_map(
+            |(
+                protocol_version,
+                [major, minor, patch],
+                board_serial,
+                calibration_id,
+                calibration_source,
+                rate_sps,
+                model_tier,
+                streaming,
+                text_mode,
+            )| InfoFrame {
+                protocol_version,
+                firmware_version: FirmwareVersion {
+                    major,
+                    minor,
+                    patch,
+                },
+                board_serial,
+                calibration_id,
+                calibration_source,
+                rate_sps,
+                model_tier,
+                streaming,
+                text_mode,
+            },
+        )
+}
+
+pub fn counters_frame() -> impl Strategy<Value = CountersFrame> {
+    any::<[u32; 6]>().prop_map(|values| CountersFrame {
+        dropped_sample_sets: values[0],
+        converter_reinits: values[1],
+        i2c_errors: values[2],
+        temperature_sensor_errors: values[3],
+        frames_dropped_no_host: values[4],
+        host_frames_rejected: values[5],
+    })
+}
+
+pub fn calibration() -> impl Strategy<Value = TaxelCalibrationWire> {
+    (
+        prop::collection::vec((any_f32(), any_f32()), 0..=CALIBRATION_POINTS_MAX),
+        any_f32(),
+    )
+        .prop_map(|(points, parasitic_pf)| TaxelCalibrationWire {
+            points: points.into_iter().collect(),
+            parasitic_pf,
+        })
+}
+
+pub fn calibration_record() -> impl Strategy<Value = TaxelCalibrationRecord> {
+    (any::<u8>(), any::<u32>(), calibration()).prop_map(
+        |(taxel_index, calibration_id, calibration)| TaxelCalibrationRecord {
+            taxel_index,
+            calibration_id,
+            calibration,
+        },
+    )
+}
+
+pub fn error_code() -> impl Strategy<Value = ErrorCode> {
+    prop::sample::select(vec![
+        ErrorCode::UnknownCommand,
+        ErrorCode::Malformed,
+        ErrorCode::InvalidArgument,
+        ErrorCode::Busy,
+        ErrorCode::FlashError,
+        ErrorCode::NotSupported,
+    ])
+}
+
+pub fn reply_payload() -> impl Strategy<Value = ReplyPayload> {
+    prop_oneof![
+        Just(ReplyPayload::Ack),
+        info_frame().prop_map(ReplyPayload::Info),
+        counters_frame().prop_map(ReplyPayload::Counters),
+        calibration_record().prop_map(ReplyPayload::Calibration),
+        any::<u8>().prop_map(ReplyPayload::ModelTier),
+    ]
+}
+
+pub fn reply_frame() -> impl Strategy<Value = ReplyFrame> {
+    (
+        any::<u16>(),
+        prop_oneof![reply_payload().prop_map(Ok), error_code().prop_map(Err)],
+    )
+        .prop_map(|(request_id, result)| ReplyFrame { request_id, result })
+}
+
+pub fn device_event() -> impl Strategy<Value = DeviceEvent> {
+    prop_oneof![
+        any::<u32>().prop_map(|reinit_count| DeviceEvent::ConverterReinitialised { reinit_count }),
+        temperature_source().prop_map(|source| DeviceEvent::TemperatureSourceChanged { source }),
+        Just(DeviceEvent::CalibrationFlashCorrupt),
+    ]
+}
+
+pub fn event_frame() -> impl Strategy<Value = EventFrame> {
+    (any::<u64>(), device_event()).prop_map(|(timestamp_us, event)| EventFrame {
+        timestamp_us,
+        event,
+    })
+}
+
+pub fn device_frame() -> impl Strategy<Value = DeviceFrame> {
+    prop_oneof![
+        info_frame().prop_map(DeviceFrame::Info),
+        sample_frame().prop_map(DeviceFrame::Sample),
+        counters_frame().prop_map(DeviceFrame::Counters),
+        reply_frame().prop_map(DeviceFrame::Reply),
+        event_frame().prop_map(DeviceFrame::Event),
+    ]
+}
+
+pub fn use_case() -> impl Strategy<Value = UseCase> {
+    (any_f32(), any_f32(), any_f32(), any_f32()).prop_map(
+        |(pressure_max_kpa, temperature_min_c, temperature_max_c, error_budget_kpa)| UseCase {
+            pressure_max_kpa,
+            temperature_min_c,
+            temperature_max_c,
+            error_budget_kpa,
+        },
+    )
+}
+
+pub fn command() -> impl Strategy<Value = Command> {
+    prop_oneof![
+        Just(Command::Info),
+        Just(Command::ReadCounters),
+        Just(Command::StartStreaming),
+        Just(Command::StopStreaming),
+        any::<u16>().prop_map(|rate_sps| Command::SetRate { rate_sps }),
+        any::<u16>().prop_map(|sample_sets| Command::Tare { sample_sets }),
+        any::<u8>().prop_map(|tier| Command::SetModelTier { tier }),
+        use_case().prop_map(Command::SetUseCase),
+        any::<u8>().prop_map(|taxel_index| Command::ReadCalibration { taxel_index }),
+        calibration_record().prop_map(Command::WriteCalibration),
+        Just(Command::SaveCalibration),
+        Just(Command::RestoreDefaults),
+        any::<bool>().prop_map(|enabled| Command::SetTextMode { enabled }),
+    ]
+}
+
+pub fn request() -> impl Strategy<Value = Request> {
+    (any::<u16>(), command()).prop_map(|(request_id, command)| Request {
+        request_id,
+        command,
+    })
+}
+
+/// Encodes `message` into a new vector.
+pub fn encode<M: WireMessage>(message: &M) -> Vec<u8> {
+    let mut buffer = [0u8; MAX_FRAME_ENCODED_LEN];
+    let len = encode_frame(message, &mut buffer).unwrap();
+    buffer[..len].to_vec()
+}
+
+/// Encodes, checks the framing invariants, decodes with both the one-shot and the streaming
+/// decoder, and checks that the result is bit-exact: same Debug text (field by field, -0.0
+/// included) and the same bytes when encoded again (NaN payload bits included).
+pub fn assert_round_trip<M: WireMessage + Debug>(message: &M) -> Vec<u8> {
+    let encoded = encode(message);
+    assert_eq!(
+        encoded.last(),
+        Some(&0),
+        "frame must end with the delimiter"
+    );
+    assert!(
+        !encoded[..encoded.len() - 1].contains(&0),
+        "no 0x00 inside a frame"
+    );
+
+    let mut scratch = encoded.clone();
+    let decoded: M = decode_frame(&mut scratch).unwrap();
+    assert_eq!(format!("{decoded:?}"), format!("{message:?}"));
+    assert_eq!(
+        encode(&decoded),
+        encoded,
+        "re-encoding must give the same bytes"
+    );
+
+    let mut decoder = FrameDecoder::<MAX_FRAME_ENCODED_LEN, M>::new();
+    let results: Vec<_> = decoder.feed(&encoded).collect();
+    assert_eq!(results.len(), 1);
+    let streamed = results.into_iter().next().unwrap().unwrap();
+    assert_eq!(encode(&streamed), encoded);
+    encoded
+}
+
+/// The sample frame with every optional value present and the largest integers.
+pub fn worst_case_sample() -> SampleFrame {
+    SampleFrame {
+        sequence: u32::MAX,
+        timestamp_us: u64::MAX,
+        temperature_c: Some(f32::MIN),
+        temperature_source: TemperatureSource::LastKnown,
+        taxels: [TaxelSample {
+            pressure_kpa: Some(-f32::NAN),
+            capacitance_pf: f32::NEG_INFINITY,
+            flags: u16::MAX,
+        }; 4],
+    }
+}
+
+pub fn worst_case_info() -> InfoFrame {
+    InfoFrame {
+        protocol_version: u8::MAX,
+        firmware_version: FirmwareVersion {
+            major: u8::MAX,
+            minor: u8::MAX,
+            patch: u8::MAX,
+        },
+        board_serial: [0xFF; 12],
+        calibration_id: u32::MAX,
+        calibration_source: CalibrationSource::DefaultsAfterCorruptFlash,
+        rate_sps: u16::MAX,
+        model_tier: u8::MAX,
+        streaming: true,
+        text_mode: true,
+    }
+}
+
+pub fn worst_case_counters() -> CountersFrame {
+    CountersFrame {
+        dropped_sample_sets: u32::MAX,
+        converter_reinits: u32::MAX,
+        i2c_errors: u32::MAX,
+        temperature_sensor_errors: u32::MAX,
+        frames_dropped_no_host: u32::MAX,
+        host_frames_rejected: u32::MAX,
+    }
+}
+
+pub fn calibration_record_with_points(point_count: usize) -> TaxelCalibrationRecord {
+    TaxelCalibrationRecord {
+        taxel_index: u8::MAX,
+        calibration_id: u32::MAX,
+        calibration: TaxelCalibrationWire {
+            points: (0..point_count)
+                .map(|index| (f32::MAX, index as f32))
+                .collect(),
+            parasitic_pf: f32::MAX,
+        },
+    }
+}
+
+pub fn worst_case_reply() -> ReplyFrame {
+    ReplyFrame {
+        request_id: u16::MAX,
+        result: Ok(ReplyPayload::Calibration(calibration_record_with_points(
+            CALIBRATION_POINTS_MAX,
+        ))),
+    }
+}
+
+pub fn worst_case_event() -> EventFrame {
+    EventFrame {
+        timestamp_us: u64::MAX,
+        event: DeviceEvent::ConverterReinitialised {
+            reinit_count: u32::MAX,
+        },
+    }
+}
+
+pub fn worst_case_request() -> Request {
+    Request {
+        request_id: u16::MAX,
+        command: Command::WriteCalibration(calibration_record_with_points(CALIBRATION_POINTS_MAX)),
+    }
+}
+
+/// An independent COBS encoder written from the algorithm's definition (not the `cobs` crate),
+/// so that frames built with it check the crate against the specification.
+pub fn reference_cobs_encode(payload: &[u8]) -> Vec<u8> {
+    let mut out = vec![0u8];
+    let mut code_index = 0;
+    let mut code = 1u8;
+    for &byte in payload {
+        if byte == 0 {
+            out[code_index] = code;
+            code_index = out.len();
+            out.push(0);
+            code = 1;
+        } else {
+            out.push(byte);
+            code += 1;
+            if code == 0xFF {
+                out[code_index] = code;
+                code_index = out.len();
+                out.push(0);
+                code = 1;
+            }
+        }
+    }
+    out[code_index] = code;
+    out
+}
+
+/// A complete frame with any version, kind and body, CRC computed as the specification says
+/// (CRC-16/IBM-SDLC over version, kind and body, appended little-endian).
+pub fn raw_frame(version: u8, kind: u8, body: &[u8]) -> Vec<u8> {
+    let mut payload = vec![version, kind];
+    payload.extend_from_slice(body);
+    let crc = wire::crc16(&payload);
+    payload.extend_from_slice(&crc.to_le_bytes());
+    let mut frame = reference_cobs_encode(&payload);
+    frame.push(0);
+    frame
+}

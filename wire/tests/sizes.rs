@@ -1,0 +1,127 @@
+//! Encoded sizes: the worst case of every frame equals its `MAX_ENCODED_LEN`, random frames never
+//! exceed it, and device frames fit one 64-byte USB packet (the exceptions are named here).
+
+mod common;
+
+use common::*;
+use proptest::prelude::*;
+use wire::{
+    needs_zero_length_packet, CountersFrame, DeviceFrame, EventFrame, Frame, InfoFrame, ReplyFrame,
+    ReplyPayload, Request, SampleFrame, MAX_FRAME_ENCODED_LEN, MAX_PAYLOAD_LEN,
+    USB_FULL_SPEED_PACKET_LEN,
+};
+
+/// Encoded length (delimiter included) below which a frame is one short USB packet: sent alone
+/// it ends the transfer and needs no zero-length packet.
+const ONE_SHORT_PACKET: usize = USB_FULL_SPEED_PACKET_LEN - 1;
+
+#[test]
+fn worst_case_of_every_frame_has_the_documented_length() {
+    let sample = encode(&DeviceFrame::Sample(worst_case_sample()));
+    assert_eq!(sample.len(), SampleFrame::MAX_ENCODED_LEN);
+    assert_eq!(sample.len(), 63);
+
+    let info = encode(&DeviceFrame::Info(worst_case_info()));
+    assert_eq!(info.len(), InfoFrame::MAX_ENCODED_LEN);
+    assert_eq!(info.len(), 34);
+
+    let counters = encode(&DeviceFrame::Counters(worst_case_counters()));
+    assert_eq!(counters.len(), CountersFrame::MAX_ENCODED_LEN);
+    assert_eq!(counters.len(), 36);
+
+    let event = encode(&DeviceFrame::Event(worst_case_event()));
+    assert_eq!(event.len(), EventFrame::MAX_ENCODED_LEN);
+    assert_eq!(event.len(), 22);
+
+    let reply = encode(&DeviceFrame::Reply(worst_case_reply()));
+    assert_eq!(reply.len(), ReplyFrame::MAX_ENCODED_LEN);
+    assert_eq!(reply.len(), DeviceFrame::MAX_ENCODED_LEN);
+    assert_eq!(reply.len(), 150);
+
+    let info_reply = encode(&DeviceFrame::Reply(ReplyFrame {
+        request_id: u16::MAX,
+        result: Ok(ReplyPayload::Info(worst_case_info())),
+    }));
+    assert_eq!(
+        info_reply.len(),
+        ReplyFrame::MAX_ENCODED_LEN_WITHOUT_CALIBRATION
+    );
+    assert_eq!(info_reply.len(), 39);
+
+    let request = encode(&worst_case_request());
+    assert_eq!(request.len(), Request::MAX_ENCODED_LEN);
+    assert_eq!(request.len(), 149);
+
+    assert_eq!(MAX_FRAME_ENCODED_LEN, 150);
+    assert_eq!(Frame::MAX_ENCODED_LEN, MAX_FRAME_ENCODED_LEN);
+    assert_eq!(MAX_PAYLOAD_LEN, 148);
+}
+
+#[test]
+fn device_frames_fit_one_short_usb_packet_except_long_calibration_replies() {
+    for frame in [
+        DeviceFrame::Sample(worst_case_sample()),
+        DeviceFrame::Info(worst_case_info()),
+        DeviceFrame::Counters(worst_case_counters()),
+        DeviceFrame::Event(worst_case_event()),
+        DeviceFrame::Reply(ReplyFrame {
+            request_id: u16::MAX,
+            result: Ok(ReplyPayload::Info(worst_case_info())),
+        }),
+    ] {
+        let len = encode(&frame).len();
+        assert!(len <= ONE_SHORT_PACKET, "{frame:?} is {len} bytes");
+        assert!(!needs_zero_length_packet(len));
+    }
+
+    let points = ReplyFrame::CALIBRATION_POINTS_IN_ONE_PACKET;
+    let fits = DeviceFrame::Reply(ReplyFrame {
+        request_id: u16::MAX,
+        result: Ok(ReplyPayload::Calibration(calibration_record_with_points(
+            points,
+        ))),
+    });
+    assert!(encode(&fits).len() <= ONE_SHORT_PACKET);
+    let too_long = DeviceFrame::Reply(ReplyFrame {
+        request_id: u16::MAX,
+        result: Ok(ReplyPayload::Calibration(calibration_record_with_points(
+            points + 1,
+        ))),
+    });
+    assert!(encode(&too_long).len() > ONE_SHORT_PACKET);
+}
+
+proptest! {
+    #![proptest_config(config(3000))]
+
+    #[test]
+    fn random_sample_frames_fit_one_short_packet(sample in sample_frame()) {
+        let len = encode(&DeviceFrame::Sample(sample)).len();
+        prop_assert!(len <= SampleFrame::MAX_ENCODED_LEN);
+        prop_assert!(len <= ONE_SHORT_PACKET);
+    }
+
+    #[test]
+    fn random_device_frames_stay_within_their_bound(frame in device_frame()) {
+        let len = encode(&frame).len();
+        let bound = match &frame {
+            DeviceFrame::Info(_) => InfoFrame::MAX_ENCODED_LEN,
+            DeviceFrame::Sample(_) => SampleFrame::MAX_ENCODED_LEN,
+            DeviceFrame::Counters(_) => CountersFrame::MAX_ENCODED_LEN,
+            DeviceFrame::Event(_) => EventFrame::MAX_ENCODED_LEN,
+            DeviceFrame::Reply(ReplyFrame { result: Ok(ReplyPayload::Calibration(record)), .. })
+                if record.calibration.points.len() > ReplyFrame::CALIBRATION_POINTS_IN_ONE_PACKET =>
+            {
+                ReplyFrame::MAX_ENCODED_LEN
+            }
+            DeviceFrame::Reply(_) => ONE_SHORT_PACKET,
+        };
+        prop_assert!(len <= bound, "{} > {} for {:?}", len, bound, frame);
+        prop_assert!(len <= DeviceFrame::MAX_ENCODED_LEN);
+    }
+
+    #[test]
+    fn random_requests_stay_within_their_bound(request in request()) {
+        prop_assert!(encode(&request).len() <= Request::MAX_ENCODED_LEN);
+    }
+}
