@@ -1,6 +1,7 @@
 //! Detects a converter channel that repeats one code while the others move: the "bouncing
 //! values / locked channel" failure users of the FDC1004 report in repeat mode.
 
+use model_core::reading::{SATURATED_HIGH_CODE, SATURATED_LOW_CODE};
 use model_core::TAXEL_COUNT;
 
 /// Counts, per channel, how many consecutive cycles repeated the previous code.
@@ -34,7 +35,9 @@ impl StuckDetector {
     pub fn update(&mut self, codes: &[i32; TAXEL_COUNT]) -> [bool; TAXEL_COUNT] {
         if let Some(previous) = self.previous_codes {
             for taxel in 0..TAXEL_COUNT {
-                if codes[taxel] == previous[taxel] {
+                // A saturation code repeats by nature and is flagged as saturated already.
+                let saturated = matches!(codes[taxel], SATURATED_HIGH_CODE | SATURATED_LOW_CODE);
+                if codes[taxel] == previous[taxel] && !saturated {
                     self.repeats[taxel] = self.repeats[taxel].saturating_add(1);
                 } else {
                     self.repeats[taxel] = 0;
@@ -62,6 +65,16 @@ mod tests {
             flagged = detector.update(&[cycle, 7, cycle * 2, -cycle]);
         }
         assert_eq!(flagged, [false, true, false, false]);
+    }
+
+    #[test]
+    fn a_saturated_channel_is_not_also_stuck() {
+        let mut detector = StuckDetector::new(3);
+        let mut flagged = [true; TAXEL_COUNT];
+        for cycle in 0..10 {
+            flagged = detector.update(&[SATURATED_HIGH_CODE, SATURATED_LOW_CODE, cycle, -cycle]);
+        }
+        assert_eq!(flagged, [false; TAXEL_COUNT]);
     }
 
     #[test]

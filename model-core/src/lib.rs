@@ -51,4 +51,4 @@ pub use pad::{PadModel, PadOutput, SampleInput, TareStatus, TierUnavailable};
 pub use reading::{ReadingValue, SplitCapacitance, TaxelReading};
 pub use taxel::{TaxelModel, TaxelOutput};
 pub use temperature::{TemperatureTracker, TemperatureUsed, REFERENCE_TEMPERATURE_C};
-pub use use_case::{select_tier, SelectionError, TierChoice, UseCase};
+pub use use_case::{select_tier, select_tier_for_taxels, SelectionError, TierChoice, UseCase};

@@ -8,6 +8,7 @@ use crate::inverse::Tier;
 use crate::reading::{ReadingValue, TaxelReading};
 use crate::taxel::{TaxelModel, TaxelOutput};
 use crate::temperature::{TemperatureTracker, TemperatureUsed};
+use crate::use_case::{select_tier_for_taxels, SelectionError, TierChoice, UseCase};
 
 /// One converter cycle's input.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -144,6 +145,32 @@ impl PadModel {
         self.tier
     }
 
+    /// The cheapest tier that fits a use case on all four taxels (see [`select_tier_for_taxels`]).
+    pub fn select_tier_for(&self, use_case: &UseCase) -> Result<TierChoice, SelectionError> {
+        let inverses = self.taxels.each_ref().map(TaxelModel::inverses);
+        let top_pressure_kpa = self
+            .calibration
+            .taxels()
+            .iter()
+            .map(|taxel| taxel.curve.top().pressure_kpa)
+            .fold(f32::INFINITY, f32::min);
+        let law = self.calibration.temperature_law();
+        select_tier_for_taxels(
+            &inverses,
+            top_pressure_kpa,
+            law.characterised_min_c(),
+            law.characterised_max_c(),
+            use_case,
+        )
+    }
+
+    /// Selects and applies the cheapest tier for a use case.
+    pub fn apply_use_case(&mut self, use_case: &UseCase) -> Result<TierChoice, SelectionError> {
+        let choice = self.select_tier_for(use_case)?;
+        self.tier = choice.tier;
+        Ok(choice)
+    }
+
     /// Configures slow baseline tracking.
     pub fn set_baseline_tracking(&mut self, tracking: BaselineTracking) {
         self.tracking = tracking;
@@ -166,6 +193,11 @@ impl PadModel {
     /// Why the last tare failed per taxel (None = succeeded or never ran).
     pub fn last_tare_errors(&self) -> [Option<BaselineError>; TAXEL_COUNT] {
         self.last_tare_errors
+    }
+
+    /// The last valid temperature seen, °C (None until one arrives).
+    pub fn last_valid_temperature_c(&self) -> Option<f32> {
+        self.temperature.last_valid_c()
     }
 
     /// Baselines per taxel.

@@ -159,7 +159,26 @@ pub fn select_tier(
     characterised_max_c: f32,
     use_case: &UseCase,
 ) -> Result<TierChoice, SelectionError> {
-    let valid = use_case.pressure_max_kpa > 0.0
+    select_tier_for_taxels(
+        &[inverses],
+        top_pressure_kpa,
+        characterised_min_c,
+        characterised_max_c,
+        use_case,
+    )
+}
+
+/// The cheapest tier that fits the use case on every one of these taxels; a tier's error is
+/// that of its worst taxel.
+pub fn select_tier_for_taxels(
+    taxels: &[&TaxelInverses],
+    top_pressure_kpa: f32,
+    characterised_min_c: f32,
+    characterised_max_c: f32,
+    use_case: &UseCase,
+) -> Result<TierChoice, SelectionError> {
+    let valid = !taxels.is_empty()
+        && use_case.pressure_max_kpa > 0.0
         && use_case.pressure_max_kpa.is_finite()
         && use_case.temperature_min_c <= use_case.temperature_max_c
         && use_case.error_budget_kpa > 0.0
@@ -183,10 +202,22 @@ pub fn select_tier(
     let mut cheapest_fit: Option<TierChoice> = None;
     let mut most_accurate: Option<TierChoice> = None;
     for tier in Tier::ALL {
-        if !inverses.supports(tier) {
+        if !taxels.iter().all(|inverses| inverses.supports(tier)) {
             continue;
         }
-        let choice = evaluate_tier(inverses, tier, use_case.pressure_max_kpa);
+        let Some(choice) = taxels
+            .iter()
+            .map(|inverses| evaluate_tier(inverses, tier, use_case.pressure_max_kpa))
+            .reduce(|worst, next| {
+                if next.total_error_kpa() > worst.total_error_kpa() {
+                    next
+                } else {
+                    worst
+                }
+            })
+        else {
+            continue;
+        };
         if most_accurate.is_none_or(|best| choice.total_error_kpa() < best.total_error_kpa()) {
             most_accurate = Some(choice);
         }

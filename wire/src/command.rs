@@ -30,22 +30,26 @@ pub enum ErrorCode {
     FlashError,
     /// The firmware does not implement this (for example an unknown model tier id).
     NotSupported,
+    /// A tare finished without a baseline for every taxel (the pad was loaded, or a taxel is
+    /// open or shorted); the sample flags say which taxels stay untared.
+    TareFailed,
 }
 
-/// The sample-set rates the device supports.
+/// The converter conversion rates the device supports (each of the four taxels, and so each
+/// sample set, refreshes at about a quarter of the rate).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SampleRate {
-    /// 100 sample sets per second.
+    /// 100 conversions per second.
     Sps100,
-    /// 200 sample sets per second.
+    /// 200 conversions per second.
     Sps200,
-    /// 400 sample sets per second.
+    /// 400 conversions per second.
     Sps400,
 }
 
 impl SampleRate {
-    /// The rate for a value in sample sets per second, if it is supported.
+    /// The rate for a value in conversions per second, if it is supported.
     pub const fn from_sps(rate_sps: u16) -> Option<SampleRate> {
         match rate_sps {
             100 => Some(SampleRate::Sps100),
@@ -55,7 +59,7 @@ impl SampleRate {
         }
     }
 
-    /// This rate in sample sets per second.
+    /// This rate in conversions per second.
     pub const fn sps(self) -> u16 {
         match self {
             SampleRate::Sps100 => 100,
@@ -145,10 +149,10 @@ pub enum Command {
     StartStreaming,
     /// Stops sending samples. Replies Ack.
     StopStreaming,
-    /// Sets the sample-set rate; 100, 200 or 400, anything else is
+    /// Sets the converter rate; 100, 200 or 400 S/s, anything else is
     /// [`ErrorCode::InvalidArgument`]. Replies Ack.
     SetRate {
-        /// The rate in sample sets per second.
+        /// The rate in conversions per second.
         rate_sps: u16,
     },
     /// Takes the unloaded reference of every taxel as the mean of this many sample sets

@@ -64,7 +64,7 @@ pub struct InfoFrame {
     pub calibration_id: u32,
     /// Where the calibration in use came from.
     pub calibration_source: CalibrationSource,
-    /// The sample-set rate in sample sets per second.
+    /// The converter rate in conversions per second (a sample set arrives at about a quarter of it).
     pub rate_sps: u16,
     /// The id of the pressure-model tier in use.
     pub model_tier: u8,

@@ -181,6 +181,7 @@ pub fn error_code() -> impl Strategy<Value = ErrorCode> {
         ErrorCode::Busy,
         ErrorCode::FlashError,
         ErrorCode::NotSupported,
+        ErrorCode::TareFailed,
     ])
 }
 

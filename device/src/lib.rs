@@ -1,0 +1,429 @@
+//! The device application, portable: what the firmware does between the converter and the USB
+//! port, written once so the desktop simulator runs exactly the same code.
+//!
+//! - [`HostInput`] turns received bytes into requests (binary frames, or the text line `binary`
+//!   that leaves text mode), answering what it cannot parse.
+//! - [`Device`] owns the acquisition loop; each [`Device::step`] runs one converter cycle, applies
+//!   the requests that arrived, and emits [`Outgoing`] frames: samples (or CSV lines in text mode)
+//!   while streaming to a connected host, replies, events and periodic counters.
+//! - [`encode_outgoing`] turns them into bytes for the port.
+#![no_std]
+#![deny(missing_docs)]
+
+mod control;
+mod convert;
+mod host_input;
+mod persistence;
+
+pub use control::DeviceControl;
+pub use convert::{
+    calibration_record, counters_frame, sample_frame, taxel_calibration_spec,
+    wire_temperature_source,
+};
+pub use host_input::{HostInput, HostInputEvent};
+pub use persistence::{CalibrationPersistence, PersistenceFailed};
+
+use acquisition::{ProcessedSample, TemperatureOrigin};
+use model_core::{Calibration, TareStatus, Tier, UseCase};
+use wire::{
+    CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
+    InfoFrame, ReplyFrame, ReplyPayload, Request, SampleFrame, PROTOCOL_VERSION,
+};
+
+/// Largest encoded output: a CSV line (283 bytes) or the largest frame (150 bytes).
+pub const MAX_OUTGOING_LEN: usize = 288;
+
+/// Who the device is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DeviceIdentity {
+    /// Firmware version.
+    pub firmware_version: FirmwareVersion,
+    /// The MCU's 96-bit unique ID.
+    pub board_serial: [u8; 12],
+}
+
+/// Something to send to the host.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outgoing {
+    /// A binary frame.
+    Frame(DeviceFrame),
+    /// A sample as a CSV line (text mode).
+    CsvLine(SampleFrame),
+}
+
+/// The host's queue could not take a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct QueueFull;
+
+/// The host side of the device: requests in, frames out, never waiting.
+pub trait HostPort {
+    /// Whether a host has the port open (DTR set).
+    fn host_connected(&self) -> bool;
+    /// The next request or input event that arrived, if any.
+    fn try_receive(&mut self) -> Option<HostInputEvent>;
+    /// Queues something to send; `Err` when the queue is full (it is then dropped and counted).
+    fn try_send(&mut self, outgoing: Outgoing) -> Result<(), QueueFull>;
+}
+
+/// Counters of what happened on the host side.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct HostCounters {
+    /// Frames not sent because no host had the port open, or its queue was full.
+    pub frames_dropped_no_host: u32,
+    /// Host frames that could not be decoded or were refused without a reply.
+    pub host_frames_rejected: u32,
+}
+
+/// Settings of the device application.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DeviceConfig {
+    /// A counters frame goes out every this many sample sets (0 = never).
+    pub counters_every_sets: u32,
+    /// Whether streaming is on at start.
+    pub streaming_at_start: bool,
+}
+
+impl Default for DeviceConfig {
+    fn default() -> Self {
+        Self {
+            counters_every_sets: 100,
+            streaming_at_start: true,
+        }
+    }
+}
+
+/// The device application: the acquisition loop plus the protocol.
+pub struct Device<A, P> {
+    control: A,
+    persistence: P,
+    identity: DeviceIdentity,
+    config: DeviceConfig,
+    calibration_source: CalibrationSource,
+    streaming: bool,
+    text_mode: bool,
+    host_was_connected: bool,
+    pending_tare: Option<u16>,
+    host_counters: HostCounters,
+    sets_since_counters: u32,
+    last_converter_reinits: u32,
+    last_temperature_origin: Option<TemperatureOrigin>,
+    announce_flash_corrupt: bool,
+}
+
+impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
+    /// The application around an acquisition loop whose model already holds the calibration
+    /// that `calibration_source` describes.
+    pub fn new(
+        control: A,
+        persistence: P,
+        identity: DeviceIdentity,
+        calibration_source: CalibrationSource,
+        config: DeviceConfig,
+    ) -> Self {
+        Self {
+            control,
+            persistence,
+            identity,
+            config,
+            calibration_source,
+            streaming: config.streaming_at_start,
+            text_mode: false,
+            host_was_connected: false,
+            pending_tare: None,
+            host_counters: HostCounters::default(),
+            sets_since_counters: 0,
+            last_converter_reinits: 0,
+            last_temperature_origin: None,
+            announce_flash_corrupt: calibration_source
+                == CalibrationSource::DefaultsAfterCorruptFlash,
+        }
+    }
+
+    /// The acquisition loop (and model) under control.
+    pub fn control(&self) -> &A {
+        &self.control
+    }
+
+    /// The acquisition loop, mutably (tests, fault injection).
+    pub fn control_mut(&mut self) -> &mut A {
+        &mut self.control
+    }
+
+    /// The persistence backend.
+    pub fn persistence_mut(&mut self) -> &mut P {
+        &mut self.persistence
+    }
+
+    /// Host-side counters.
+    pub fn host_counters(&self) -> HostCounters {
+        self.host_counters
+    }
+
+    /// Whether samples are being streamed.
+    pub fn streaming(&self) -> bool {
+        self.streaming
+    }
+
+    /// The info frame as of now.
+    pub fn info(&self) -> InfoFrame {
+        InfoFrame {
+            protocol_version: PROTOCOL_VERSION,
+            firmware_version: self.identity.firmware_version,
+            board_serial: self.identity.board_serial,
+            calibration_id: self.control.pad().calibration().id(),
+            calibration_source: self.calibration_source,
+            rate_sps: self.control.rate_sps(),
+            model_tier: self.control.pad().tier() as u8,
+            streaming: self.streaming,
+            text_mode: self.text_mode,
+        }
+    }
+
+    /// One converter cycle with everything around it: requests received since the last step
+    /// are applied first, then the cycle runs and its frames are queued.
+    pub async fn step<H: HostPort>(&mut self, host: &mut H) -> ProcessedSample {
+        let connected = host.host_connected();
+        if connected && !self.host_was_connected {
+            self.send(host, Outgoing::Frame(DeviceFrame::Info(self.info())));
+            if self.announce_flash_corrupt {
+                self.announce_flash_corrupt = false;
+                self.send_event(host, 0, DeviceEvent::CalibrationFlashCorrupt);
+            }
+        }
+        self.host_was_connected = connected;
+        while let Some(event) = host.try_receive() {
+            match event {
+                HostInputEvent::Request(request) => {
+                    if let Some(reply) = self.handle(request).await {
+                        self.send(host, Outgoing::Frame(DeviceFrame::Reply(reply)));
+                    }
+                }
+                HostInputEvent::ErrorReply(reply) => {
+                    self.send(host, Outgoing::Frame(DeviceFrame::Reply(reply)));
+                }
+                HostInputEvent::Rejected => {
+                    self.host_counters.host_frames_rejected =
+                        self.host_counters.host_frames_rejected.wrapping_add(1);
+                }
+                HostInputEvent::UnsupportedVersion => {
+                    self.host_counters.host_frames_rejected =
+                        self.host_counters.host_frames_rejected.wrapping_add(1);
+                    self.send(host, Outgoing::Frame(DeviceFrame::Info(self.info())));
+                }
+                HostInputEvent::LeaveTextMode => self.text_mode = false,
+            }
+        }
+        let sample = self.control.cycle().await;
+        self.after_cycle(host, &sample);
+        sample
+    }
+
+    fn after_cycle<H: HostPort>(&mut self, host: &mut H, sample: &ProcessedSample) {
+        let reinits = sample.counters.converter_reinits();
+        if reinits != self.last_converter_reinits {
+            self.last_converter_reinits = reinits;
+            self.send_event(
+                host,
+                sample.timestamp_us,
+                DeviceEvent::ConverterReinitialised {
+                    reinit_count: reinits,
+                },
+            );
+        }
+        if self.last_temperature_origin != Some(sample.temperature_origin) {
+            if self.last_temperature_origin.is_some() {
+                let source = wire_temperature_source(sample, self.control.pad());
+                self.send_event(
+                    host,
+                    sample.timestamp_us,
+                    DeviceEvent::TemperatureSourceChanged { source },
+                );
+            }
+            self.last_temperature_origin = Some(sample.temperature_origin);
+        }
+        if let (Some(request_id), TareStatus::Finished { tared_mask }) =
+            (self.pending_tare, self.control.pad().tare_status())
+        {
+            self.pending_tare = None;
+            let result = if tared_mask == 0b1111 {
+                Ok(ReplyPayload::Ack)
+            } else {
+                Err(ErrorCode::TareFailed)
+            };
+            self.send(
+                host,
+                Outgoing::Frame(DeviceFrame::Reply(ReplyFrame { request_id, result })),
+            );
+        }
+        if self.streaming {
+            let frame = sample_frame(sample, self.control.pad());
+            let outgoing = if self.text_mode {
+                Outgoing::CsvLine(frame)
+            } else {
+                Outgoing::Frame(DeviceFrame::Sample(frame))
+            };
+            self.send(host, outgoing);
+        }
+        self.sets_since_counters = self.sets_since_counters.wrapping_add(1);
+        if self.config.counters_every_sets != 0
+            && self.sets_since_counters >= self.config.counters_every_sets
+        {
+            self.sets_since_counters = 0;
+            let counters = counters_frame(&sample.counters, &self.host_counters);
+            self.send_status(host, DeviceFrame::Counters(counters));
+        }
+    }
+
+    fn send_event<H: HostPort>(&mut self, host: &mut H, timestamp_us: u64, event: DeviceEvent) {
+        self.send_status(
+            host,
+            DeviceFrame::Event(EventFrame {
+                timestamp_us,
+                event,
+            }),
+        );
+    }
+
+    /// Status frames (counters, events) are not sent in text mode, where they would garble the
+    /// CSV a terminal or plotter shows.
+    fn send_status<H: HostPort>(&mut self, host: &mut H, frame: DeviceFrame) {
+        if !self.text_mode {
+            self.send(host, Outgoing::Frame(frame));
+        }
+    }
+
+    fn send<H: HostPort>(&mut self, host: &mut H, outgoing: Outgoing) {
+        if !host.host_connected() || host.try_send(outgoing).is_err() {
+            self.host_counters.frames_dropped_no_host =
+                self.host_counters.frames_dropped_no_host.wrapping_add(1);
+        }
+    }
+
+    /// Applies one request; `None` when the reply comes later (a tare).
+    pub async fn handle(&mut self, request: Request) -> Option<ReplyFrame> {
+        let request_id = request.request_id;
+        let result = match request.command.check_arguments() {
+            Err(code) => Err(code),
+            Ok(()) => self.apply(request_id, request.command).await?,
+        };
+        Some(ReplyFrame { request_id, result })
+    }
+
+    async fn apply(
+        &mut self,
+        request_id: u16,
+        command: Command,
+    ) -> Option<Result<ReplyPayload, ErrorCode>> {
+        let result = match command {
+            Command::Info => Ok(ReplyPayload::Info(self.info())),
+            Command::ReadCounters => Ok(ReplyPayload::Counters(counters_frame(
+                &self.control.counters(),
+                &self.host_counters,
+            ))),
+            Command::StartStreaming => {
+                self.streaming = true;
+                Ok(ReplyPayload::Ack)
+            }
+            Command::StopStreaming => {
+                self.streaming = false;
+                Ok(ReplyPayload::Ack)
+            }
+            Command::SetRate { rate_sps } => match self.control.set_rate_sps(rate_sps) {
+                true => Ok(ReplyPayload::Ack),
+                false => Err(ErrorCode::InvalidArgument),
+            },
+            Command::Tare { sample_sets } => {
+                if self.pending_tare.is_some() {
+                    Err(ErrorCode::Busy)
+                } else {
+                    self.control.pad_mut().start_tare(sample_sets);
+                    self.pending_tare = Some(request_id);
+                    return None;
+                }
+            }
+            Command::SetModelTier { tier } => match Tier::from_id(tier) {
+                Some(tier) if self.control.pad_mut().set_tier(tier).is_ok() => {
+                    Ok(ReplyPayload::Ack)
+                }
+                _ => Err(ErrorCode::NotSupported),
+            },
+            Command::SetUseCase(use_case) => {
+                let use_case = UseCase {
+                    pressure_max_kpa: use_case.pressure_max_kpa,
+                    temperature_min_c: use_case.temperature_min_c,
+                    temperature_max_c: use_case.temperature_max_c,
+                    error_budget_kpa: use_case.error_budget_kpa,
+                };
+                match self.control.pad_mut().apply_use_case(&use_case) {
+                    Ok(choice) => Ok(ReplyPayload::ModelTier(choice.tier as u8)),
+                    Err(_) => Err(ErrorCode::NotSupported),
+                }
+            }
+            Command::ReadCalibration { taxel_index } => {
+                let calibration = self.control.pad().calibration();
+                match calibration_record(calibration, taxel_index) {
+                    Some(record) => Ok(ReplyPayload::Calibration(record)),
+                    None => Err(ErrorCode::InvalidArgument),
+                }
+            }
+            Command::WriteCalibration(record) => {
+                let spec = taxel_calibration_spec(&record.calibration);
+                let updated = self.control.pad().calibration().clone().with_taxel(
+                    usize::from(record.taxel_index),
+                    &spec,
+                    record.calibration_id,
+                );
+                match updated {
+                    Ok(calibration) => {
+                        self.control.pad_mut().set_calibration(calibration);
+                        self.calibration_source = CalibrationSource::Host;
+                        Ok(ReplyPayload::Ack)
+                    }
+                    Err(_) => Err(ErrorCode::InvalidArgument),
+                }
+            }
+            Command::SaveCalibration => {
+                let spec = self.control.pad().calibration().to_spec();
+                match self.persistence.save(&spec).await {
+                    Ok(()) => {
+                        self.calibration_source = CalibrationSource::Flash;
+                        Ok(ReplyPayload::Ack)
+                    }
+                    Err(PersistenceFailed) => Err(ErrorCode::FlashError),
+                }
+            }
+            Command::RestoreDefaults => {
+                self.control
+                    .pad_mut()
+                    .set_calibration(Calibration::default());
+                self.calibration_source = CalibrationSource::Defaults;
+                Ok(ReplyPayload::Ack)
+            }
+            Command::SetTextMode { enabled } => {
+                self.text_mode = enabled;
+                Ok(ReplyPayload::Ack)
+            }
+        };
+        Some(result)
+    }
+}
+
+/// Encodes something to send into `buffer` (at least [`MAX_OUTGOING_LEN`] bytes); returns the
+/// length, or `None` if it does not fit (never for the device's own frames).
+pub fn encode_outgoing(outgoing: &Outgoing, buffer: &mut [u8]) -> Option<usize> {
+    match outgoing {
+        Outgoing::Frame(frame) => wire::encode_frame(frame, buffer).ok(),
+        Outgoing::CsvLine(sample) => {
+            let mut line: heapless::String<{ wire::CSV_LINE_MAX_LEN }> = heapless::String::new();
+            wire::format_csv_line(sample, &mut line).ok()?;
+            let bytes = line.as_bytes();
+            let destination = buffer.get_mut(..bytes.len())?;
+            destination.copy_from_slice(bytes);
+            Some(bytes.len())
+        }
+    }
+}
