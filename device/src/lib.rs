@@ -59,8 +59,8 @@ pub struct QueueFull;
 
 /// The host side of the device: requests in, frames out, never waiting.
 pub trait HostPort {
-    /// Whether a host has the port open (DTR set).
-    fn host_connected(&self) -> bool;
+    /// Whether a host has the port open (DTR set); may refresh the port's state.
+    fn host_connected(&mut self) -> bool;
     /// The next request or input event that arrived, if any.
     fn try_receive(&mut self) -> Option<HostInputEvent>;
     /// Queues something to send; `Err` when the queue is full (it is then dropped and counted).

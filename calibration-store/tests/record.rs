@@ -1,0 +1,272 @@
+//! The record format: exact layout, worst-case length, typed errors, and that no corruption of a
+//! valid record (bit flips, truncation, extension) or random input ever decodes or panics.
+
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "test helpers outside #[test] functions: a failure is a test failure"
+)]
+
+mod common;
+
+use calibration_store::{
+    decode_record, encode_record, RecordError, MAX_RECORD_LEN, RECORD_FORMAT_VERSION,
+};
+use common::{config, spec, valid_spec, worst_case_spec};
+use crc::{Crc, CRC_32_ISO_HDLC};
+use model_core::calibration::{Calibration, CalibrationError, CalibrationSpec, CurvePoint};
+use proptest::prelude::*;
+
+/// Re-declared here rather than taken from the crate, so a wrong algorithm there fails.
+const INDEPENDENT_CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+
+fn encode(spec: &CalibrationSpec) -> Vec<u8> {
+    let mut buffer = [0u8; MAX_RECORD_LEN];
+    let length = encode_record(spec, &mut buffer).unwrap();
+    buffer[..length].to_vec()
+}
+
+/// version + body + a correct CRC, whatever the body is.
+fn record_with_body(version: u8, body: &[u8]) -> Vec<u8> {
+    let mut record = vec![version];
+    record.extend_from_slice(body);
+    let crc = INDEPENDENT_CRC.checksum(&record);
+    record.extend_from_slice(&crc.to_le_bytes());
+    record
+}
+
+#[test]
+fn layout_is_version_postcard_body_and_little_endian_crc32() {
+    let spec = spec(7);
+    let record = encode(&spec);
+    let body = postcard_body(&spec);
+    assert_eq!(record[0], 1);
+    assert_eq!(RECORD_FORMAT_VERSION, 1);
+    assert_eq!(&record[1..record.len() - 4], body.as_slice());
+    let crc = INDEPENDENT_CRC.checksum(&record[..record.len() - 4]);
+    assert_eq!(&record[record.len() - 4..], &crc.to_le_bytes());
+    assert_eq!(INDEPENDENT_CRC.checksum(b"123456789"), 0xCBF4_3926);
+}
+
+/// postcard's `alloc` feature is off in the workspace: serialize into a large slice instead.
+fn postcard_body(spec: &CalibrationSpec) -> Vec<u8> {
+    let mut buffer = [0u8; 4096];
+    postcard::to_slice(spec, &mut buffer).unwrap().to_vec()
+}
+
+#[test]
+fn worst_case_spec_fills_max_record_len_exactly() {
+    let worst = worst_case_spec(u32::MAX);
+    let record = encode(&worst);
+    assert_eq!(record.len(), MAX_RECORD_LEN);
+    assert_eq!(MAX_RECORD_LEN, 627);
+    assert_eq!(decode_record(&record), Ok(worst));
+}
+
+#[test]
+fn default_record_length_is_measured() {
+    assert_eq!(encode(&CalibrationSpec::default()).len(), 255);
+}
+
+#[test]
+fn every_too_short_buffer_is_refused_without_writing_past_it() {
+    let worst = worst_case_spec(u32::MAX);
+    for length in 0..MAX_RECORD_LEN {
+        let mut buffer = vec![0xA5u8; length];
+        assert_eq!(
+            encode_record(&worst, &mut buffer),
+            Err(RecordError::BufferTooSmall),
+            "buffer of {length} bytes"
+        );
+    }
+}
+
+#[test]
+fn an_invalid_spec_is_refused_before_anything_is_written() {
+    let mut invalid = spec(1);
+    invalid.taxels[3].points.truncate(1);
+    let mut buffer = [0x5Au8; MAX_RECORD_LEN];
+    assert_eq!(
+        encode_record(&invalid, &mut buffer),
+        Err(RecordError::Invalid(CalibrationError::TooFewPoints {
+            taxel: 3
+        }))
+    );
+    assert!(buffer.iter().all(|&byte| byte == 0x5A));
+}
+
+#[test]
+fn short_inputs_are_too_short() {
+    for length in 0..=4 {
+        assert_eq!(
+            decode_record(&[1, 0, 0, 0, 0][..length]),
+            Err(RecordError::TooShort),
+            "{length} bytes"
+        );
+    }
+}
+
+#[test]
+fn a_changed_byte_is_a_crc_error() {
+    let mut record = encode(&spec(3));
+    let middle = record.len() / 2;
+    record[middle] ^= 0x40;
+    assert_eq!(decode_record(&record), Err(RecordError::BadCrc));
+}
+
+#[test]
+fn an_intact_record_of_another_version_is_refused_by_version() {
+    let record = encode(&spec(3));
+    let other_version = record_with_body(2, &record[1..record.len() - 4]);
+    assert_eq!(
+        decode_record(&other_version),
+        Err(RecordError::UnsupportedVersion { found: 2 })
+    );
+}
+
+#[test]
+fn an_intact_record_with_a_garbage_body_is_a_postcard_error() {
+    assert!(matches!(
+        decode_record(&record_with_body(1, &[])),
+        Err(RecordError::Postcard(_))
+    ));
+    assert!(matches!(
+        decode_record(&record_with_body(1, &[0xFF; 40])),
+        Err(RecordError::Postcard(_))
+    ));
+}
+
+#[test]
+fn an_intact_record_with_bytes_after_the_body_is_refused() {
+    let record = encode(&spec(3));
+    let mut body = record[1..record.len() - 4].to_vec();
+    body.push(0);
+    assert_eq!(
+        decode_record(&record_with_body(1, &body)),
+        Err(RecordError::TrailingBytes)
+    );
+}
+
+#[test]
+fn an_intact_record_that_does_not_validate_is_refused() {
+    let mut invalid = spec(3);
+    invalid.taxels[1].points[2] = CurvePoint::new(5.0, 0.01);
+    let body = postcard_body(&invalid);
+    assert_eq!(
+        decode_record(&record_with_body(1, &body)),
+        Err(RecordError::Invalid(
+            CalibrationError::NotStrictlyIncreasing { taxel: 1, point: 2 }
+        ))
+    );
+    let mut invalid = spec(3);
+    invalid.thresholds.dead_band_relative = f32::NAN;
+    let body = postcard_body(&invalid);
+    assert_eq!(
+        decode_record(&record_with_body(1, &body)),
+        Err(RecordError::Invalid(CalibrationError::InvalidThresholds))
+    );
+}
+
+fn flip(record: &[u8], bits: &[usize]) -> Vec<u8> {
+    let mut flipped = record.to_vec();
+    for &bit in bits {
+        flipped[bit / 8] ^= 1 << (bit % 8);
+    }
+    flipped
+}
+
+#[test]
+fn every_single_bit_flip_of_the_longest_record_is_caught() {
+    let record = encode(&worst_case_spec(0x1234_5678));
+    for bit in 0..record.len() * 8 {
+        let flipped = flip(&record, &[bit]);
+        let result = decode_record(&flipped);
+        assert!(result.is_err(), "bit {bit}: {result:?}");
+    }
+}
+
+#[test]
+fn every_truncation_and_extension_of_a_record_is_caught() {
+    for record in [encode(&spec(9)), encode(&worst_case_spec(9))] {
+        for length in 0..record.len() {
+            assert!(decode_record(&record[..length]).is_err(), "{length} bytes");
+        }
+        for extra in [0x00u8, 0xFF, 0x5A] {
+            let mut extended = record.clone();
+            extended.push(extra);
+            assert!(decode_record(&extended).is_err());
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(config(2000))]
+
+    #[test]
+    fn valid_specs_round_trip_within_max_record_len(spec in valid_spec()) {
+        let record = encode(&spec);
+        prop_assert!(record.len() <= MAX_RECORD_LEN);
+        prop_assert_eq!(decode_record(&record), Ok(spec));
+    }
+
+    /// CRC-32 has a Hamming distance of at least 4 up to 91607 bits, so up to three flipped bits
+    /// in a record of at most 5016 bits are always detected.
+    #[test]
+    fn up_to_three_bit_flips_never_decode(
+        spec in valid_spec(),
+        bit_seeds in proptest::collection::vec(any::<usize>(), 1..=3),
+    ) {
+        let record = encode(&spec);
+        let bit_count = record.len() * 8;
+        let mut bits: Vec<usize> = bit_seeds.iter().map(|seed| seed % bit_count).collect();
+        bits.sort_unstable();
+        bits.dedup();
+        let result = decode_record(&flip(&record, &bits));
+        prop_assert!(result.is_err(), "bits {:?}: {:?}", bits, result);
+    }
+
+    #[test]
+    fn truncations_never_decode(spec in valid_spec(), cut in any::<usize>()) {
+        let record = encode(&spec);
+        let length = cut % record.len();
+        prop_assert!(decode_record(&record[..length]).is_err());
+    }
+
+    #[test]
+    fn random_bytes_never_decode_or_panic(
+        bytes in proptest::collection::vec(any::<u8>(), 0..=MAX_RECORD_LEN + 8),
+    ) {
+        prop_assert!(decode_record(&bytes).is_err());
+    }
+
+    /// Random bodies behind a correct CRC and version reach postcard and validation: never a
+    /// panic, and anything accepted validates.
+    #[test]
+    fn random_bodies_with_a_correct_crc_never_panic(
+        body in proptest::collection::vec(any::<u8>(), 0..=MAX_RECORD_LEN),
+    ) {
+        let record = record_with_body(1, &body);
+        if let Ok(spec) = decode_record(&record) {
+            prop_assert!(Calibration::new(&spec).is_ok());
+        }
+    }
+
+    /// Valid bodies with one byte changed behind a recomputed CRC: parse or validation errors,
+    /// or (when the change lands in a value) a different spec that validates. Never a panic.
+    #[test]
+    fn edited_bodies_with_a_correct_crc_never_panic(
+        spec in valid_spec(),
+        position in any::<usize>(),
+        value in any::<u8>(),
+    ) {
+        let record = encode(&spec);
+        let mut body = record[1..record.len() - 4].to_vec();
+        let position = position % body.len();
+        body[position] = value;
+        let edited = record_with_body(1, &body);
+        if let Ok(decoded) = decode_record(&edited) {
+            prop_assert!(Calibration::new(&decoded).is_ok());
+        }
+    }
+}

@@ -1,0 +1,14 @@
+//! The simulated device on the desktop: the firmware's own acquisition, model, storage and
+//! protocol code running against the simulated FDC1004 and TMP117, driven by a scene file, and
+//! served on a pseudo-terminal so that any serial program connects to it as to the board.
+#![deny(missing_docs)]
+
+pub mod pty;
+pub mod scene_file;
+pub mod simulated_device;
+
+pub use pty::PtyPort;
+pub use scene_file::{FaultKind, SceneFault, SceneFile, SceneFileError, DEFAULT_SCENE_TOML};
+pub use simulated_device::{
+    simulated_board_serial, SimulatedDevice, SimulatedDeviceConfig, SimulatedDeviceError,
+};

@@ -1,0 +1,277 @@
+//! The simulated device: the firmware's own acquisition loop, model and protocol code (crates
+//! `acquisition` and `device`) wired to the simulated FDC1004 and TMP117, a simulated MCU die
+//! sensor, and calibration storage on a RAM model of the flash.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use acquisition::{Acquisition, AcquisitionConfig, Clock, ProcessedSample};
+use calibration_store::{CalibrationStore, LoadOutcome, RamFlash};
+use device::{
+    CalibrationPersistence, Device, DeviceConfig, DeviceIdentity, HostPort, PersistenceFailed,
+};
+use fdc1004::{Config, Fdc1004, Rate};
+use model_core::{Calibration, CalibrationSpec, PadModel};
+use sensor_sim::{
+    Pacing, Scene, ScenePoint, SimDelay, SimI2c, Simulation, SimulationConfig, Window,
+};
+use tmp117::{Address, TemperatureSource, Tmp117};
+use wire::{CalibrationSource, FirmwareVersion};
+
+use crate::scene_file::SceneFile;
+
+/// Size of the simulated calibration flash region: two 4 KiB pages.
+const FLASH_SIZE: usize = 8192;
+/// Erase page of the simulated flash.
+const FLASH_PAGE: usize = 4096;
+
+/// The simulated flash.
+pub type SimulatedFlash = RamFlash<FLASH_SIZE, FLASH_PAGE>;
+
+/// The same CAPDAC on every channel: 3.125 pF under a 1.2 pF cable plus a 4.5 pF taxel keeps
+/// the loaded input (up to about 7 pF) well inside the converter's +-16 pF.
+const CAPDAC: [u8; 4] = [1; 4];
+
+/// The simulated clock.
+pub struct SimulatedClock(Simulation);
+
+impl Clock for SimulatedClock {
+    fn now_us(&self) -> u64 {
+        self.0.now_us()
+    }
+}
+
+/// Stands in for the MCU's die sensor: the pad temperature plus 2 °C of self-heating.
+pub struct SimulatedDieTemperature(Simulation);
+
+impl TemperatureSource for SimulatedDieTemperature {
+    type Error = ();
+
+    async fn read_temperature_c(&mut self) -> Result<f32, ()> {
+        Ok(self.0.scene_point().temperature_c + 2.0)
+    }
+}
+
+/// Calibration persistence on the simulated flash, through the firmware's storage code.
+pub struct SimulatedPersistence(CalibrationStore<SimulatedFlash>);
+
+impl CalibrationPersistence for SimulatedPersistence {
+    async fn save(&mut self, spec: &CalibrationSpec) -> Result<(), PersistenceFailed> {
+        self.0.save(spec).await.map_err(|_| PersistenceFailed)
+    }
+}
+
+impl SimulatedPersistence {
+    /// The store (for tests that inspect or corrupt it).
+    pub fn store_mut(&mut self) -> &mut CalibrationStore<SimulatedFlash> {
+        &mut self.0
+    }
+}
+
+/// The acquisition loop on the simulated bus.
+pub type SimulatedAcquisition =
+    Acquisition<SimI2c, SimDelay, Tmp117<SimI2c>, SimulatedDieTemperature, SimulatedClock>;
+
+/// How to run the simulated device.
+#[derive(Debug, Clone)]
+pub struct SimulatedDeviceConfig {
+    /// What happens to the pad.
+    pub scene: SceneFile,
+    /// Noise seed: the same seed, scene and commands give the same stream.
+    pub seed: u64,
+    /// Simulated seconds per wall-clock second; `None` runs as fast as the host computes.
+    pub speed: Option<f64>,
+}
+
+/// Why the simulated device could not start.
+#[derive(Debug)]
+pub enum SimulatedDeviceError {
+    /// The simulator refused its configuration.
+    Simulation(String),
+    /// The flash region does not fit the storage layout.
+    Storage,
+}
+
+impl std::fmt::Display for SimulatedDeviceError {
+    fn fmt(&self, formatter: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SimulatedDeviceError::Simulation(message) => {
+                write!(formatter, "simulator: {message}")
+            }
+            SimulatedDeviceError::Storage => formatter.write_str("simulated flash layout"),
+        }
+    }
+}
+
+impl std::error::Error for SimulatedDeviceError {}
+
+/// A scene that starts over after its last keyframe when asked to.
+struct RepeatingScene {
+    scene: sensor_sim::ScriptedScene,
+    period_us: u64,
+    repeat: bool,
+}
+
+impl Scene for RepeatingScene {
+    fn sample(&mut self, time_us: u64) -> ScenePoint {
+        let time_us = if self.repeat && self.period_us > 0 {
+            time_us % self.period_us
+        } else {
+            time_us
+        };
+        self.scene.point_at_s(time_us as f64 / 1e6)
+    }
+}
+
+/// The simulated device.
+pub struct SimulatedDevice {
+    device: Device<SimulatedAcquisition, SimulatedPersistence>,
+    simulation: Simulation,
+    scene: SceneFile,
+    passes_with_faults: u64,
+}
+
+/// The board serial the simulated device reports: "SIMULATED" and the seed's low bytes.
+pub fn simulated_board_serial(seed: u64) -> [u8; 12] {
+    let mut serial = [0u8; 12];
+    serial[..9].copy_from_slice(b"SIMULATED");
+    serial[9..].copy_from_slice(&seed.to_be_bytes()[5..]);
+    serial
+}
+
+impl SimulatedDevice {
+    /// Boots the simulated device: calibration from the simulated flash (blank: the defaults
+    /// matching the simulated pad), converter initialisation and tare on the first cycles.
+    pub fn new(config: SimulatedDeviceConfig) -> Result<Self, SimulatedDeviceError> {
+        let simulation = Simulation::new(SimulationConfig {
+            seed: config.seed,
+            ..SimulationConfig::default()
+        })
+        .map_err(|error| SimulatedDeviceError::Simulation(format!("{error:?}")))?;
+        let period_us = (config.scene.period_s() * 1e6) as u64;
+        simulation.set_scene(RepeatingScene {
+            scene: config.scene.scene.clone(),
+            period_us,
+            repeat: config.scene.repeat,
+        });
+        if let Some(speed) = config.speed {
+            simulation
+                .set_pacing(Pacing::RealTime { speed })
+                .map_err(|error| SimulatedDeviceError::Simulation(error.to_string()))?;
+        }
+        let store = CalibrationStore::new(SimulatedFlash::new(), 0..FLASH_SIZE as u32)
+            .map_err(|_| SimulatedDeviceError::Storage)?;
+        let mut persistence = SimulatedPersistence(store);
+        // The simulated pad's factory calibration: the article's curve with this pad's
+        // parasitic capacitance, as the firmware's defaults would be for a real pad.
+        let defaults = simulation
+            .physics()
+            .matching_calibration()
+            .unwrap_or_default();
+        let (calibration, source) = match embassy_futures::block_on(persistence.0.load()) {
+            LoadOutcome::Stored(spec) => match Calibration::new(&spec) {
+                Ok(calibration) => (calibration, CalibrationSource::Flash),
+                Err(_) => (defaults, CalibrationSource::DefaultsAfterCorruptFlash),
+            },
+            LoadOutcome::Absent => (defaults, CalibrationSource::Defaults),
+            LoadOutcome::Corrupt(_) => (defaults, CalibrationSource::DefaultsAfterCorruptFlash),
+        };
+        let converter = Fdc1004::new(
+            simulation.i2c(),
+            simulation.delay(),
+            Config {
+                rate: Rate::Hz400,
+                capdac: CAPDAC,
+                done_timeout_us: 30_000,
+                power_up_delay_us: 5_000,
+            },
+        );
+        let acquisition = Acquisition::new(
+            converter,
+            Tmp117::new(simulation.i2c(), Address::Gnd),
+            SimulatedDieTemperature(simulation.clone()),
+            SimulatedClock(simulation.clone()),
+            PadModel::new(calibration),
+            AcquisitionConfig::default(),
+            simulation.delay(),
+        );
+        let identity = DeviceIdentity {
+            firmware_version: firmware_version(),
+            board_serial: simulated_board_serial(config.seed),
+        };
+        let device = Device::new(
+            acquisition,
+            persistence,
+            identity,
+            source,
+            DeviceConfig::default(),
+        );
+        Ok(Self {
+            device,
+            simulation,
+            scene: config.scene,
+            passes_with_faults: 0,
+        })
+    }
+
+    /// The simulator (scene, faults, clock).
+    pub fn simulation(&self) -> &Simulation {
+        &self.simulation
+    }
+
+    /// The device application.
+    pub fn device_mut(&mut self) -> &mut Device<SimulatedAcquisition, SimulatedPersistence> {
+        &mut self.device
+    }
+
+    /// One converter cycle with its requests and frames.
+    pub fn step<H: HostPort>(&mut self, host: &mut H) -> ProcessedSample {
+        self.schedule_scene_faults();
+        embassy_futures::block_on(self.device.step(host))
+    }
+
+    /// Steps until `stop` is set or the scene's simulated time passes `until_s`.
+    pub fn run<H: HostPort>(&mut self, host: &mut H, until_s: Option<f64>, stop: &AtomicBool) {
+        while !stop.load(Ordering::Relaxed) {
+            if until_s.is_some_and(|until_s| self.simulation.now_us() as f64 / 1e6 >= until_s) {
+                break;
+            }
+            self.step(host);
+        }
+    }
+
+    /// Injects the scene's faults for the current pass (and the next, so that a window that
+    /// starts right at the wrap is not missed).
+    fn schedule_scene_faults(&mut self) {
+        let period_us = (self.scene.period_s() * 1e6) as u64;
+        let now_us = self.simulation.now_us();
+        let pass = if self.scene.repeat && period_us > 0 {
+            now_us / period_us
+        } else {
+            0
+        };
+        let passes_needed = if self.scene.repeat { pass + 2 } else { 1 };
+        while self.passes_with_faults < passes_needed {
+            let offset_us = self.passes_with_faults * period_us;
+            for fault in &self.scene.faults {
+                self.simulation.inject(
+                    fault.fault(),
+                    Window::Between {
+                        start_us: offset_us + (fault.start_s * 1e6) as u64,
+                        end_us: offset_us + (fault.end_s * 1e6) as u64,
+                    },
+                );
+            }
+            self.passes_with_faults += 1;
+        }
+    }
+}
+
+/// This build's version as the device reports it.
+pub fn firmware_version() -> FirmwareVersion {
+    let part = |text: &str| text.parse::<u8>().unwrap_or(0);
+    FirmwareVersion {
+        major: part(env!("CARGO_PKG_VERSION_MAJOR")),
+        minor: part(env!("CARGO_PKG_VERSION_MINOR")),
+        patch: part(env!("CARGO_PKG_VERSION_PATCH")),
+    }
+}
