@@ -1,0 +1,212 @@
+//! Column names and cell formats shared by every CSV file the tool reads and writes: taxel
+//! columns, flag cells (documented flag names joined by `|`), numbers with '.' as the decimal
+//! separator whatever the locale, and device timestamps in seconds.
+
+use model_core::{TaxelFlags, TAXEL_COUNT};
+use wire::TemperatureSource;
+
+/// Capacitance columns in pad order (C11, C12, C21, C22), pF.
+pub const CAPACITANCE_COLUMNS: [&str; TAXEL_COUNT] = ["c11_pf", "c12_pf", "c21_pf", "c22_pf"];
+
+/// Pressure columns in pad order, kPa.
+pub const PRESSURE_COLUMNS: [&str; TAXEL_COUNT] = ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"];
+
+/// Flag columns in pad order.
+pub const FLAGS_COLUMNS: [&str; TAXEL_COUNT] = ["flags11", "flags12", "flags21", "flags22"];
+
+/// Taxel labels in pad order, for people (views, plots, tables).
+pub const TAXEL_LABELS: [&str; TAXEL_COUNT] = ["C11", "C12", "C21", "C22"];
+
+/// Time column, seconds.
+pub const TIME_COLUMN: &str = "time_s";
+
+/// Temperature column, °C; an empty cell means no temperature.
+pub const TEMPERATURE_COLUMN: &str = "temp_c";
+
+/// Separator between flag names in a flags cell.
+pub const FLAG_SEPARATOR: char = '|';
+
+/// The flags cell: documented flag names (see [`TaxelFlags::NAMES`]) in bit order joined by `|`;
+/// empty when no flag is set. Bits without a documented name are written as `bit<n>`.
+pub fn flag_names(flags: TaxelFlags) -> String {
+    let mut names: Vec<String> = TaxelFlags::NAMES
+        .iter()
+        .filter(|(flag, _)| flags.contains(*flag))
+        .map(|(_, name)| (*name).to_owned())
+        .collect();
+    let undocumented = flags.bits() & !TaxelFlags::all().bits();
+    for bit in 0..u16::BITS {
+        if undocumented & (1 << bit) != 0 {
+            names.push(format!("bit{bit}"));
+        }
+    }
+    names.join(&FLAG_SEPARATOR.to_string())
+}
+
+/// The flags cell of raw wire flag bits.
+pub fn wire_flag_names(bits: u16) -> String {
+    flag_names(TaxelFlags::from_bits_retain(bits))
+}
+
+/// Parses a flags cell written by [`flag_names`]; `Err` carries the first unknown name.
+pub fn parse_flag_names(cell: &str) -> Result<TaxelFlags, String> {
+    let mut flags = TaxelFlags::empty();
+    for name in cell
+        .split(FLAG_SEPARATOR)
+        .map(str::trim)
+        .filter(|name| !name.is_empty())
+    {
+        let flag = match TaxelFlags::from_documented_name(name) {
+            Some(flag) => flag,
+            None => name
+                .strip_prefix("bit")
+                .and_then(|bit| bit.parse::<u32>().ok())
+                .and_then(|bit| 1u16.checked_shl(bit))
+                .map(TaxelFlags::from_bits_retain)
+                .ok_or_else(|| name.to_owned())?,
+        };
+        flags |= flag;
+    }
+    Ok(flags)
+}
+
+/// Flags in words for people: "not tared, below baseline"; empty when no flag is set.
+pub fn flag_words(flags: TaxelFlags) -> String {
+    flag_names(flags)
+        .split(FLAG_SEPARATOR)
+        .map(|name| name.replace('_', " "))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// A number cell: the shortest decimal text that reads back as the same f32, always with '.'
+/// as the decimal separator and never in exponent form; empty for NaN (an absent value never
+/// looks like a number).
+pub fn format_number(value: f32) -> String {
+    if value.is_nan() {
+        String::new()
+    } else {
+        format!("{value}")
+    }
+}
+
+/// An optional number cell: empty for `None`.
+pub fn format_optional(value: Option<f32>) -> String {
+    value.map(format_number).unwrap_or_default()
+}
+
+/// A device timestamp in seconds with 6 decimals, exact (no floating point on the way).
+pub fn format_time_us(timestamp_us: u64) -> String {
+    format!(
+        "{}.{:06}",
+        timestamp_us / 1_000_000,
+        timestamp_us % 1_000_000
+    )
+}
+
+/// Parses a number cell (surrounding spaces ignored, '.' decimal separator). `Ok(None)` for an
+/// empty cell, `Err` for anything that is not a number.
+pub fn parse_optional_number(cell: &str) -> Result<Option<f64>, String> {
+    let trimmed = cell.trim();
+    if trimmed.is_empty() {
+        return Ok(None);
+    }
+    trimmed
+        .parse::<f64>()
+        .map(Some)
+        .map_err(|_| format!("'{trimmed}' is not a number"))
+}
+
+/// The temperature-source cell of a recording.
+pub fn temperature_source_name(source: TemperatureSource) -> &'static str {
+    match source {
+        TemperatureSource::None => "none",
+        TemperatureSource::Tmp117 => "tmp117",
+        TemperatureSource::McuInternal => "mcu_internal",
+        TemperatureSource::LastKnown => "last_known",
+    }
+}
+
+/// The temperature source for people.
+pub fn temperature_source_words(source: TemperatureSource) -> &'static str {
+    match source {
+        TemperatureSource::None => "no sensor",
+        TemperatureSource::Tmp117 => "TMP117",
+        TemperatureSource::McuInternal => "MCU internal sensor (fallback)",
+        TemperatureSource::LastKnown => "last known value (held)",
+    }
+}
+
+/// Index of each wanted column in a header row, or the list of the missing ones.
+pub fn find_columns<const N: usize>(
+    header: &csv::StringRecord,
+    wanted: [&str; N],
+) -> Result<[usize; N], Vec<String>> {
+    let mut indices = [0usize; N];
+    let mut missing = Vec::new();
+    for (slot, name) in indices.iter_mut().zip(wanted) {
+        match find_column(header, name) {
+            Some(index) => *slot = index,
+            None => missing.push(name.to_owned()),
+        }
+    }
+    if missing.is_empty() {
+        Ok(indices)
+    } else {
+        Err(missing)
+    }
+}
+
+/// Index of a column in a header row (surrounding spaces and a leading byte-order mark, as
+/// spreadsheets write, are ignored).
+pub fn find_column(header: &csv::StringRecord, name: &str) -> Option<usize> {
+    header
+        .iter()
+        .position(|column| column.trim_start_matches('\u{feff}').trim() == name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flag_cells_round_trip_in_bit_order() {
+        let flags = TaxelFlags::NOT_TARED | TaxelFlags::BELOW_BASELINE;
+        assert_eq!(flag_names(flags), "below_baseline|not_tared");
+        assert_eq!(parse_flag_names("below_baseline|not_tared"), Ok(flags));
+        assert_eq!(flag_names(TaxelFlags::empty()), "");
+        assert_eq!(parse_flag_names(""), Ok(TaxelFlags::empty()));
+        assert_eq!(wire_flag_names(0x1001), "below_baseline|bit12");
+        assert_eq!(
+            parse_flag_names("below_baseline|bit12").map(|flags| flags.bits()),
+            Ok(0x1001)
+        );
+        assert_eq!(parse_flag_names("open|bogus"), Err("bogus".to_owned()));
+        assert_eq!(flag_words(flags), "below baseline, not tared");
+    }
+
+    #[test]
+    fn header_lookup_ignores_spaces_and_a_byte_order_mark() {
+        let header = csv::StringRecord::from(vec!["\u{feff}time_s", " temp_c ", "c11_pf"]);
+        assert_eq!(find_columns(&header, ["temp_c", "time_s"]), Ok([1, 0]));
+        assert_eq!(
+            find_columns(&header, ["time_s", "c12_pf"]),
+            Err(vec!["c12_pf".to_owned()])
+        );
+    }
+
+    #[test]
+    fn numbers_use_a_point_and_round_trip() {
+        assert_eq!(format_number(12.5), "12.5");
+        assert_eq!(format_number(0.0829), "0.0829");
+        assert_eq!(format_number(1e-7), "0.0000001");
+        assert_eq!(format_number(f32::NAN), "");
+        let value = 4.512_346_f32;
+        assert_eq!(format_number(value).parse::<f32>(), Ok(value));
+        assert_eq!(format_time_us(5_000_250), "5.000250");
+        assert_eq!(format_time_us(42), "0.000042");
+        assert_eq!(parse_optional_number(" 1.5 "), Ok(Some(1.5)));
+        assert_eq!(parse_optional_number(""), Ok(None));
+        assert!(parse_optional_number("1,5").is_err());
+    }
+}

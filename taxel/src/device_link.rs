@@ -1,0 +1,506 @@
+//! The link to a taxel pad: finding attached boards by USB VID:PID and serial number, opening
+//! the serial port (DTR asserted, so the device starts sending), decoding frames with
+//! resynchronisation, sending requests and matching their replies.
+//!
+//! [`DeviceLink`] is generic over `Read + Write`, so the same code runs over a serial port, a
+//! pseudo-terminal or an in-memory stream in tests. [`FrameReceiver`] is the decoding half on
+//! its own (used for raw byte logs).
+
+use std::collections::VecDeque;
+use std::io::{self, Read, Write};
+use std::time::{Duration, Instant};
+
+use wire::{
+    encode_frame_to_vec, Command, DecodeError, DeviceFrame, DeviceFrameDecoder, EncodeError,
+    ErrorCode, ReplyFrame, ReplyPayload, Request,
+};
+
+/// The pad's USB vendor id (pid.codes).
+pub const DEFAULT_VID: u16 = 0x1209;
+/// The pad's USB product id.
+pub const DEFAULT_PID: u16 = 0x0001;
+
+/// Frames kept for the caller while a request waits for its reply; older ones are dropped (and
+/// counted) beyond this.
+pub const QUEUE_CAPACITY: usize = 65_536;
+
+/// Why the link failed (the transport, not the device's answer).
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    /// Listing the serial ports failed.
+    #[error("listing serial ports: {0}")]
+    Enumerate(serialport::Error),
+    /// No board with the VID:PID is attached.
+    #[error("no board attached (looked for USB {vid:04x}:{pid:04x})")]
+    NoBoard {
+        /// Vendor id looked for.
+        vid: u16,
+        /// Product id looked for.
+        pid: u16,
+    },
+    /// No attached board has this serial number.
+    #[error("no attached board has serial number {serial_number} (attached: {attached})")]
+    SerialNumberNotFound {
+        /// The serial number asked for.
+        serial_number: String,
+        /// The attached boards, for the message.
+        attached: String,
+    },
+    /// Several boards are attached and none was chosen.
+    #[error("{count} boards attached, choose one by port or with --serial: {attached}")]
+    SeveralBoards {
+        /// How many.
+        count: usize,
+        /// Port and serial number of each.
+        attached: String,
+    },
+    /// The port path does not exist (the board is unplugged).
+    #[error("{path} does not exist (unplugged?)")]
+    PortMissing {
+        /// The port.
+        path: String,
+    },
+    /// The serial port could not be opened or configured.
+    #[error("opening {path}: {source}")]
+    Open {
+        /// The port.
+        path: String,
+        /// The cause.
+        source: serialport::Error,
+    },
+    /// The stream ended: the device was unplugged or the port closed.
+    #[error("the device closed the connection (unplugged?)")]
+    Disconnected,
+    /// Reading from or writing to the port failed.
+    #[error("serial I/O: {0}")]
+    Io(io::Error),
+    /// Writing the raw byte log failed.
+    #[error("writing the raw byte log: {0}")]
+    RawLog(io::Error),
+    /// A request could not be encoded.
+    #[error("encoding a request: {0}")]
+    Encode(EncodeError),
+}
+
+/// Why a request got no successful answer: the transport failed, nobody answered in time, or the
+/// device said no.
+#[derive(Debug, thiserror::Error)]
+pub enum RequestError {
+    /// The link failed.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// No reply with the request id arrived in time.
+    #[error("no reply to request {request_id} within {timeout_ms} ms")]
+    Timeout {
+        /// The request id sent.
+        request_id: u16,
+        /// The timeout.
+        timeout_ms: u128,
+    },
+    /// The device answered with an error code.
+    #[error("the device refused the request: {0:?}")]
+    Refused(ErrorCode),
+}
+
+/// One attached board.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BoardPort {
+    /// The serial port path (e.g. a ttyACM device).
+    pub port_name: String,
+    /// USB vendor id.
+    pub vid: u16,
+    /// USB product id.
+    pub pid: u16,
+    /// USB serial number string.
+    pub serial_number: Option<String>,
+    /// USB manufacturer string.
+    pub manufacturer: Option<String>,
+    /// USB product string.
+    pub product: Option<String>,
+}
+
+impl BoardPort {
+    fn describe(&self) -> String {
+        format!(
+            "{} (serial {})",
+            self.port_name,
+            self.serial_number.as_deref().unwrap_or("unknown")
+        )
+    }
+}
+
+fn describe_all(boards: &[BoardPort]) -> String {
+    if boards.is_empty() {
+        "none".to_owned()
+    } else {
+        boards
+            .iter()
+            .map(BoardPort::describe)
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// Boards attached by USB with this VID:PID, sorted by port name.
+pub fn attached_boards(vid: u16, pid: u16) -> Result<Vec<BoardPort>, LinkError> {
+    let ports = serialport::available_ports().map_err(LinkError::Enumerate)?;
+    let mut boards: Vec<BoardPort> = ports
+        .into_iter()
+        .filter_map(|port| match port.port_type {
+            serialport::SerialPortType::UsbPort(usb) if usb.vid == vid && usb.pid == pid => {
+                Some(BoardPort {
+                    port_name: port.port_name,
+                    vid: usb.vid,
+                    pid: usb.pid,
+                    serial_number: usb.serial_number,
+                    manufacturer: usb.manufacturer,
+                    product: usb.product,
+                })
+            }
+            _ => None,
+        })
+        .collect();
+    boards.sort_by(|first, second| first.port_name.cmp(&second.port_name));
+    Ok(boards)
+}
+
+/// Chooses among attached boards: the one with `serial_number` if given (case-insensitive),
+/// else the only one.
+pub fn choose_board(
+    boards: &[BoardPort],
+    serial_number: Option<&str>,
+    vid: u16,
+    pid: u16,
+) -> Result<BoardPort, LinkError> {
+    if let Some(wanted) = serial_number {
+        return boards
+            .iter()
+            .find(|board| {
+                board
+                    .serial_number
+                    .as_deref()
+                    .is_some_and(|serial| serial.eq_ignore_ascii_case(wanted.trim()))
+            })
+            .cloned()
+            .ok_or_else(|| LinkError::SerialNumberNotFound {
+                serial_number: wanted.to_owned(),
+                attached: describe_all(boards),
+            });
+    }
+    match boards {
+        [] => Err(LinkError::NoBoard { vid, pid }),
+        [only] => Ok(only.clone()),
+        several => Err(LinkError::SeveralBoards {
+            count: several.len(),
+            attached: describe_all(several),
+        }),
+    }
+}
+
+/// The port to open: `path` if given, else the attached board chosen by [`choose_board`].
+pub fn select_port(
+    path: Option<&str>,
+    serial_number: Option<&str>,
+    vid: u16,
+    pid: u16,
+) -> Result<String, LinkError> {
+    match path {
+        Some(path) => Ok(path.to_owned()),
+        None => {
+            let boards = attached_boards(vid, pid)?;
+            choose_board(&boards, serial_number, vid, pid).map(|board| board.port_name)
+        }
+    }
+}
+
+/// A serial port opened by [`open_serial`].
+pub struct OpenedPort {
+    /// The port, readable and writable.
+    pub port: Box<dyn serialport::SerialPort>,
+    /// Why DTR could not be asserted, if it could not. Pseudo-terminals (a simulated device)
+    /// have no modem-control lines, so this is not fatal; a real board that does not see DTR
+    /// stays silent, which the first request's timeout then reports.
+    pub dtr_error: Option<serialport::Error>,
+}
+
+/// Opens a serial port with a read timeout and asserts DTR (the device only sends to an open
+/// port). The baud rate is irrelevant for CDC-ACM.
+pub fn open_serial(path: &str, read_timeout: Duration) -> Result<OpenedPort, LinkError> {
+    let mut port = serialport::new(path, 115_200)
+        .timeout(read_timeout)
+        .open()
+        .map_err(|source| LinkError::Open {
+            path: path.to_owned(),
+            source,
+        })?;
+    let dtr_error = port.write_data_terminal_ready(true).err();
+    Ok(OpenedPort { port, dtr_error })
+}
+
+/// Counters of what a [`FrameReceiver`] saw.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LinkStatistics {
+    /// Bytes received.
+    pub bytes_received: u64,
+    /// Frames decoded.
+    pub frames_decoded: u64,
+    /// Frames rejected (garbage, corruption, unknown kind or version).
+    pub frames_rejected: u64,
+    /// Bytes that belonged to no decoded frame (rejected frames and their delimiters).
+    pub bytes_rejected: u64,
+    /// The last decoding error.
+    pub last_error: Option<DecodeError>,
+}
+
+/// The decoding half of the link: bytes in, device frames out, resynchronising at every 0x00.
+#[derive(Debug, Clone, Default)]
+pub struct FrameReceiver {
+    decoder: DeviceFrameDecoder,
+    bytes_in_chunk: u64,
+    statistics: LinkStatistics,
+}
+
+impl FrameReceiver {
+    /// A receiver with nothing pending.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Decodes bytes and appends every frame they complete to `frames`.
+    pub fn push_bytes(&mut self, bytes: &[u8], frames: &mut impl Extend<DeviceFrame>) {
+        self.statistics.bytes_received += bytes.len() as u64;
+        for &byte in bytes {
+            self.bytes_in_chunk += 1;
+            match self.decoder.push(byte) {
+                Some(Ok(frame)) => {
+                    self.statistics.frames_decoded += 1;
+                    self.bytes_in_chunk = 0;
+                    frames.extend([frame]);
+                }
+                Some(Err(error)) => {
+                    self.statistics.frames_rejected += 1;
+                    self.statistics.bytes_rejected += self.bytes_in_chunk;
+                    self.statistics.last_error = Some(error);
+                    self.bytes_in_chunk = 0;
+                }
+                None if byte == 0 => {
+                    // A lone delimiter (the host-side leading 00, or two in a row) is framing.
+                    self.bytes_in_chunk = 0;
+                }
+                None => {}
+            }
+        }
+    }
+
+    /// Call at the end of a finite stream: a partial frame left over is counted as rejected.
+    pub fn finish(&mut self) {
+        if self.bytes_in_chunk > 0 {
+            self.statistics.frames_rejected += 1;
+            self.statistics.bytes_rejected += self.bytes_in_chunk;
+            self.bytes_in_chunk = 0;
+            self.decoder.reset();
+        }
+    }
+
+    /// What was seen so far.
+    pub fn statistics(&self) -> &LinkStatistics {
+        &self.statistics
+    }
+}
+
+/// A link to one device over any byte stream.
+pub struct DeviceLink<P> {
+    port: P,
+    receiver: FrameReceiver,
+    frames: VecDeque<DeviceFrame>,
+    frames_dropped_from_queue: u64,
+    raw_log: Option<Box<dyn Write + Send>>,
+    next_request_id: u16,
+    read_buffer: Vec<u8>,
+}
+
+impl<P: Read + Write> DeviceLink<P> {
+    /// A link over an open port (for a serial port, see [`open_serial`]).
+    pub fn new(port: P) -> Self {
+        Self {
+            port,
+            receiver: FrameReceiver::new(),
+            frames: VecDeque::new(),
+            frames_dropped_from_queue: 0,
+            raw_log: None,
+            next_request_id: 1,
+            read_buffer: vec![0; 4096],
+        }
+    }
+
+    /// Copies every received byte, as received, to `log`.
+    pub fn set_raw_log(&mut self, log: Box<dyn Write + Send>) {
+        self.raw_log = Some(log);
+    }
+
+    /// Takes the raw byte log back (to flush and close it).
+    pub fn take_raw_log(&mut self) -> Option<Box<dyn Write + Send>> {
+        self.raw_log.take()
+    }
+
+    /// Flushes the raw byte log.
+    pub fn flush_raw_log(&mut self) -> Result<(), LinkError> {
+        match self.raw_log.as_mut() {
+            Some(log) => log.flush().map_err(LinkError::RawLog),
+            None => Ok(()),
+        }
+    }
+
+    /// The port.
+    pub fn port(&self) -> &P {
+        &self.port
+    }
+
+    /// The port, mutably.
+    pub fn port_mut(&mut self) -> &mut P {
+        &mut self.port
+    }
+
+    /// Gives the port back.
+    pub fn into_port(self) -> P {
+        self.port
+    }
+
+    /// Decoding counters.
+    pub fn statistics(&self) -> &LinkStatistics {
+        self.receiver.statistics()
+    }
+
+    /// Frames dropped because the caller did not take them while a request waited.
+    pub fn frames_dropped_from_queue(&self) -> u64 {
+        self.frames_dropped_from_queue
+    }
+
+    /// Reads once from the port and decodes what arrived. Returns the number of bytes read;
+    /// 0 means the read timed out with nothing. End of stream is [`LinkError::Disconnected`].
+    pub fn poll(&mut self) -> Result<usize, LinkError> {
+        let count = match self.port.read(&mut self.read_buffer) {
+            Ok(0) => return Err(LinkError::Disconnected),
+            Ok(count) => count,
+            Err(error)
+                if matches!(
+                    error.kind(),
+                    io::ErrorKind::TimedOut
+                        | io::ErrorKind::WouldBlock
+                        | io::ErrorKind::Interrupted
+                ) =>
+            {
+                return Ok(0)
+            }
+            Err(error) => return Err(LinkError::Io(error)),
+        };
+        let bytes = &self.read_buffer[..count];
+        if let Some(log) = self.raw_log.as_mut() {
+            log.write_all(bytes).map_err(LinkError::RawLog)?;
+        }
+        self.receiver.push_bytes(bytes, &mut self.frames);
+        let excess = self.frames.len().saturating_sub(QUEUE_CAPACITY);
+        if excess > 0 {
+            self.frames.drain(..excess);
+            self.frames_dropped_from_queue += excess as u64;
+        }
+        Ok(count)
+    }
+
+    /// The next frame: a queued one, else whatever one read brings (`None` if it brought no
+    /// complete frame).
+    pub fn next_frame(&mut self) -> Result<Option<DeviceFrame>, LinkError> {
+        if let Some(frame) = self.frames.pop_front() {
+            return Ok(Some(frame));
+        }
+        self.poll()?;
+        Ok(self.frames.pop_front())
+    }
+
+    /// Sends a request without waiting; returns its request id. The reply arrives later as a
+    /// [`DeviceFrame::Reply`] with that id. A 00 goes before the frame so that anything the
+    /// device holds (a partial frame, typed text) cannot be glued to its front.
+    pub fn send(&mut self, command: Command) -> Result<u16, LinkError> {
+        let request_id = self.next_request_id;
+        self.next_request_id = self.next_request_id.wrapping_add(1).max(1);
+        let request = Request {
+            request_id,
+            command,
+        };
+        let mut bytes = vec![0u8];
+        bytes.extend(encode_frame_to_vec(&request).map_err(LinkError::Encode)?);
+        self.port.write_all(&bytes).map_err(LinkError::Io)?;
+        self.port.flush().map_err(LinkError::Io)?;
+        Ok(request_id)
+    }
+
+    /// Sends a request and waits up to `timeout` for its reply. Frames that arrive meanwhile
+    /// stay queued, in order, for [`DeviceLink::next_frame`].
+    pub fn request(
+        &mut self,
+        command: Command,
+        timeout: Duration,
+    ) -> Result<ReplyPayload, RequestError> {
+        let request_id = self.send(command)?;
+        let deadline = Instant::now() + timeout;
+        loop {
+            let position = self.frames.iter().position(|frame| {
+                matches!(frame, DeviceFrame::Reply(ReplyFrame { request_id: id, .. }) if *id == request_id)
+            });
+            if let Some(DeviceFrame::Reply(reply)) =
+                position.and_then(|position| self.frames.remove(position))
+            {
+                return reply.result.map_err(RequestError::Refused);
+            }
+            if Instant::now() >= deadline {
+                return Err(RequestError::Timeout {
+                    request_id,
+                    timeout_ms: timeout.as_millis(),
+                });
+            }
+            self.poll()?;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn board(port_name: &str, serial_number: &str) -> BoardPort {
+        BoardPort {
+            port_name: port_name.to_owned(),
+            vid: DEFAULT_VID,
+            pid: DEFAULT_PID,
+            serial_number: Some(serial_number.to_owned()),
+            manufacturer: None,
+            product: None,
+        }
+    }
+
+    #[test]
+    fn board_choice_by_serial_number_or_the_only_one() {
+        let boards = [board("/dev/a", "AB12"), board("/dev/b", "CD34")];
+        let chosen = choose_board(&boards, Some("cd34"), DEFAULT_VID, DEFAULT_PID).unwrap();
+        assert_eq!(chosen.port_name, "/dev/b");
+        assert!(matches!(
+            choose_board(&boards, None, DEFAULT_VID, DEFAULT_PID),
+            Err(LinkError::SeveralBoards { count: 2, .. })
+        ));
+        assert!(matches!(
+            choose_board(&boards, Some("EF56"), DEFAULT_VID, DEFAULT_PID),
+            Err(LinkError::SerialNumberNotFound { .. })
+        ));
+        assert_eq!(
+            choose_board(&boards[..1], None, DEFAULT_VID, DEFAULT_PID)
+                .unwrap()
+                .port_name,
+            "/dev/a"
+        );
+        let error = choose_board(&[], None, DEFAULT_VID, DEFAULT_PID).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "no board attached (looked for USB 1209:0001)"
+        );
+    }
+}

@@ -1,0 +1,21 @@
+//! The `taxel` host tool as a library: every subcommand's logic, testable without the binary.
+//!
+//! - [`convert`]: re-process recorded capacitances with another calibration or tier.
+//! - [`calibrate`]: fit a calibration from reference loads, cross-validate the tiers, upload.
+//! - [`plot`]: SVG/PNG pictures of recordings and calibrations.
+//! - [`list`], [`record`], [`view`]: attached boards, recording, the live terminal view.
+//! - [`device_link`]: the serial link: board discovery, frame decoding, requests and replies.
+//! - [`calibration_file`], [`csv_format`]: the file formats.
+#![deny(missing_docs)]
+
+pub mod calibrate;
+pub mod calibration_file;
+pub mod cli;
+pub mod convert;
+pub mod csv_format;
+pub mod device_link;
+pub mod list;
+pub mod plot;
+pub mod record;
+pub mod sim;
+pub mod view;

@@ -1,0 +1,77 @@
+//! `taxel list`: the boards attached by USB with the pad's VID:PID, with their serial numbers.
+
+use std::process::ExitCode;
+
+use crate::device_link::{attached_boards, BoardPort, DEFAULT_PID, DEFAULT_VID};
+use crate::record::parse_hex_u16;
+
+/// Arguments of `taxel list`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ListArgs {
+    /// USB vendor id to look for (hex).
+    #[arg(long, value_name = "VID", default_value = "0x1209", value_parser = parse_hex_u16)]
+    pub vid: u16,
+    /// USB product id to look for (hex).
+    #[arg(long, value_name = "PID", default_value = "0x0001", value_parser = parse_hex_u16)]
+    pub pid: u16,
+}
+
+impl Default for ListArgs {
+    fn default() -> Self {
+        Self {
+            vid: DEFAULT_VID,
+            pid: DEFAULT_PID,
+        }
+    }
+}
+
+/// The listing text: one line per board, or "no board attached".
+pub fn listing(boards: &[BoardPort]) -> String {
+    if boards.is_empty() {
+        return "no board attached\n".to_owned();
+    }
+    boards
+        .iter()
+        .map(|board| {
+            format!(
+                "{}  {:04x}:{:04x}  serial {}  {} {}\n",
+                board.port_name,
+                board.vid,
+                board.pid,
+                board.serial_number.as_deref().unwrap_or("(none)"),
+                board.manufacturer.as_deref().unwrap_or(""),
+                board.product.as_deref().unwrap_or("")
+            )
+            .replace("  \n", "\n")
+        })
+        .collect()
+}
+
+/// Runs `taxel list`.
+pub fn run(args: &ListArgs) -> anyhow::Result<ExitCode> {
+    let boards = attached_boards(args.vid, args.pid)?;
+    print!("{}", listing(&boards));
+    Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn empty_listing_says_so() {
+        assert_eq!(listing(&[]), "no board attached\n");
+        let board = BoardPort {
+            port_name: "/dev/ttyACM0".to_owned(),
+            vid: 0x1209,
+            pid: 0x0001,
+            serial_number: Some("0123456789AB".to_owned()),
+            manufacturer: Some("taxel".to_owned()),
+            product: Some("pad".to_owned()),
+        };
+        assert_eq!(
+            listing(&[board]),
+            "/dev/ttyACM0  1209:0001  serial 0123456789AB  taxel pad\n"
+        );
+    }
+}

@@ -1,0 +1,610 @@
+//! `taxel plot`: pictures of a recording (pressure per taxel over time) or of a calibration
+//! (the curve per taxel with its points, and each tier's residuals on reference loads), as SVG
+//! or PNG chosen by the output file's extension.
+//!
+//! Text is drawn with a font embedded in the binary (DejaVu Sans, see `assets/`), registered with
+//! plotters' `ab_glyph` renderer, so PNG plots need no system fonts; SVG text is written as
+//! `<text>` elements and rendered by the viewer.
+
+use std::fs::File;
+use std::io::{BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::OnceLock;
+
+use anyhow::{bail, Context};
+use model_core::{Calibration, TaxelInverses, Tier, TAXEL_COUNT};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::register_font;
+
+use crate::calibrate::{read_loads, reference_data, ReferenceData};
+use crate::csv_format::{
+    find_column, find_columns, parse_optional_number, PRESSURE_COLUMNS, TAXEL_LABELS, TIME_COLUMN,
+};
+
+/// The embedded font (DejaVu Sans 2.37, Bitstream Vera license, see assets/).
+static EMBEDDED_FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+
+/// Colours of the four taxels.
+const TAXEL_COLOURS: [RGBColor; TAXEL_COUNT] = [
+    RGBColor(214, 39, 40),
+    RGBColor(31, 119, 180),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+];
+
+/// Colours of the six tiers, in [`Tier::ALL`] order.
+const TIER_COLOURS: [RGBColor; 6] = [
+    RGBColor(127, 127, 127),
+    RGBColor(255, 127, 14),
+    RGBColor(31, 119, 180),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+];
+
+/// The long help of the subcommand.
+pub const LONG_ABOUT: &str = "Plot to SVG or PNG (chosen by the output file's extension).\n\n\
+`taxel plot recording.csv -o p.svg`: pressure per taxel over time, from a recording or a \
+`taxel convert` output (columns time_s, p11_kpa..p22_kpa; empty cells are gaps).\n\n\
+`taxel plot --calibration cal.json -o c.png [--loads loads.csv]`: the curve (dC/C0 against \
+pressure) of each taxel with its points; with --loads, the measured rows on the curves and each \
+tier's residual (predicted - applied pressure) per row.\n\n\
+Text uses a font built into the tool, so no system fonts are needed.";
+
+/// Arguments of `taxel plot`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct PlotArgs {
+    /// Recording or converted CSV to plot.
+    #[arg(
+        value_name = "CSV",
+        required_unless_present = "calibration",
+        conflicts_with = "calibration"
+    )]
+    pub input: Option<PathBuf>,
+    /// Calibration file to plot instead of a recording.
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
+    /// Reference-load CSV (as for `taxel calibrate`) whose residuals to show.
+    #[arg(long, value_name = "FILE", requires = "calibration")]
+    pub loads: Option<PathBuf>,
+    /// Image to write: .svg or .png.
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Image width in pixels.
+    #[arg(long, value_name = "PX")]
+    pub width: Option<u32>,
+    /// Image height in pixels.
+    #[arg(long, value_name = "PX")]
+    pub height: Option<u32>,
+}
+
+/// Image formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// Scalable vector graphics.
+    Svg,
+    /// Portable network graphics.
+    Png,
+}
+
+/// The format named by a file's extension.
+pub fn image_format(path: &Path) -> anyhow::Result<ImageFormat> {
+    let extension = path
+        .extension()
+        .and_then(|extension| extension.to_str())
+        .map(str::to_ascii_lowercase);
+    match extension.as_deref() {
+        Some("svg") => Ok(ImageFormat::Svg),
+        Some("png") => Ok(ImageFormat::Png),
+        _ => bail!("{}: the output must end in .svg or .png", path.display()),
+    }
+}
+
+/// Registers the embedded font as plotters' "sans-serif" (once per process).
+pub fn register_embedded_font() -> anyhow::Result<()> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let registered = *REGISTERED
+        .get_or_init(|| register_font("sans-serif", FontStyle::Normal, EMBEDDED_FONT).is_ok());
+    if registered {
+        Ok(())
+    } else {
+        bail!("the embedded font could not be loaded")
+    }
+}
+
+/// Pressures over time.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PressureSeries {
+    /// Time of each row, s.
+    pub time_s: Vec<f64>,
+    /// Pressure per taxel per row, kPa (`None` = empty cell: faulted or unreadable).
+    pub pressures_kpa: [Vec<Option<f64>>; TAXEL_COUNT],
+    /// Rows skipped because their time could not be read.
+    pub skipped_rows: usize,
+}
+
+/// Reads `time_s` and `p11_kpa..p22_kpa` from a recording or a converted file.
+pub fn read_pressure_series<R: Read>(input: R) -> anyhow::Result<PressureSeries> {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(true)
+        .from_reader(input);
+    let header = reader.headers().context("reading the header row")?.clone();
+    let time_column = find_column(&header, TIME_COLUMN)
+        .with_context(|| format!("the header lacks the column {TIME_COLUMN}"))?;
+    let pressure_columns = find_columns(&header, PRESSURE_COLUMNS).map_err(|missing| {
+        anyhow::anyhow!(
+            "the header lacks the column(s) {} (convert capacitances to pressures with `taxel convert` first)",
+            missing.join(", ")
+        )
+    })?;
+    let mut series = PressureSeries::default();
+    for record in reader.records() {
+        let Ok(record) = record else {
+            series.skipped_rows += 1;
+            continue;
+        };
+        let time = parse_optional_number(record.get(time_column).unwrap_or(""));
+        let Ok(Some(time_s)) = time else {
+            series.skipped_rows += 1;
+            continue;
+        };
+        series.time_s.push(time_s);
+        for (taxel, column) in pressure_columns.iter().enumerate() {
+            let pressure = parse_optional_number(record.get(*column).unwrap_or(""))
+                .ok()
+                .flatten()
+                .filter(|value| value.is_finite());
+            series.pressures_kpa[taxel].push(pressure);
+        }
+    }
+    Ok(series)
+}
+
+/// Runs of consecutive present values: each a line segment.
+fn segments(time_s: &[f64], values: &[Option<f64>]) -> Vec<Vec<(f64, f64)>> {
+    let mut runs = Vec::new();
+    let mut current = Vec::new();
+    for (time, value) in time_s.iter().zip(values) {
+        match value {
+            Some(value) => current.push((*time, *value)),
+            None if !current.is_empty() => runs.push(std::mem::take(&mut current)),
+            None => {}
+        }
+    }
+    if !current.is_empty() {
+        runs.push(current);
+    }
+    runs
+}
+
+fn padded_range(minimum: f64, maximum: f64) -> std::ops::Range<f64> {
+    if !(maximum > minimum) {
+        minimum - 0.5..minimum + 0.5
+    } else {
+        minimum..maximum
+    }
+}
+
+type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+
+fn draw_pressures<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    series: &PressureSeries,
+) -> DrawResult<DB> {
+    root.fill(&WHITE)?;
+    let time_min = series.time_s.iter().copied().fold(f64::INFINITY, f64::min);
+    let time_max = series
+        .time_s
+        .iter()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    let time_range = if series.time_s.is_empty() {
+        0.0..1.0
+    } else {
+        padded_range(time_min, time_max)
+    };
+    let pressure_max = series
+        .pressures_kpa
+        .iter()
+        .flatten()
+        .flatten()
+        .copied()
+        .fold(0.0, f64::max);
+    let pressure_top = if pressure_max > 0.0 {
+        pressure_max * 1.05
+    } else {
+        1.0
+    };
+    let mut chart = ChartBuilder::on(root)
+        .caption("Pressure per taxel", ("sans-serif", 24))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(time_range, 0.0..pressure_top)?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc("pressure (kPa)")
+        .draw()?;
+    for (taxel, values) in series.pressures_kpa.iter().enumerate() {
+        let colour = TAXEL_COLOURS[taxel];
+        let mut labelled = false;
+        for run in segments(&series.time_s, values) {
+            let annotation = if run.len() == 1 {
+                chart.draw_series(
+                    run.iter()
+                        .map(|point| Circle::new(*point, 2, colour.filled())),
+                )?
+            } else {
+                chart.draw_series(LineSeries::new(run, colour.stroke_width(2)))?
+            };
+            if !labelled {
+                annotation.label(TAXEL_LABELS[taxel]).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+                });
+                labelled = true;
+            }
+        }
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()?;
+    Ok(())
+}
+
+/// One taxel's curve and, with reference loads, its rows and residuals.
+struct TaxelPicture {
+    inverses: TaxelInverses,
+    points: Vec<(f64, f64)>,
+    top_pressure_kpa: f64,
+    top_relative_change: f64,
+    measured: Vec<(f64, f64)>,
+    residuals: Vec<(Tier, Vec<(f64, f64)>)>,
+}
+
+fn taxel_pictures(calibration: &Calibration, loads: Option<&ReferenceData>) -> Vec<TaxelPicture> {
+    calibration
+        .taxels()
+        .iter()
+        .enumerate()
+        .map(|(taxel, taxel_calibration)| {
+            let curve = &taxel_calibration.curve;
+            let inverses = TaxelInverses::new(curve);
+            let top = curve.top();
+            let measured: Vec<(f64, f64)> = loads
+                .map(|data| {
+                    data.rows
+                        .iter()
+                        .map(|row| (row.pressure_kpa, row.relative_change[taxel]))
+                        .collect()
+                })
+                .unwrap_or_default();
+            let residuals = if loads.is_some() {
+                Tier::ALL
+                    .iter()
+                    .filter(|tier| inverses.supports(**tier))
+                    .map(|&tier| {
+                        let values = measured
+                            .iter()
+                            .map(|&(pressure_kpa, relative_change)| {
+                                let within =
+                                    (relative_change as f32).clamp(0.0, top.relative_change);
+                                let predicted = f64::from(inverses.pressure_kpa(tier, within));
+                                (pressure_kpa, predicted - pressure_kpa)
+                            })
+                            .collect();
+                        (tier, values)
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            TaxelPicture {
+                points: curve
+                    .points()
+                    .iter()
+                    .map(|point| {
+                        (
+                            f64::from(point.pressure_kpa),
+                            f64::from(point.relative_change),
+                        )
+                    })
+                    .collect(),
+                top_pressure_kpa: f64::from(top.pressure_kpa),
+                top_relative_change: f64::from(top.relative_change),
+                inverses,
+                measured,
+                residuals,
+            }
+        })
+        .collect()
+}
+
+fn draw_curve<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    label: &str,
+    picture: &TaxelPicture,
+) -> DrawResult<DB> {
+    let measured_max = picture
+        .measured
+        .iter()
+        .map(|(_, relative_change)| *relative_change)
+        .fold(picture.top_relative_change, f64::max);
+    let measured_min = picture
+        .measured
+        .iter()
+        .map(|(_, relative_change)| *relative_change)
+        .fold(0.0, f64::min);
+    let x_top = picture.top_pressure_kpa * 1.05;
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            format!("{label}: dC/C0 against pressure"),
+            ("sans-serif", 18),
+        )
+        .margin(8)
+        .x_label_area_size(36)
+        .y_label_area_size(56)
+        .build_cartesian_2d(0.0..x_top, measured_min.min(0.0)..measured_max * 1.08)?;
+    chart
+        .configure_mesh()
+        .x_desc("pressure (kPa)")
+        .y_desc("dC/C0")
+        .draw()?;
+    let steps = 200;
+    let curve = (0..=steps).map(|step| {
+        let pressure_kpa = picture.top_pressure_kpa * f64::from(step) / f64::from(steps);
+        (
+            pressure_kpa,
+            f64::from(picture.inverses.relative_change_at(pressure_kpa as f32)),
+        )
+    });
+    chart
+        .draw_series(LineSeries::new(curve, BLACK.stroke_width(2)))?
+        .label("reference curve (monotone cubic)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+    if !picture.measured.is_empty() {
+        chart
+            .draw_series(
+                picture
+                    .measured
+                    .iter()
+                    .map(|point| Cross::new(*point, 3, TAXEL_COLOURS[1].stroke_width(1))),
+            )?
+            .label("measured rows")
+            .legend(|(x, y)| Cross::new((x + 10, y), 3, TAXEL_COLOURS[1].stroke_width(1)));
+    }
+    chart
+        .draw_series(
+            picture
+                .points
+                .iter()
+                .map(|point| Circle::new(*point, 4, TAXEL_COLOURS[0].filled())),
+        )?
+        .label("calibration points")
+        .legend(|(x, y)| Circle::new((x + 10, y), 4, TAXEL_COLOURS[0].filled()));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::LowerRight)
+        .draw()?;
+    Ok(())
+}
+
+fn draw_residuals<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    label: &str,
+    picture: &TaxelPicture,
+) -> DrawResult<DB> {
+    let largest = picture
+        .residuals
+        .iter()
+        .flat_map(|(_, values)| values.iter().map(|(_, residual)| residual.abs()))
+        .fold(0.0, f64::max);
+    let half_range = if largest > 0.0 { largest * 1.15 } else { 0.1 };
+    let x_top = picture.top_pressure_kpa * 1.05;
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            format!("{label}: residual per tier (predicted - applied)"),
+            ("sans-serif", 18),
+        )
+        .margin(8)
+        .x_label_area_size(36)
+        .y_label_area_size(56)
+        .build_cartesian_2d(-0.02 * x_top..x_top, -half_range..half_range)?;
+    chart
+        .configure_mesh()
+        .x_desc("applied pressure (kPa)")
+        .y_desc("residual (kPa)")
+        .draw()?;
+    chart.draw_series(LineSeries::new(
+        [(-0.02 * x_top, 0.0), (x_top, 0.0)],
+        BLACK.stroke_width(1),
+    ))?;
+    let tier_count = picture.residuals.len().max(1) as f64;
+    for (index, (tier, values)) in picture.residuals.iter().enumerate() {
+        let colour = TIER_COLOURS[*tier as usize % TIER_COLOURS.len()];
+        // A small sideways offset per tier keeps coincident residuals visible.
+        let offset = (index as f64 - (tier_count - 1.0) / 2.0) * 0.006 * x_top;
+        chart
+            .draw_series(
+                values
+                    .iter()
+                    .map(move |(x, y)| Circle::new((x + offset, *y), 3, colour.filled())),
+            )?
+            .label(tier.name())
+            .legend(move |(x, y)| Circle::new((x + 10, y), 3, colour.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()?;
+    Ok(())
+}
+
+fn draw_calibration<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    pictures: &[TaxelPicture],
+    with_residuals: bool,
+) -> DrawResult<DB> {
+    root.fill(&WHITE)?;
+    let (curve_area, residual_area) = if with_residuals {
+        let (upper, lower) = root.split_vertically(root.dim_in_pixel().1 / 2);
+        (upper, Some(lower))
+    } else {
+        (root.clone(), None)
+    };
+    for ((area, picture), label) in curve_area
+        .split_evenly((2, 2))
+        .iter()
+        .zip(pictures)
+        .zip(TAXEL_LABELS)
+    {
+        draw_curve(area, label, picture)?;
+    }
+    if let Some(residual_area) = residual_area {
+        for ((area, picture), label) in residual_area
+            .split_evenly((2, 2))
+            .iter()
+            .zip(pictures)
+            .zip(TAXEL_LABELS)
+        {
+            draw_residuals(area, label, picture)?;
+        }
+    }
+    Ok(())
+}
+
+fn drawing_error<E: std::error::Error + Send + Sync>(
+    error: DrawingAreaErrorKind<E>,
+) -> anyhow::Error {
+    anyhow::anyhow!("drawing failed: {error}")
+}
+
+/// Draws with `draw` into an SVG or PNG file chosen by the extension of `path`.
+macro_rules! render_to_file {
+    ($path:expr, $size:expr, |$root:ident| $draw:expr) => {{
+        register_embedded_font()?;
+        match image_format($path)? {
+            ImageFormat::Svg => {
+                let $root = SVGBackend::new($path, $size).into_drawing_area();
+                $draw.map_err(drawing_error)?;
+                $root.present().map_err(drawing_error)?;
+            }
+            ImageFormat::Png => {
+                let $root = BitMapBackend::new($path, $size).into_drawing_area();
+                $draw.map_err(drawing_error)?;
+                $root.present().map_err(drawing_error)?;
+            }
+        }
+        anyhow::Ok(())
+    }};
+}
+
+/// Plots pressures over time to an SVG or PNG file.
+pub fn plot_pressures(
+    series: &PressureSeries,
+    path: &Path,
+    size: (u32, u32),
+) -> anyhow::Result<()> {
+    render_to_file!(path, size, |root| draw_pressures(&root, series))
+}
+
+/// Plots a calibration's curves (and with reference loads, their rows and residuals per tier)
+/// to an SVG or PNG file.
+pub fn plot_calibration(
+    calibration: &Calibration,
+    loads: Option<&ReferenceData>,
+    path: &Path,
+    size: (u32, u32),
+) -> anyhow::Result<()> {
+    let pictures = taxel_pictures(calibration, loads);
+    render_to_file!(path, size, |root| draw_calibration(
+        &root,
+        &pictures,
+        loads.is_some()
+    ))
+}
+
+/// Runs `taxel plot`.
+pub fn run(args: &PlotArgs) -> anyhow::Result<ExitCode> {
+    image_format(&args.output)?;
+    match (&args.input, &args.calibration) {
+        (Some(input), None) => {
+            let file = File::open(input).with_context(|| format!("opening {}", input.display()))?;
+            let series = read_pressure_series(BufReader::new(file))
+                .with_context(|| format!("reading {}", input.display()))?;
+            if series.skipped_rows > 0 {
+                eprintln!(
+                    "warning: {} row(s) without a readable time_s were skipped",
+                    series.skipped_rows
+                );
+            }
+            let size = (args.width.unwrap_or(1200), args.height.unwrap_or(600));
+            plot_pressures(&series, &args.output, size)?;
+            eprintln!(
+                "wrote {} ({} rows)",
+                args.output.display(),
+                series.time_s.len()
+            );
+        }
+        (None, Some(calibration_path)) => {
+            let calibration = crate::calibration_file::read(calibration_path)
+                .with_context(|| format!("reading {}", calibration_path.display()))?;
+            let loads = match &args.loads {
+                Some(loads_path) => {
+                    let file = File::open(loads_path)
+                        .with_context(|| format!("opening {}", loads_path.display()))?;
+                    let rows = read_loads(BufReader::new(file))
+                        .with_context(|| format!("reading {}", loads_path.display()))?;
+                    let parasitic_pf: [f64; TAXEL_COUNT] = std::array::from_fn(|taxel| {
+                        f64::from(calibration.taxels()[taxel].parasitic_pf)
+                    });
+                    Some(reference_data(
+                        &rows,
+                        parasitic_pf,
+                        calibration.temperature_law(),
+                    )?)
+                }
+                None => None,
+            };
+            let default_height = if loads.is_some() { 1400 } else { 800 };
+            let size = (
+                args.width.unwrap_or(1200),
+                args.height.unwrap_or(default_height),
+            );
+            plot_calibration(&calibration, loads.as_ref(), &args.output, size)?;
+            eprintln!("wrote {}", args.output.display());
+        }
+        _ => bail!("give a CSV file, or --calibration FILE"),
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gaps_split_the_line() {
+        let time_s = [0.0, 1.0, 2.0, 3.0, 4.0];
+        let values = [Some(1.0), Some(2.0), None, Some(3.0), None];
+        let runs = segments(&time_s, &values);
+        assert_eq!(runs, vec![vec![(0.0, 1.0), (1.0, 2.0)], vec![(3.0, 3.0)]]);
+    }
+
+    #[test]
+    fn format_follows_the_extension() {
+        assert_eq!(image_format(Path::new("a.SVG")).unwrap(), ImageFormat::Svg);
+        assert_eq!(image_format(Path::new("a.png")).unwrap(), ImageFormat::Png);
+        assert!(image_format(Path::new("a.jpg")).is_err());
+    }
+}

@@ -1,0 +1,224 @@
+//! `taxel sim` and `taxel demo`: the simulated device — the firmware's own acquisition, model,
+//! storage and protocol code against the simulated FDC1004 and TMP117 — served on a
+//! pseudo-terminal that any serial program opens like the board's /dev/ttyACM*.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread;
+
+use anyhow::Context;
+use clap::Args;
+use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+
+use crate::view;
+
+/// Long help of `taxel sim`.
+pub const LONG_ABOUT: &str = "Run the simulated device on a pseudo-terminal.\n\n\
+The device runs the firmware's own acquisition loop, pressure model, calibration storage and \
+protocol against a register-level simulation of the FDC1004 converter and the TMP117 \
+temperature sensor, driven by a scene (pressures per taxel and pad temperature over time, plus \
+fault windows). Without --scene it plays the built-in demo: a light press on one taxel, a press \
+sliding across the pad, the whole pad pressed to 50 kPa, the pad warming 25 -> 45 degC while \
+loaded, and a concentrated-load short on one taxel.\n\n\
+It prints the terminal's path (e.g. /dev/pts/7); open it with `taxel view PATH`, `taxel record \
+PATH -o out.csv`, pyserial or a terminal. It answers the same commands as the firmware. \
+Scene files are TOML: see sim-device/scenes/default.toml.";
+
+/// Arguments of `taxel sim`.
+#[derive(Debug, Clone, Args)]
+pub struct SimArgs {
+    /// Scene file (TOML); default: the built-in demo scene.
+    #[arg(long, value_name = "FILE")]
+    pub scene: Option<PathBuf>,
+    /// Simulated seconds per wall-clock second (1 = real time).
+    #[arg(long, value_name = "FACTOR", default_value_t = 1.0)]
+    pub speed: f64,
+    /// Run as fast as the host computes (ignores --speed).
+    #[arg(long)]
+    pub fast: bool,
+    /// Stop after this many simulated seconds (default: run until interrupted).
+    #[arg(long, value_name = "SECONDS")]
+    pub duration: Option<f64>,
+    /// Seed of the converter noise (the same seed and scene give the same stream).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub seed: u64,
+    /// Also make a symbolic link to the terminal at this path (replaced if it exists).
+    #[arg(long, value_name = "PATH")]
+    pub link: Option<PathBuf>,
+    /// Write the terminal's path to this file once it is ready (for scripts).
+    #[arg(long, value_name = "FILE")]
+    pub path_file: Option<PathBuf>,
+}
+
+/// Arguments of `taxel demo`.
+#[derive(Debug, Clone, Args)]
+pub struct DemoArgs {
+    /// Scene file (TOML); default: the built-in demo scene.
+    #[arg(long, value_name = "FILE")]
+    pub scene: Option<PathBuf>,
+    /// Simulated seconds per wall-clock second.
+    #[arg(long, value_name = "FACTOR", default_value_t = 1.0)]
+    pub speed: f64,
+    /// Print one snapshot of the view after this many simulated seconds and exit (no terminal
+    /// needed; shows what the live view shows).
+    #[arg(long, value_name = "SECONDS")]
+    pub snapshot_after: Option<f64>,
+}
+
+fn load_scene(path: Option<&Path>) -> anyhow::Result<SceneFile> {
+    match path {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading scene {}", path.display()))?;
+            SceneFile::parse(&text).with_context(|| format!("scene {}", path.display()))
+        }
+        None => Ok(SceneFile::default_scene()?),
+    }
+}
+
+/// A running simulated device on its own thread.
+pub struct SimulatorThread {
+    path: PathBuf,
+    stop: Arc<AtomicBool>,
+    handle: Option<thread::JoinHandle<()>>,
+}
+
+impl SimulatorThread {
+    /// Starts the simulated device on a new pseudo-terminal.
+    pub fn start(config: SimulatedDeviceConfig, until_s: Option<f64>) -> anyhow::Result<Self> {
+        let mut device = SimulatedDevice::new(config)?;
+        let mut port = PtyPort::open().context("opening a pseudo-terminal")?;
+        let path = port.path().to_path_buf();
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread_stop = Arc::clone(&stop);
+        let handle = thread::Builder::new()
+            .name("simulated-device".into())
+            .spawn(move || {
+                device.run(&mut port, until_s, &thread_stop);
+                thread_stop.store(true, Ordering::Relaxed);
+            })
+            .context("starting the simulated device")?;
+        Ok(Self {
+            path,
+            stop,
+            handle: Some(handle),
+        })
+    }
+
+    /// The terminal to open.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Whether the device stopped (duration reached or asked to stop).
+    pub fn finished(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+
+    /// Stops the device and waits for its thread.
+    pub fn stop(mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(handle) = self.handle.take() {
+            let _ = handle.join();
+        }
+    }
+}
+
+/// `taxel sim`.
+pub fn run(args: &SimArgs) -> anyhow::Result<ExitCode> {
+    let scene = load_scene(args.scene.as_deref())?;
+    let name = scene.name.clone();
+    let speed = if args.fast { None } else { Some(args.speed) };
+    if let Some(speed) = speed {
+        anyhow::ensure!(
+            speed.is_finite() && speed > 0.0,
+            "--speed must be a positive number"
+        );
+    }
+    let simulator = SimulatorThread::start(
+        SimulatedDeviceConfig {
+            scene,
+            seed: args.seed,
+            speed,
+        },
+        args.duration,
+    )?;
+    if let Some(link) = &args.link {
+        let _ = std::fs::remove_file(link);
+        std::os::unix::fs::symlink(simulator.path(), link)
+            .with_context(|| format!("linking {}", link.display()))?;
+    }
+    if let Some(path_file) = &args.path_file {
+        std::fs::write(path_file, simulator.path().to_string_lossy().as_bytes())
+            .with_context(|| format!("writing {}", path_file.display()))?;
+    }
+    println!("{}", simulator.path().display());
+    eprintln!(
+        "simulated device '{}' on {} ({}); Ctrl-C to stop",
+        if name.is_empty() { "scene" } else { &name },
+        simulator.path().display(),
+        match speed {
+            Some(speed) => format!("{speed}x real time"),
+            None => "as fast as possible".to_string(),
+        }
+    );
+    let interrupted = Arc::new(AtomicBool::new(false));
+    let handler_flag = Arc::clone(&interrupted);
+    ctrlc::set_handler(move || handler_flag.store(true, Ordering::Relaxed))
+        .context("installing the Ctrl-C handler")?;
+    while !interrupted.load(Ordering::Relaxed) && !simulator.finished() {
+        thread::sleep(std::time::Duration::from_millis(50));
+    }
+    simulator.stop();
+    if let Some(link) = &args.link {
+        let _ = std::fs::remove_file(link);
+    }
+    eprintln!("simulated device stopped");
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `taxel demo`: the simulated device and the live view in one command.
+pub fn run_demo(args: &DemoArgs) -> anyhow::Result<ExitCode> {
+    let scene = load_scene(args.scene.as_deref())?;
+    anyhow::ensure!(
+        args.speed.is_finite() && args.speed > 0.0,
+        "--speed must be a positive number"
+    );
+    let simulator = SimulatorThread::start(
+        SimulatedDeviceConfig {
+            scene,
+            seed: 1,
+            speed: Some(args.speed),
+        },
+        None,
+    )?;
+    let port = simulator.path().to_string_lossy().into_owned();
+    if let Some(seconds) = args.snapshot_after {
+        anyhow::ensure!(
+            seconds.is_finite() && seconds >= 0.0,
+            "--snapshot-after must be a non-negative number of seconds"
+        );
+        thread::sleep(std::time::Duration::from_secs_f64(seconds / args.speed));
+    }
+    let result = view::run(&view_args(port, args.snapshot_after.is_some()));
+    simulator.stop();
+    result
+}
+
+/// The view's defaults on one port.
+fn view_args(port: String, once: bool) -> view::ViewArgs {
+    view::ViewArgs {
+        port: Some(port),
+        serial: None,
+        vid: crate::device_link::DEFAULT_VID,
+        pid: crate::device_link::DEFAULT_PID,
+        once,
+        width: 80,
+        height: 24,
+        tare_sets: 64,
+        full_scale_kpa: 50.0,
+        timeout_ms: 3000,
+    }
+}

@@ -1,0 +1,262 @@
+//! `taxel calibrate` on synthetic reference loads with a known truth: the written curve points,
+//! the leave-one-out numbers, the calibration file round trip, and refused data sets.
+// Helpers outside #[test] functions unwrap too: a failure there is a test failure.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod support;
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::process::{Command, Output};
+
+use model_core::{CalibrationCurve, TaxelInverses, TemperatureLaw};
+use support::{taxel_binary, SplitMix64};
+use taxel::calibration_file;
+
+const GAINS: [f64; 4] = [1.0, 0.92, 1.08, 1.15];
+const UNLOADED_SENSOR_PF: [f64; 4] = [4.5, 4.3, 4.7, 4.4];
+const PARASITIC_PF: f64 = 0.8;
+const TEMPERATURES_C: [f64; 4] = [22.0, 25.0, 31.0, 37.0];
+const NOISE_PF: f64 = 0.0005;
+const REPEATS: usize = 3;
+
+/// The truth: the article's reference curve, scaled per taxel.
+fn true_relative_change(taxel: usize, pressure_kpa: f64) -> f64 {
+    let inverses = TaxelInverses::new(&CalibrationCurve::article_default());
+    GAINS[taxel] * f64::from(inverses.relative_change_at(pressure_kpa as f32))
+}
+
+fn measured_pf(taxel: usize, relative_change: f64, temperature_c: f64) -> f64 {
+    let ratio =
+        f64::from(TemperatureLaw::article_default().permittivity_ratio(temperature_c as f32));
+    PARASITIC_PF + ratio * UNLOADED_SENSOR_PF[taxel] * (1.0 + relative_change)
+}
+
+fn levels_kpa() -> Vec<f64> {
+    (0..=10).map(|step| f64::from(step) * 5.0).collect()
+}
+
+fn synthetic_loads(seed: u64) -> String {
+    let mut noise = SplitMix64(seed);
+    let mut text = String::from("temp_c,pressure_kpa,c11_pf,c12_pf,c21_pf,c22_pf,operator\n");
+    let mut row = 0;
+    for repeat in 0..REPEATS {
+        for pressure_kpa in levels_kpa() {
+            let temperature_c = TEMPERATURES_C[row % TEMPERATURES_C.len()];
+            row += 1;
+            let _ = write!(text, "{temperature_c},{pressure_kpa}");
+            for taxel in 0..4 {
+                let capacitance_pf = measured_pf(
+                    taxel,
+                    true_relative_change(taxel, pressure_kpa),
+                    temperature_c,
+                ) + NOISE_PF * noise.symmetric();
+                let _ = write!(text, ",{capacitance_pf:.7}");
+            }
+            let _ = writeln!(text, ",run {repeat}");
+        }
+    }
+    text
+}
+
+fn calibrate(directory: &Path, loads: &str, extra_arguments: &[&str]) -> Output {
+    let loads_path = directory.join("loads.csv");
+    std::fs::write(&loads_path, loads).unwrap();
+    Command::new(taxel_binary())
+        .arg("calibrate")
+        .arg(&loads_path)
+        .arg("-o")
+        .arg(directory.join("calibration.json"))
+        .args(extra_arguments)
+        .output()
+        .unwrap()
+}
+
+/// The table row of one taxel and tier: fit max, loo max, loo rms, folds.
+fn table_row(stdout: &str, taxel: &str, tier: &str) -> (String, String, String, String) {
+    let line = stdout
+        .lines()
+        .find(|line| {
+            let mut words = line.split_whitespace();
+            words.next() == Some(taxel) && words.next() == Some(tier)
+        })
+        .unwrap_or_else(|| panic!("no row for {taxel} {tier} in\n{stdout}"));
+    let words: Vec<String> = line.split_whitespace().map(str::to_owned).collect();
+    (
+        words[2].clone(),
+        words[3].clone(),
+        words[4].clone(),
+        words[5].clone(),
+    )
+}
+
+#[test]
+fn recovers_the_known_curve_and_reports_leave_one_out_errors() {
+    let directory = tempfile::tempdir().unwrap();
+    let output = calibrate(
+        directory.path(),
+        &synthetic_loads(7),
+        &["--id", "7", "--parasitic-pf", "0.8"],
+    );
+    let stdout = String::from_utf8(output.stdout).unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let calibration = calibration_file::read(&directory.path().join("calibration.json")).unwrap();
+    assert_eq!(calibration.id(), 7);
+    let levels = levels_kpa();
+    for (taxel, taxel_calibration) in calibration.taxels().iter().enumerate() {
+        assert_eq!(taxel_calibration.parasitic_pf, 0.8);
+        let points = taxel_calibration.curve.points();
+        assert_eq!(points.len(), levels.len());
+        for (point, pressure_kpa) in points.iter().zip(&levels) {
+            assert_eq!(f64::from(point.pressure_kpa), *pressure_kpa);
+            let truth = true_relative_change(taxel, *pressure_kpa);
+            let error = f64::from(point.relative_change) - truth;
+            // 0.5 fF of noise on ~4.5 pF, averaged over three repeats and referred to C0.
+            assert!(
+                error.abs() < 2.5e-4,
+                "taxel {taxel} at {pressure_kpa} kPa: {error}"
+            );
+        }
+
+        // Leave-one-out of the piecewise-linear tier, computed here independently: each interior
+        // point is predicted on the chord between its neighbours.
+        let errors: Vec<f64> = (1..points.len() - 1)
+            .map(|index| {
+                let (before, point, after) = (points[index - 1], points[index], points[index + 1]);
+                let slope = f64::from(after.pressure_kpa - before.pressure_kpa)
+                    / f64::from(after.relative_change - before.relative_change);
+                f64::from(before.pressure_kpa)
+                    + slope * f64::from(point.relative_change - before.relative_change)
+                    - f64::from(point.pressure_kpa)
+            })
+            .collect();
+        let max = errors.iter().map(|error| error.abs()).fold(0.0, f64::max);
+        let rms =
+            (errors.iter().map(|error| error * error).sum::<f64>() / errors.len() as f64).sqrt();
+        let name = ["c11", "c12", "c21", "c22"][taxel];
+        let (fit_max, loo_max, loo_rms, folds) = table_row(&stdout, name, "piecewise-linear");
+        assert!((fit_max.parse::<f64>().unwrap()).abs() < 1e-3, "{fit_max}");
+        assert!(
+            (loo_max.parse::<f64>().unwrap() - max).abs() < 2e-4,
+            "{loo_max} vs {max}"
+        );
+        assert!(
+            (loo_rms.parse::<f64>().unwrap() - rms).abs() < 2e-4,
+            "{loo_rms} vs {rms}"
+        );
+        assert_eq!(folds, "9/9");
+        // The reference cubic predicts the left-out levels of a smooth curve better than chords,
+        // and the single-secant tier is far off between the ends.
+        let (_, cubic_max, _, _) = table_row(&stdout, name, "monotone-cubic");
+        assert!(
+            cubic_max.parse::<f64>().unwrap() < max,
+            "{cubic_max} vs {max}"
+        );
+        let (linear_fit, _, _, _) = table_row(&stdout, name, "linear");
+        assert!(linear_fit.parse::<f64>().unwrap() > 5.0, "{linear_fit}");
+    }
+}
+
+#[test]
+fn calibration_converts_recordings_back_to_the_true_pressure() {
+    let directory = tempfile::tempdir().unwrap();
+    let output = calibrate(
+        directory.path(),
+        &synthetic_loads(11),
+        &["--parasitic-pf", "0.8"],
+    );
+    assert!(output.status.success());
+    let mut recording = String::from("time_s,temp_c,c11_pf,c12_pf,c21_pf,c22_pf\n");
+    let pressures_kpa = [0.0, 12.5, 27.0, 44.0];
+    for (row, pressure_kpa) in pressures_kpa.iter().enumerate() {
+        let temperature_c = [25.0, 40.0, 18.0, 33.0][row];
+        let _ = write!(recording, "{row},{temperature_c}");
+        for taxel in 0..4 {
+            let capacitance_pf = measured_pf(
+                taxel,
+                true_relative_change(taxel, *pressure_kpa),
+                temperature_c,
+            );
+            let _ = write!(recording, ",{capacitance_pf:.7}");
+        }
+        recording.push('\n');
+    }
+    let recording_path = directory.path().join("recording.csv");
+    std::fs::write(&recording_path, recording).unwrap();
+    let output = Command::new(taxel_binary())
+        .arg("convert")
+        .arg(&recording_path)
+        .arg("--calibration")
+        .arg(directory.path().join("calibration.json"))
+        .output()
+        .unwrap();
+    assert!(output.status.success());
+    let text = String::from_utf8(output.stdout).unwrap();
+    let rows: Vec<Vec<&str>> = text.lines().map(|line| line.split(',').collect()).collect();
+    for (row, pressure_kpa) in pressures_kpa.iter().enumerate().skip(1) {
+        for taxel in 0..4 {
+            let converted: f64 = rows[row + 1][2 + taxel].parse().unwrap();
+            assert!(
+                (converted - pressure_kpa).abs() < 0.1,
+                "taxel {taxel} at {pressure_kpa} kPa read {converted}"
+            );
+        }
+    }
+}
+
+#[test]
+fn calibration_file_round_trips() {
+    let directory = tempfile::tempdir().unwrap();
+    let output = calibrate(directory.path(), &synthetic_loads(3), &["--id", "99"]);
+    assert!(output.status.success());
+    let path = directory.path().join("calibration.json");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let value: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(value["format"], "taxel-calibration");
+    assert_eq!(value["version"], 1);
+    assert_eq!(value["calibration"]["id"], 99);
+    let calibration = calibration_file::read(&path).unwrap();
+    assert_eq!(calibration_file::to_json(&calibration).unwrap(), text);
+    assert_eq!(calibration_file::from_json(&text).unwrap(), calibration);
+}
+
+#[test]
+fn refuses_a_non_monotone_data_set() {
+    let directory = tempfile::tempdir().unwrap();
+    let loads = "pressure_kpa,c11_pf,c12_pf,c21_pf,c22_pf\n\
+                 0,4.5,4.5,4.5,4.5\n\
+                 10,4.9,4.9,4.9,4.9\n\
+                 20,5.2,5.2,5.2,5.2\n\
+                 30,5.4,5.4,5.1,5.4\n\
+                 0,4.5,4.5,4.5,4.5\n";
+    let output = calibrate(directory.path(), loads, &[]);
+    assert_eq!(output.status.code(), Some(1));
+    let messages = String::from_utf8_lossy(&output.stderr);
+    assert!(messages.contains("taxel c21 is not monotone"), "{messages}");
+    assert!(messages.contains("at 30 kPa"), "{messages}");
+    assert!(!directory.path().join("calibration.json").exists());
+}
+
+#[test]
+fn refuses_data_without_unloaded_rows_or_with_bad_rows() {
+    let directory = tempfile::tempdir().unwrap();
+    let output = calibrate(
+        directory.path(),
+        "pressure_kpa,c11_pf,c12_pf,c21_pf,c22_pf\n10,4.9,4.9,4.9,4.9\n20,5.2,5.2,5.2,5.2\n",
+        &[],
+    );
+    assert_eq!(output.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("no rows at pressure 0"));
+    let output = calibrate(
+        directory.path(),
+        "pressure_kpa,c11_pf,c12_pf,c21_pf,c22_pf\n0,4.5,4.5,4.5,4.5\n10,4.9,x,4.9,4.9\n",
+        &[],
+    );
+    assert_eq!(output.status.code(), Some(1));
+    let messages = String::from_utf8_lossy(&output.stderr);
+    assert!(messages.contains("line 3: c12_pf"), "{messages}");
+}

@@ -1,0 +1,357 @@
+//! The device link over in-memory streams: decoding with garbage between frames, request and
+//! reply matching, timeouts, refusals, the calibration upload, and recording to CSV.
+// Helpers outside #[test] functions unwrap too: a failure there is a test failure.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod support;
+
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+use model_core::{Calibration, CalibrationSpec, CurvePoint};
+use support::{ack, encoded, sample, ChunkedReader, FakeDevice};
+use taxel::calibrate::upload;
+use taxel::device_link::{DeviceLink, FrameReceiver, LinkError, RequestError};
+use taxel::record::{record_header, record_link, StopReason};
+use wire::{
+    Command, CountersFrame, DecodeError, DeviceEvent, DeviceFrame, ErrorCode, EventFrame,
+    ReplyFrame, ReplyPayload, TemperatureSource,
+};
+
+fn frames_with_garbage() -> (Vec<DeviceFrame>, Vec<u8>, u64) {
+    let frames = vec![
+        DeviceFrame::Sample(sample(
+            1,
+            1_000,
+            [
+                (Some(12.5), 4.75, 0),
+                (None, -0.25, 0x0005),
+                (Some(0.0), 4.5, 0),
+                (Some(1.0), 4.6, 0x0001),
+            ],
+        )),
+        DeviceFrame::Event(EventFrame {
+            timestamp_us: 1_500,
+            event: DeviceEvent::TemperatureSourceChanged {
+                source: TemperatureSource::McuInternal,
+            },
+        }),
+        DeviceFrame::Counters(CountersFrame {
+            dropped_sample_sets: 2,
+            ..CountersFrame::default()
+        }),
+        DeviceFrame::Sample(sample(2, 6_000, [(Some(3.0), 4.7, 0); 4])),
+        DeviceFrame::Sample(sample(4, 16_000, [(None, 0.2, 0x0008); 4])),
+    ];
+    let mut corrupted = encoded(&frames[0]);
+    corrupted[10] ^= 0x40;
+    let truncated = encoded(&frames[3])[..20].to_vec();
+    let mut bytes = Vec::new();
+    let mut bad_chunks = 0;
+    bytes.extend(b"hello from a terminal\r\n\0");
+    bad_chunks += 1;
+    bytes.extend(encoded(&frames[0]));
+    bytes.extend(&corrupted);
+    bad_chunks += 1;
+    bytes.extend(encoded(&frames[1]));
+    bytes.extend([0, 0, 0]);
+    bytes.extend(encoded(&frames[2]));
+    bytes.extend(&truncated);
+    bytes.push(0);
+    bad_chunks += 1;
+    bytes.extend(encoded(&frames[3]));
+    bytes.extend([0xAB; 400]);
+    bytes.push(0);
+    bad_chunks += 1;
+    bytes.extend(encoded(&frames[4]));
+    (frames, bytes, bad_chunks)
+}
+
+#[test]
+fn decodes_every_intact_frame_between_garbage_in_any_chunking() {
+    let (frames, bytes, bad_chunks) = frames_with_garbage();
+    for chunk_sizes in [vec![1], vec![7, 3, 64], vec![4096]] {
+        let reader = ChunkedReader::new(bytes.clone(), chunk_sizes.clone());
+        let mut link = DeviceLink::new(reader);
+        let mut received = Vec::new();
+        let end = loop {
+            match link.next_frame() {
+                Ok(Some(frame)) => received.push(frame),
+                Ok(None) => {}
+                Err(error) => break error,
+            }
+        };
+        assert!(matches!(end, LinkError::Disconnected), "{end:?}");
+        assert_eq!(received, frames, "chunks {chunk_sizes:?}");
+        let statistics = link.statistics();
+        assert_eq!(statistics.frames_decoded, frames.len() as u64);
+        assert_eq!(statistics.frames_rejected, bad_chunks);
+        assert_eq!(statistics.bytes_received, bytes.len() as u64);
+        let good_bytes: u64 = frames.iter().map(|frame| encoded(frame).len() as u64).sum();
+        // Every byte is in a decoded frame, a rejected frame, or one of the three lone delimiters.
+        assert_eq!(
+            statistics.bytes_rejected + 3,
+            bytes.len() as u64 - good_bytes
+        );
+    }
+}
+
+#[test]
+fn receiver_reports_the_decode_error_and_a_trailing_partial_frame() {
+    let frame = DeviceFrame::Sample(sample(9, 9, [(Some(1.0), 4.5, 0); 4]));
+    let mut corrupted = encoded(&frame);
+    // 23.5 °C is 0x41BC0000: flipping a bit of its 0xBC byte leaves valid COBS and breaks the CRC.
+    let temperature_byte = corrupted.iter().position(|&byte| byte == 0xBC).unwrap();
+    corrupted[temperature_byte] ^= 0x01;
+    let mut receiver = FrameReceiver::new();
+    let mut frames = Vec::new();
+    receiver.push_bytes(&corrupted, &mut frames);
+    assert!(frames.is_empty());
+    assert_eq!(receiver.statistics().last_error, Some(DecodeError::Crc));
+    receiver.push_bytes(&encoded(&frame)[..10], &mut frames);
+    receiver.finish();
+    assert_eq!(receiver.statistics().frames_rejected, 2);
+    assert_eq!(
+        receiver.statistics().bytes_rejected,
+        corrupted.len() as u64 + 10
+    );
+}
+
+#[test]
+fn request_waits_for_its_own_reply_and_keeps_other_frames_in_order() {
+    let device = FakeDevice::new(Box::new(|request| {
+        vec![
+            DeviceFrame::Sample(sample(1, 10, [(Some(1.0), 4.5, 0); 4])),
+            DeviceFrame::Reply(ReplyFrame {
+                request_id: request.request_id.wrapping_add(100),
+                result: Ok(ReplyPayload::Ack),
+            }),
+            DeviceFrame::Sample(sample(2, 20, [(Some(2.0), 4.5, 0); 4])),
+            DeviceFrame::Reply(ReplyFrame {
+                request_id: request.request_id,
+                result: Ok(ReplyPayload::ModelTier(3)),
+            }),
+            DeviceFrame::Sample(sample(3, 30, [(Some(3.0), 4.5, 0); 4])),
+        ]
+    }));
+    let mut link = DeviceLink::new(device);
+    let use_case = wire::UseCase {
+        pressure_max_kpa: 40.0,
+        temperature_min_c: 10.0,
+        temperature_max_c: 40.0,
+        error_budget_kpa: 0.5,
+    };
+    let reply = link
+        .request(Command::SetUseCase(use_case), Duration::from_secs(5))
+        .unwrap();
+    assert_eq!(reply, ReplyPayload::ModelTier(3));
+    let mut sequences = Vec::new();
+    let mut other_replies = 0;
+    while let Ok(Some(frame)) = link.next_frame() {
+        match frame {
+            DeviceFrame::Sample(sample) => sequences.push(sample.sequence),
+            DeviceFrame::Reply(_) => other_replies += 1,
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    assert_eq!(sequences, [1, 2, 3]);
+    assert_eq!(other_replies, 1);
+    let requests = &link.port().requests;
+    assert_eq!(requests.len(), 1);
+    assert_eq!(requests[0].command, Command::SetUseCase(use_case));
+}
+
+#[test]
+fn refusal_and_silence_are_told_apart() {
+    let device = FakeDevice::new(Box::new(|request| match request.command {
+        Command::SetRate { .. } => vec![DeviceFrame::Reply(ReplyFrame {
+            request_id: request.request_id,
+            result: Err(ErrorCode::InvalidArgument),
+        })],
+        _ => Vec::new(),
+    }));
+    let mut link = DeviceLink::new(device);
+    let refused = link.request(Command::SetRate { rate_sps: 123 }, Duration::from_secs(5));
+    assert!(matches!(
+        refused,
+        Err(RequestError::Refused(ErrorCode::InvalidArgument))
+    ));
+    let silent = link.request(Command::ReadCounters, Duration::from_millis(20));
+    assert!(
+        matches!(silent, Err(RequestError::Timeout { request_id: 2, .. })),
+        "{silent:?}"
+    );
+}
+
+fn calibration_with_distinct_taxels() -> Calibration {
+    let mut spec = CalibrationSpec {
+        id: 42,
+        ..CalibrationSpec::default()
+    };
+    for (taxel, taxel_spec) in spec.taxels.iter_mut().enumerate() {
+        let gain = 1.0 + 0.1 * taxel as f32;
+        taxel_spec.points = model_core::ARTICLE_TABLE_1
+            .iter()
+            .map(|point| CurvePoint::new(point.pressure_kpa, point.relative_change * gain))
+            .collect();
+        taxel_spec.parasitic_pf = 0.5 * taxel as f32;
+    }
+    Calibration::new(&spec).unwrap()
+}
+
+#[test]
+fn upload_writes_every_taxel_then_saves() {
+    let calibration = calibration_with_distinct_taxels();
+    let device = FakeDevice::new(Box::new(|request| vec![ack(request)]));
+    let mut link = DeviceLink::new(device);
+    let mut messages = Vec::new();
+    upload(
+        &mut link,
+        &calibration,
+        true,
+        Duration::from_secs(5),
+        &mut |message| messages.push(message.to_owned()),
+    )
+    .unwrap();
+    let requests = &link.port().requests;
+    assert_eq!(requests.len(), 5);
+    for (taxel, request) in requests[..4].iter().enumerate() {
+        let Command::WriteCalibration(record) = &request.command else {
+            panic!("expected WriteCalibration, got {:?}", request.command);
+        };
+        assert_eq!(usize::from(record.taxel_index), taxel);
+        assert_eq!(record.calibration_id, 42);
+        assert_eq!(record.check(), Ok(()));
+        let expected: Vec<(f32, f32)> = calibration.taxels()[taxel]
+            .curve
+            .points()
+            .iter()
+            .map(|point| (point.pressure_kpa, point.relative_change))
+            .collect();
+        assert_eq!(record.calibration.points.as_slice(), expected.as_slice());
+        assert_eq!(record.calibration.parasitic_pf, 0.5 * taxel as f32);
+    }
+    assert_eq!(requests[4].command, Command::SaveCalibration);
+    let ids: Vec<u16> = requests.iter().map(|request| request.request_id).collect();
+    assert_eq!(ids, [1, 2, 3, 4, 5]);
+    assert_eq!(messages.len(), 5);
+}
+
+#[test]
+fn upload_stops_at_the_first_refusal() {
+    let calibration = calibration_with_distinct_taxels();
+    let device = FakeDevice::new(Box::new(|request| match &request.command {
+        Command::WriteCalibration(record) if record.taxel_index == 2 => {
+            vec![DeviceFrame::Reply(ReplyFrame {
+                request_id: request.request_id,
+                result: Err(ErrorCode::InvalidArgument),
+            })]
+        }
+        _ => vec![ack(request)],
+    }));
+    let mut link = DeviceLink::new(device);
+    let error = upload(
+        &mut link,
+        &calibration,
+        true,
+        Duration::from_secs(5),
+        &mut |_| {},
+    )
+    .unwrap_err();
+    let text = format!("{error:#}");
+    assert!(text.contains("taxel c21"), "{text}");
+    assert!(text.contains("InvalidArgument"), "{text}");
+    assert_eq!(link.port().requests.len(), 3);
+}
+
+#[test]
+fn recording_writes_samples_and_every_byte_until_the_stream_ends() {
+    let (_, bytes, _) = frames_with_garbage();
+    let reader = ChunkedReader::new(bytes.clone(), vec![13, 64]);
+    let mut link = DeviceLink::new(reader);
+    let raw_log = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    link.set_raw_log(Box::new(SharedBuffer(raw_log.clone())));
+    let mut csv_writer = csv::WriterBuilder::new()
+        .terminator(csv::Terminator::CRLF)
+        .from_writer(Vec::new());
+    csv_writer.write_record(record_header()).unwrap();
+    let stop = AtomicBool::new(false);
+    let mut messages = Vec::new();
+    let summary = record_link(
+        &mut link,
+        &mut csv_writer,
+        &stop,
+        None,
+        Duration::from_millis(500),
+        &mut |message| messages.push(message.to_owned()),
+    )
+    .unwrap();
+    assert!(matches!(summary.stop_reason, StopReason::Disconnected(_)));
+    assert_eq!(summary.samples, 3);
+    assert_eq!(summary.sequence_gap_samples, 1);
+    assert_eq!(summary.bytes_received, bytes.len() as u64);
+    assert_eq!(*raw_log.lock().unwrap(), bytes);
+    let text = String::from_utf8(csv_writer.into_inner().unwrap()).unwrap();
+    let lines: Vec<&str> = text.split("\r\n").collect();
+    assert_eq!(
+        lines[0],
+        "seq,time_s,temp_c,temp_source,c11_pf,c12_pf,c21_pf,c22_pf,p11_kpa,p12_kpa,p21_kpa,p22_kpa,flags11,flags12,flags21,flags22"
+    );
+    assert_eq!(
+        lines[1],
+        "1,0.001000,23.5,tmp117,4.75,-0.25,4.5,4.6,12.5,,0,1,,below_baseline|shorted,,below_baseline"
+    );
+    assert_eq!(
+        lines[3],
+        "4,0.016000,23.5,tmp117,0.2,0.2,0.2,0.2,,,,,open,open,open,open"
+    );
+    assert_eq!(lines[4], "");
+    assert_eq!(lines.len(), 5);
+    assert!(messages
+        .iter()
+        .any(|message| message.contains("TemperatureSourceChanged")));
+}
+
+#[test]
+fn recording_stops_at_the_sample_limit_or_when_asked() {
+    let (_, bytes, _) = frames_with_garbage();
+    let mut link = DeviceLink::new(ChunkedReader::new(bytes.clone(), vec![5]));
+    let mut csv_writer = csv::Writer::from_writer(Vec::new());
+    let summary = record_link(
+        &mut link,
+        &mut csv_writer,
+        &AtomicBool::new(false),
+        Some(2),
+        Duration::from_millis(500),
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(summary.stop_reason, StopReason::SampleLimit);
+    assert_eq!(summary.samples, 2);
+    let mut link = DeviceLink::new(ChunkedReader::new(bytes, vec![5]));
+    let summary = record_link(
+        &mut link,
+        &mut csv_writer,
+        &AtomicBool::new(true),
+        None,
+        Duration::from_millis(500),
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(summary.stop_reason, StopReason::Interrupted);
+    assert_eq!(summary.samples, 0);
+}
+
+/// A raw-log sink the test can read after the link took ownership of it.
+struct SharedBuffer(std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
+
+impl std::io::Write for SharedBuffer {
+    fn write(&mut self, buffer: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(buffer);
+        Ok(buffer.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}

@@ -1,0 +1,126 @@
+//! End to end, as a user meets it: the simulated device (the firmware's acquisition, model and
+//! protocol code over the simulated converter) on a pseudo-terminal, opened by the host tool's
+//! real serial code path, recorded to CSV, and the CSV compared with the scripted scene.
+
+// Test helpers may unwrap and panic: a failure is the test failing.
+#![allow(clippy::unwrap_used, clippy::panic)]
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread;
+use std::time::Duration;
+
+use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+use taxel::device_link::{open_serial, DeviceLink};
+use taxel::record::{record_header, record_link};
+
+/// Largest difference between a recorded pressure and the scene, kPa: converter noise (1 fF rms
+/// at 400 S/s, 0.09 kPa at the flat top of the curve), the TMP117's one-second conversion lag
+/// while the scene warms at 0.67 °C/s (about 0.1 kPa), and the 10 ms a sample set takes while
+/// pressures ramp at up to 15 kPa/s (0.15 kPa).
+const SAMPLE_TOLERANCE_KPA: f64 = 0.5;
+/// Largest RMS difference over the whole recording, kPa.
+const RMS_TOLERANCE_KPA: f64 = 0.1;
+
+#[test]
+fn a_recording_of_the_simulated_device_matches_its_scene() {
+    let scene = SceneFile::default_scene().unwrap();
+    let period_s = scene.period_s();
+    let truth = scene.scene.clone();
+    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
+        scene,
+        seed: 3,
+        speed: Some(25.0),
+    })
+    .unwrap();
+    let mut port = PtyPort::open().unwrap();
+    let path = port.path().to_string_lossy().into_owned();
+    let device_stop = Arc::new(AtomicBool::new(false));
+    let device_thread = {
+        let stop = Arc::clone(&device_stop);
+        thread::spawn(move || device.run(&mut port, Some(period_s), &stop))
+    };
+
+    let opened = open_serial(&path, Duration::from_millis(100)).unwrap();
+    let mut link = DeviceLink::new(opened.port);
+    let mut csv_writer = csv::Writer::from_writer(Vec::new());
+    csv_writer.write_record(record_header()).unwrap();
+    let record_stop = AtomicBool::new(false);
+    // Recording ends when the device goes away at the end of the scene (as an unplug would).
+    let summary = record_link(
+        &mut link,
+        &mut csv_writer,
+        &record_stop,
+        None,
+        Duration::from_millis(200),
+        &mut |_| {},
+    );
+    device_stop.store(true, Ordering::Relaxed);
+    device_thread.join().unwrap();
+    let summary = summary.unwrap();
+    let bytes = csv_writer.into_inner().unwrap();
+
+    let mut reader = csv::Reader::from_reader(bytes.as_slice());
+    let header = reader.headers().unwrap().clone();
+    let column = |name: &str| header.iter().position(|h| h == name).unwrap();
+    let (time, seq) = (column("time_s"), column("seq"));
+    let pressure_columns = ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"].map(column);
+    let flag_columns = ["flags11", "flags12", "flags21", "flags22"].map(column);
+
+    let (mut rows, mut compared, mut squared) = (0u64, 0u64, 0.0f64);
+    let mut shorted_rows = 0u64;
+    let mut previous_sequence: Option<u64> = None;
+    let mut gaps = 0u64;
+    for record in reader.records() {
+        let record = record.unwrap();
+        rows += 1;
+        let sequence: u64 = record[seq].parse().unwrap();
+        if let Some(previous) = previous_sequence {
+            gaps += sequence - previous - 1;
+        }
+        previous_sequence = Some(sequence);
+        let time_s: f64 = record[time].parse().unwrap();
+        // The device tares on its first 16 sets; those carry no pressure.
+        if time_s < 0.3 {
+            continue;
+        }
+        let expected = truth.point_at_s(time_s);
+        for taxel in 0..4 {
+            let flags = &record[flag_columns[taxel]];
+            let cell = &record[pressure_columns[taxel]];
+            let in_short = taxel == 1 && (68.05..70.95).contains(&time_s);
+            if in_short {
+                assert!(
+                    cell.is_empty(),
+                    "t {time_s}: a shorted taxel must carry no pressure: {cell}"
+                );
+                assert!(flags.contains("shorted"), "t {time_s}: {flags}");
+                shorted_rows += 1;
+                continue;
+            }
+            if (67.95..71.1).contains(&time_s) && taxel == 1 {
+                continue;
+            }
+            assert!(
+                !cell.is_empty(),
+                "t {time_s} taxel {taxel}: no pressure, flags {flags}"
+            );
+            let pressure: f64 = cell.parse().unwrap();
+            let error = pressure - f64::from(expected.pressure_kpa[taxel]);
+            assert!(
+                error.abs() < SAMPLE_TOLERANCE_KPA,
+                "t {time_s} taxel {taxel}: {pressure} kPa vs scene {} kPa ({flags})",
+                expected.pressure_kpa[taxel]
+            );
+            squared += error * error;
+            compared += 1;
+        }
+    }
+    let rms = (squared / compared.max(1) as f64).sqrt();
+    println!("{rows} rows, {compared} pressures compared, RMS {rms:.4} kPa, {shorted_rows} shorted cells, {gaps} sets missing, summary {summary:?}");
+    // One pass of the scene at about 100 sets per second.
+    assert!(rows as f64 > 0.95 * period_s * 100.0, "{rows} rows");
+    assert!(gaps as f64 <= 0.01 * rows as f64, "{gaps} sets missing");
+    assert!(rms < RMS_TOLERANCE_KPA, "RMS {rms}");
+    assert!(shorted_rows > 250, "{shorted_rows}");
+}
