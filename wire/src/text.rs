@@ -29,9 +29,39 @@ impl core::fmt::Display for CsvLineTooLong {
 #[cfg(feature = "std")]
 impl std::error::Error for CsvLineTooLong {}
 
+/// Writes `value` with three decimals, rounded half to even, exactly as `{:.3}` would, using
+/// integer arithmetic only: core's float formatting costs about 10 KB of firmware flash.
+fn write_three_decimals<W: Write>(line: &mut W, value: f32) -> core::fmt::Result {
+    if value.is_nan() {
+        return line.write_str("NaN");
+    }
+    let sign = if value.is_sign_negative() { "-" } else { "" };
+    let magnitude = value.abs();
+    if magnitude.is_infinite() {
+        return write!(line, "{sign}inf");
+    }
+    // Above 2^23 an f32 has no fraction; its integer value fits a u128 (f32::MAX < 2^128).
+    if magnitude >= 8_388_608.0 {
+        return write!(line, "{sign}{}.000", magnitude as u128);
+    }
+    // f32 (24-bit mantissa) times 1000 (10 bits) is exact in f64's 53 bits.
+    let thousandths = f64::from(magnitude) * 1000.0;
+    let whole = thousandths as u64;
+    let remainder = thousandths - whole as f64;
+    let rounded = if remainder > 0.5 || (remainder == 0.5 && whole % 2 == 1) {
+        whole + 1
+    } else {
+        whole
+    };
+    write!(line, "{sign}{}.{:03}", rounded / 1000, rounded % 1000)
+}
+
 fn write_optional<W: Write>(line: &mut W, value: Option<f32>) -> core::fmt::Result {
     match value {
-        Some(value) => write!(line, ",{value:.3}"),
+        Some(value) => {
+            line.write_char(',')?;
+            write_three_decimals(line, value)
+        }
         // `nan` is read as not-a-number by spreadsheets, numpy and pandas, so a missing value
         // can never be mistaken for a measurement.
         None => line.write_str(",nan"),
@@ -127,5 +157,69 @@ impl TextCommandParser {
             }
         }
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+
+    use super::*;
+
+    fn three_decimals(value: f32) -> heapless::String<64> {
+        let mut text = heapless::String::new();
+        let _ = write_three_decimals(&mut text, value);
+        text
+    }
+
+    #[test]
+    fn integer_formatting_matches_core_formatting() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut values = edge_cases();
+        for _ in 0..200_000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            values.push(f32::from_bits(state as u32));
+            values.push((state % 200_000) as f32 / 1000.0 - 100.0);
+            values.push((state % 2_000_000) as f32 / 16.0 - 60_000.0);
+        }
+        for value in values {
+            let mut expected = heapless::String::<64>::new();
+            let _ = write!(expected, "{value:.3}");
+            assert_eq!(
+                three_decimals(value),
+                expected,
+                "{value:e} ({:#x})",
+                value.to_bits()
+            );
+        }
+    }
+
+    fn edge_cases() -> std::vec::Vec<f32> {
+        std::vec![
+            0.0,
+            -0.0,
+            0.0005,
+            -0.0005,
+            0.0015,
+            0.0025,
+            1.0625,
+            -1.0625,
+            0.9995,
+            999.9995,
+            8_388_607.5,
+            8_388_608.0,
+            -8_388_609.0,
+            f32::MAX,
+            f32::MIN,
+            f32::MIN_POSITIVE,
+            f32::EPSILON,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            1e-40,
+            123.4565,
+        ]
     }
 }

@@ -1,0 +1,169 @@
+//! The acquisition task: builds the portable device application (`device::Device` around
+//! `acquisition::Acquisition`) from the board's parts and runs it, one converter cycle per step,
+//! reporting progress to the watchdog.
+
+use acquisition::{Acquisition, AcquisitionConfig, Clock, ProcessedSample, TemperatureOrigin};
+use defmt::{debug, error, info, warn};
+use device::{Device, DeviceConfig, DeviceIdentity};
+use embassy_embedded_hal::shared_bus::asynch::i2c::I2cDevice;
+use embassy_stm32::peripherals::ADC1;
+use embassy_stm32::Peri;
+use embassy_time::{Delay, Instant};
+use fdc1004::{Fdc1004, Rate};
+use model_core::{PadModel, TaxelFlags};
+use tmp117::{Address, Tmp117};
+use wire::FirmwareVersion;
+
+use crate::die_temperature::DieTemperature;
+use crate::host_port::UsbHostPort;
+use crate::i2c::SharedBus;
+use crate::storage::FlashPersistence;
+use crate::watchdog;
+
+/// CAPDAC of each measurement (CIN1..CIN4): no offset. A taxel is about 4.5 pF unloaded and
+/// 26 % more at 50 kPa; with the cable shields driven by SHLD1/SHLD2 the cable adds little, so
+/// everything stays inside the ±15 pF input range. Calibrations are only valid for the CAPDAC
+/// they were taken with: change it and the pad must be calibrated again.
+const CAPDAC_PER_CHANNEL: [u8; 4] = [0; 4];
+
+/// The fastest rate: four conversions (one per taxel) take about 10 ms, so about 100 sets/s.
+const CONVERTER_RATE: Rate = Rate::Hz400;
+
+/// 2.5 times the 10 ms four conversions take at 400 S/s.
+const CONVERTER_DONE_TIMEOUT_US: u32 = 25_000;
+
+/// The FDC1004 answers about 5 ms after power-up.
+const CONVERTER_POWER_UP_DELAY_US: u32 = 5_000;
+
+/// A counters line goes to the log (at debug level) every this many sample sets.
+const LOG_COUNTERS_EVERY_SETS: u32 = 1_000;
+
+/// This firmware's version, from the package version.
+const FIRMWARE_VERSION: FirmwareVersion = FirmwareVersion {
+    major: version_component(env!("CARGO_PKG_VERSION_MAJOR")),
+    minor: version_component(env!("CARGO_PKG_VERSION_MINOR")),
+    patch: version_component(env!("CARGO_PKG_VERSION_PATCH")),
+};
+
+const _: () = assert!(
+    FIRMWARE_VERSION.major != u8::MAX
+        && FIRMWARE_VERSION.minor != u8::MAX
+        && FIRMWARE_VERSION.patch != u8::MAX,
+    "every component of the package version must be below 255"
+);
+
+const fn version_component(text: &str) -> u8 {
+    match u8::from_str_radix(text, 10) {
+        Ok(component) => component,
+        Err(_) => u8::MAX,
+    }
+}
+
+/// The embassy time driver as the acquisition loop's clock.
+struct EmbassyClock;
+
+impl Clock for EmbassyClock {
+    fn now_us(&self) -> u64 {
+        Instant::now().as_micros()
+    }
+}
+
+/// Builds the device application and runs it forever.
+#[embassy_executor::task]
+pub async fn acquisition_task(
+    i2c_bus: &'static SharedBus,
+    adc: Peri<'static, ADC1>,
+    mut persistence: FlashPersistence,
+) -> ! {
+    let mut tmp117 = Tmp117::new(I2cDevice::new(i2c_bus), Address::Gnd);
+    match tmp117.init().await {
+        Ok(()) => info!("TMP117 found"),
+        Err(tmp117_error) => warn!("TMP117 not found: {}", tmp117_error),
+    }
+    let die_temperature = DieTemperature::new(adc).await;
+    let converter = Fdc1004::new(
+        I2cDevice::new(i2c_bus),
+        Delay,
+        fdc1004::Config {
+            rate: CONVERTER_RATE,
+            capdac: CAPDAC_PER_CHANNEL,
+            done_timeout_us: CONVERTER_DONE_TIMEOUT_US,
+            power_up_delay_us: CONVERTER_POWER_UP_DELAY_US,
+        },
+    );
+    let (calibration, calibration_source) = persistence.load_at_boot().await;
+    let acquisition = Acquisition::new(
+        converter,
+        tmp117,
+        die_temperature,
+        EmbassyClock,
+        PadModel::new(calibration),
+        AcquisitionConfig::default(),
+        Delay,
+    );
+    let identity = DeviceIdentity {
+        firmware_version: FIRMWARE_VERSION,
+        board_serial: embassy_stm32::uid::uid(),
+    };
+    let mut device = Device::new(
+        acquisition,
+        persistence,
+        identity,
+        calibration_source,
+        DeviceConfig::default(),
+    );
+    let mut port = UsbHostPort::new();
+    let mut health = HealthLog::default();
+    info!(
+        "acquisition running: {}, calibration {}",
+        identity, calibration_source
+    );
+    loop {
+        let sample = device.step(&mut port).await;
+        watchdog::heartbeat();
+        health.update(&sample);
+    }
+}
+
+/// Logs changes of the converter's and the temperature sources' state, not every sample.
+#[derive(Default)]
+struct HealthLog {
+    converter_faulted: Option<bool>,
+    temperature_origin: Option<TemperatureOrigin>,
+    sets_since_counters: u32,
+}
+
+impl HealthLog {
+    fn update(&mut self, sample: &ProcessedSample) {
+        let converter_faulted = sample
+            .input
+            .reading_flags
+            .iter()
+            .any(|flags| flags.contains(TaxelFlags::CONVERTER_ERROR));
+        if self.converter_faulted != Some(converter_faulted) {
+            if converter_faulted {
+                warn!("FDC1004 not converting; re-initialising it every cycle");
+            } else {
+                info!("FDC1004 converting");
+            }
+            self.converter_faulted = Some(converter_faulted);
+        }
+        if self.temperature_origin != Some(sample.temperature_origin) {
+            match sample.temperature_origin {
+                TemperatureOrigin::Primary => info!("temperature from the TMP117"),
+                TemperatureOrigin::Fallback => {
+                    warn!("temperature from the die sensor (TMP117 not answering)")
+                }
+                TemperatureOrigin::None => {
+                    error!("no temperature sensor answering; holding the last temperature")
+                }
+            }
+            self.temperature_origin = Some(sample.temperature_origin);
+        }
+        self.sets_since_counters = self.sets_since_counters.wrapping_add(1);
+        if self.sets_since_counters >= LOG_COUNTERS_EVERY_SETS {
+            self.sets_since_counters = 0;
+            debug!("sequence {=u32}: {}", sample.sequence, sample.counters);
+        }
+    }
+}

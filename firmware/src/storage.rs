@@ -1,0 +1,161 @@
+//! The calibration in flash for the device application: [`FlashPersistence`] loads it at boot and
+//! implements `device::CalibrationPersistence` over `taxel-calibration-store`, in sectors 6 and 7
+//! through [`WatchdogFedFlash`].
+
+use calibration_store::{CalibrationStore, LoadOutcome, STM32F411_CALIBRATION_RANGE};
+use defmt::{error, info, warn};
+use device::{CalibrationPersistence, PersistenceFailed};
+use embassy_stm32::flash::{self, Flash, FLASH_BASE};
+use embassy_stm32::peripherals::FLASH;
+use embassy_stm32::Peri;
+use embedded_storage_async::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
+use model_core::{Calibration, CalibrationSpec};
+use wire::CalibrationSource;
+
+use crate::board::Irqs;
+use crate::watchdog;
+
+/// The flash under the calibration store.
+pub type CalibrationFlash = WatchdogFedFlash<Flash<'static, flash::Async>>;
+
+extern "C" {
+    static __calibration_start: u8;
+    static __calibration_end: u8;
+}
+
+/// The calibration store, or nothing if the flash region is unusable (then the defaults are used
+/// and saving fails).
+pub struct FlashPersistence {
+    store: Option<CalibrationStore<CalibrationFlash>>,
+}
+
+impl FlashPersistence {
+    /// Opens the store over the CALIBRATION region of `memory.x`.
+    pub fn new(flash: Peri<'static, FLASH>) -> Self {
+        if !calibration_range_matches_linker_script() {
+            error!("the calibration range does not match memory.x; calibration storage disabled");
+            return Self { store: None };
+        }
+        let flash = WatchdogFedFlash {
+            flash: Flash::new(flash, Irqs),
+        };
+        match CalibrationStore::new(flash, STM32F411_CALIBRATION_RANGE) {
+            Ok(store) => Self { store: Some(store) },
+            Err(region_error) => {
+                error!(
+                    "calibration region refused: {}; calibration storage disabled",
+                    region_error
+                );
+                Self { store: None }
+            }
+        }
+    }
+
+    /// The calibration to start with and where it came from: the saved one if it is intact and
+    /// valid, otherwise the defaults (marked as replacing a corrupt copy when there was one).
+    pub async fn load_at_boot(&mut self) -> (Calibration, CalibrationSource) {
+        let Some(store) = self.store.as_mut() else {
+            return (Calibration::default(), CalibrationSource::Defaults);
+        };
+        match store.load().await {
+            LoadOutcome::Stored(spec) => match Calibration::new(&spec) {
+                Ok(calibration) => {
+                    info!("calibration {=u32} loaded from flash", calibration.id());
+                    (calibration, CalibrationSource::Flash)
+                }
+                Err(invalid) => {
+                    warn!(
+                        "stored calibration {=u32} is invalid ({}); using the defaults",
+                        spec.id, invalid
+                    );
+                    (
+                        Calibration::default(),
+                        CalibrationSource::DefaultsAfterCorruptFlash,
+                    )
+                }
+            },
+            LoadOutcome::Absent => {
+                info!("no calibration saved; using the defaults");
+                (Calibration::default(), CalibrationSource::Defaults)
+            }
+            LoadOutcome::Corrupt(reason) => {
+                warn!(
+                    "stored calibration corrupt ({}); using the defaults",
+                    reason
+                );
+                (
+                    Calibration::default(),
+                    CalibrationSource::DefaultsAfterCorruptFlash,
+                )
+            }
+        }
+    }
+}
+
+impl CalibrationPersistence for FlashPersistence {
+    /// Stalls the whole MCU for 1-2 s per sector erase (single-bank flash); USB answers NAK meanwhile.
+    async fn save(&mut self, spec: &CalibrationSpec) -> Result<(), PersistenceFailed> {
+        let store = self.store.as_mut().ok_or(PersistenceFailed)?;
+        match store.save(spec).await {
+            Ok(()) => {
+                info!("calibration {=u32} saved", spec.id);
+                Ok(())
+            }
+            Err(store_error) => {
+                error!("saving calibration {=u32} failed: {}", spec.id, store_error);
+                Err(PersistenceFailed)
+            }
+        }
+    }
+}
+
+fn calibration_range_matches_linker_script() -> bool {
+    let start = &raw const __calibration_start as usize;
+    let end = &raw const __calibration_end as usize;
+    start == FLASH_BASE + STM32F411_CALIBRATION_RANGE.start as usize
+        && end == FLASH_BASE + STM32F411_CALIBRATION_RANGE.end as usize
+}
+
+/// A NOR flash that feeds the watchdog before every sector erase: the F411 has one flash bank,
+/// so an erase stalls every instruction fetch, and with it the watchdog's supervisor, for up to
+/// 2 s per 128 KiB sector.
+pub struct WatchdogFedFlash<F> {
+    flash: F,
+}
+
+impl<F: ErrorType> ErrorType for WatchdogFedFlash<F> {
+    type Error = F::Error;
+}
+
+impl<F: ReadNorFlash> ReadNorFlash for WatchdogFedFlash<F> {
+    const READ_SIZE: usize = F::READ_SIZE;
+
+    async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        self.flash.read(offset, bytes).await
+    }
+
+    fn capacity(&self) -> usize {
+        self.flash.capacity()
+    }
+}
+
+impl<F: NorFlash> NorFlash for WatchdogFedFlash<F> {
+    const WRITE_SIZE: usize = F::WRITE_SIZE;
+    const ERASE_SIZE: usize = F::ERASE_SIZE;
+
+    async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        self.flash.write(offset, bytes).await
+    }
+
+    async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        let mut sector_start = from;
+        while sector_start < to {
+            let sector_end = sector_start.saturating_add(Self::ERASE_SIZE as u32).min(to);
+            watchdog::feed();
+            self.flash.erase(sector_start, sector_end).await?;
+            sector_start = sector_end;
+        }
+        watchdog::feed();
+        Ok(())
+    }
+}
