@@ -1,6 +1,7 @@
 //! The unloaded reference (C0) of each taxel: taken by averaging N sample sets (tare), optionally
 //! followed slowly while the taxel is unloaded.
 
+use crate::bounds::clamp_f32;
 use crate::calibration::{FaultThresholds, TemperatureLaw, TAXEL_COUNT};
 use crate::reading::SplitCapacitance;
 
@@ -9,12 +10,14 @@ use crate::reading::SplitCapacitance;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Baseline {
     tared_capacitance: SplitCapacitance,
-    // Kept apart from the tared capacitance so that steps far below its f32 resolution add up.
+    // Accumulated apart from the tared capacitance so that steps far below its f32 resolution
+    // add up; `reference` folds it in whenever it changes.
     tracked_drift_pf: f32,
+    reference: SplitCapacitance,
     tared_sensor_pf: f32,
     sensor_pf: f32,
-    inverse_sensor_pf: f32,
     permittivity_ratio: f32,
+    permittivity_ratio_per_sensor_pf: f32,
     temperature_c: f32,
 }
 
@@ -52,13 +55,15 @@ impl Baseline {
         }
         let temperature_c =
             temperature_c.clamp(law.characterised_min_c(), law.characterised_max_c());
+        let permittivity_ratio = law.permittivity_ratio(temperature_c);
         Ok(Self {
             tared_capacitance: capacitance,
             tracked_drift_pf: 0.0,
+            reference: capacitance,
             tared_sensor_pf: sensor_pf,
             sensor_pf,
-            inverse_sensor_pf: 1.0 / sensor_pf,
-            permittivity_ratio: law.permittivity_ratio(temperature_c),
+            permittivity_ratio,
+            permittivity_ratio_per_sensor_pf: permittivity_ratio / sensor_pf,
             temperature_c,
         })
     }
@@ -87,19 +92,17 @@ impl Baseline {
     ///
     /// With k = eps(T) / eps(T0), the sensor part scales by k and the parasitic does not, so
     /// `dC/C0 = (C - Cp) / (k (C0 - Cp)) - 1`, formed as `dC * s / C0 + (s - 1)` with
-    /// `s = 1 / k`: the change `dC` is taken part by part (no cancellation) and no division is
-    /// left for the hot path.
+    /// `s = 1 / k = eps(T0) / eps(T)`: the change `dC` is taken part by part (no cancellation),
+    /// `eps(T0) / C0` is kept ready, and no division is left for the hot path.
     #[inline]
     pub fn relative_change(
         &self,
         reading: SplitCapacitance,
         inverse_permittivity_ratio: f32,
     ) -> f32 {
-        let scale = self.permittivity_ratio * inverse_permittivity_ratio;
-        (reading.minus(self.tared_capacitance) - self.tracked_drift_pf)
-            * scale
-            * self.inverse_sensor_pf
-            + (scale - 1.0)
+        let change_pf = reading.minus(self.reference);
+        change_pf * (self.permittivity_ratio_per_sensor_pf * inverse_permittivity_ratio)
+            + (self.permittivity_ratio * inverse_permittivity_ratio - 1.0)
     }
 
     /// Moves the baseline by `fraction` of the reading's offset from it (tracking), bounded to
@@ -108,10 +111,11 @@ impl Baseline {
         let step_pf = relative_change * self.sensor_pf * tracking.rate_per_sample;
         let limit_pf = tracking.max_drift_relative * self.tared_sensor_pf;
         let drift_pf = self.tracked_drift_pf + step_pf;
-        let bounded_drift_pf = drift_pf.clamp(-limit_pf, limit_pf);
+        let bounded_drift_pf = clamp_f32(drift_pf, -limit_pf, limit_pf);
         self.tracked_drift_pf = bounded_drift_pf;
+        self.reference.fine_pf = self.tared_capacitance.fine_pf + bounded_drift_pf;
         self.sensor_pf = self.tared_sensor_pf + bounded_drift_pf;
-        self.inverse_sensor_pf = 1.0 / self.sensor_pf;
+        self.permittivity_ratio_per_sensor_pf = self.permittivity_ratio / self.sensor_pf;
         bounded_drift_pf != drift_pf
     }
 }

@@ -29,6 +29,7 @@
 #![deny(missing_docs)]
 
 pub mod baseline;
+mod bounds;
 pub mod calibration;
 pub mod flags;
 pub mod inverse;

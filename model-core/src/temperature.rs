@@ -1,6 +1,7 @@
 //! Which temperature a sample is corrected with: the measured one clamped to the characterised
 //! range, or, when it is missing, the last valid one (else the tare's, else the reference).
 
+use crate::bounds::clamp_f32;
 use crate::calibration::TemperatureLaw;
 use crate::flags::TaxelFlags;
 
@@ -37,7 +38,7 @@ impl TemperatureTracker {
         let (minimum_c, maximum_c) = (law.characterised_min_c(), law.characterised_max_c());
         let (temperature_c, flags) = match measured_c {
             Some(value) if value.is_finite() => {
-                let clamped = value.clamp(minimum_c, maximum_c);
+                let clamped = clamp_f32(value, minimum_c, maximum_c);
                 self.last_valid_c = Some(clamped);
                 let flags = if clamped != value {
                     TaxelFlags::TEMPERATURE_OUT_OF_RANGE
@@ -50,8 +51,8 @@ impl TemperatureTracker {
                 let substitute = self
                     .last_valid_c
                     .or(fallback_c.filter(|value| value.is_finite()))
-                    .unwrap_or(REFERENCE_TEMPERATURE_C)
-                    .clamp(minimum_c, maximum_c);
+                    .unwrap_or(REFERENCE_TEMPERATURE_C);
+                let substitute = clamp_f32(substitute, minimum_c, maximum_c);
                 (substitute, TaxelFlags::TEMPERATURE_MISSING)
             }
         };

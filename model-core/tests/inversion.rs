@@ -122,6 +122,7 @@ fn tiers_stay_close_to_the_reference_where_their_design_says() {
     };
     assert!(max_deviation(Tier::MonotoneCubic) < 1e-3);
     assert!(max_deviation(Tier::Table) < 0.02);
+    assert!(max_deviation(Tier::Polynomial) < 0.1);
     assert!(max_deviation(Tier::PiecewiseLinear) < 1.5);
     assert!(max_deviation(Tier::Saturating) < 1.5);
     assert!(max_deviation(Tier::SaturatingMicromath) < 1.6);
@@ -261,4 +262,54 @@ proptest! {
             prop_assert!(pressure.is_finite() && (0.0..=50.0).contains(&pressure));
         }
     }
+}
+
+/// The polynomial degree: the smallest whose deviation from the reference is well inside the
+/// 0.5 kPa the speed tier is allowed (printed with --nocapture).
+#[test]
+fn polynomial_degree_study() {
+    use model_core::inverse::PolynomialInverse;
+    let (curve, inverses) = article();
+    let cubic = inverses.monotone_cubic();
+    let deviation = |coefficients: &[f32]| {
+        (0..=5000)
+            .map(|step| {
+                let pressure = step as f32 * 0.01;
+                let u = inverses.relative_change_at(pressure) / curve.top().relative_change;
+                let value = coefficients.iter().rev().fold(0.0f32, |acc, c| acc * u + c) * u;
+                (value - pressure).abs()
+            })
+            .fold(0.0f32, f32::max)
+    };
+    let results = [
+        (
+            4,
+            PolynomialInverse::with_degree::<4>(cubic, &curve).map(|c| deviation(&c)),
+        ),
+        (
+            5,
+            PolynomialInverse::with_degree::<5>(cubic, &curve).map(|c| deviation(&c)),
+        ),
+        (
+            6,
+            PolynomialInverse::with_degree::<6>(cubic, &curve).map(|c| deviation(&c)),
+        ),
+        (
+            7,
+            PolynomialInverse::with_degree::<7>(cubic, &curve).map(|c| deviation(&c)),
+        ),
+        (
+            8,
+            PolynomialInverse::with_degree::<8>(cubic, &curve).map(|c| deviation(&c)),
+        ),
+    ];
+    for (degree, result) in results {
+        println!("degree {degree}: max deviation from the reference {result:?} kPa");
+    }
+    let chosen = results
+        .iter()
+        .find(|(degree, _)| *degree == model_core::inverse::POLYNOMIAL_DEGREE)
+        .and_then(|(_, result)| *result)
+        .expect("the chosen degree fits");
+    assert!(chosen < 0.2, "{chosen}");
 }

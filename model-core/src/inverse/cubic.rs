@@ -2,15 +2,16 @@
 //! calibration points, which is the model's reference curve.
 //!
 //! The forward cubic is the natural model (the calibration controls P and measures dC/C0); its
-//! inverse is found per interval by Newton's method from the secant guess. Three steps bring the
+//! inverse is found per interval by Newton's method from the secant guess. Two steps bring the
 //! f32 result to its rounding floor on the article's curve (see the tests).
 
 use super::{clamp_pressure, InverseCurve};
+use crate::bounds::clamp_f32;
 use crate::calibration::{CalibrationCurve, MAX_CURVE_POINTS};
 use crate::monotone_cubic::MonotoneCubic;
 
 /// Newton steps per inversion.
-pub const NEWTON_STEPS: usize = 3;
+pub const NEWTON_STEPS: usize = 2;
 
 /// Inverse of the monotone cubic through the calibration points.
 #[derive(Debug, Clone, PartialEq)]
@@ -70,7 +71,7 @@ impl InverseCurve for MonotoneCubicInverse {
             if !(slope > 0.0) {
                 break;
             }
-            s = (s - residual / slope).clamp(0.0, segment.width);
+            s = clamp_f32(s - residual / slope, 0.0, segment.width);
         }
         clamp_pressure(segment.x_start + s, self.top_pressure_kpa)
     }

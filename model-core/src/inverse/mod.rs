@@ -8,12 +8,14 @@
 mod cubic;
 mod linear;
 mod piecewise_linear;
+mod polynomial;
 mod saturating;
 mod table;
 
 pub use cubic::MonotoneCubicInverse;
 pub use linear::LinearInverse;
 pub use piecewise_linear::PiecewiseLinearInverse;
+pub use polynomial::{PolynomialInverse, POLYNOMIAL_DEGREE};
 pub use saturating::{Libm, LnBackend, Micromath, SaturatingFit, SaturatingInverse};
 pub use table::{TableInverse, TABLE_INTERVALS};
 
@@ -45,19 +47,23 @@ pub enum Tier {
     Saturating = 3,
     /// The same fitted model, inverted with micromath's fast ln.
     SaturatingMicromath = 4,
-    /// A dense table of the monotone cubic's inverse with linear interpolation: built for speed.
+    /// A dense table of the monotone cubic's inverse with linear interpolation.
     Table = 5,
+    /// A least-squares polynomial of the monotone cubic's inverse, by Horner's rule: built for
+    /// speed.
+    Polynomial = 6,
 }
 
 impl Tier {
     /// Every tier, in id order.
-    pub const ALL: [Tier; 6] = [
+    pub const ALL: [Tier; 7] = [
         Tier::Linear,
         Tier::PiecewiseLinear,
         Tier::MonotoneCubic,
         Tier::Saturating,
         Tier::SaturatingMicromath,
         Tier::Table,
+        Tier::Polynomial,
     ];
 
     /// Stable name used on the command line and in files.
@@ -69,6 +75,7 @@ impl Tier {
             Tier::Saturating => "saturating",
             Tier::SaturatingMicromath => "saturating-micromath",
             Tier::Table => "table",
+            Tier::Polynomial => "polynomial",
         }
     }
 
@@ -98,6 +105,7 @@ pub struct TaxelInverses {
     monotone_cubic: MonotoneCubicInverse,
     saturating: Option<SaturatingFit>,
     table: TableInverse,
+    polynomial: Option<PolynomialInverse>,
     top_pressure_kpa: f32,
 }
 
@@ -109,34 +117,46 @@ impl TaxelInverses {
             linear: LinearInverse::new(curve),
             piecewise_linear: PiecewiseLinearInverse::new(curve),
             table: TableInverse::new(&monotone_cubic, curve),
+            polynomial: PolynomialInverse::new(&monotone_cubic, curve),
             saturating: SaturatingFit::new(curve),
             monotone_cubic,
             top_pressure_kpa: curve.top().pressure_kpa,
         }
     }
 
-    /// Whether a tier can be used for this curve (the saturating fit needs a concave curve).
+    /// Whether a tier can be used for this curve (the saturating fit needs a concave curve, the
+    /// polynomial a monotone fit).
     pub fn supports(&self, tier: Tier) -> bool {
-        !matches!(tier, Tier::Saturating | Tier::SaturatingMicromath) || self.saturating.is_some()
+        match tier {
+            Tier::Saturating | Tier::SaturatingMicromath => self.saturating.is_some(),
+            Tier::Polynomial => self.polynomial.is_some(),
+            _ => true,
+        }
     }
 
     /// Pressure for a relative change through the given tier. A tier the curve does not support
     /// falls back to the monotone cubic (callers check [`TaxelInverses::supports`] first).
     #[inline]
     pub fn pressure_kpa(&self, tier: Tier, relative_change: f32) -> f32 {
-        match (tier, &self.saturating) {
-            (Tier::Linear, _) => self.linear.pressure_kpa(relative_change),
-            (Tier::PiecewiseLinear, _) => self.piecewise_linear.pressure_kpa(relative_change),
-            (Tier::Table, _) => self.table.pressure_kpa(relative_change),
-            (Tier::Saturating, Some(fit)) => {
-                SaturatingInverse::<Libm>::new(fit, self.top_pressure_kpa)
-                    .pressure_kpa(relative_change)
-            }
-            (Tier::SaturatingMicromath, Some(fit)) => {
-                SaturatingInverse::<Micromath>::new(fit, self.top_pressure_kpa)
-                    .pressure_kpa(relative_change)
-            }
-            _ => self.monotone_cubic.pressure_kpa(relative_change),
+        match tier {
+            Tier::Linear => self.linear.pressure_kpa(relative_change),
+            Tier::PiecewiseLinear => self.piecewise_linear.pressure_kpa(relative_change),
+            Tier::Table => self.table.pressure_kpa(relative_change),
+            Tier::Polynomial => match &self.polynomial {
+                Some(polynomial) => polynomial.pressure_kpa(relative_change),
+                None => self.monotone_cubic.pressure_kpa(relative_change),
+            },
+            Tier::Saturating => match &self.saturating {
+                Some(fit) => SaturatingInverse::<Libm>::new(fit, self.top_pressure_kpa)
+                    .pressure_kpa(relative_change),
+                None => self.monotone_cubic.pressure_kpa(relative_change),
+            },
+            Tier::SaturatingMicromath => match &self.saturating {
+                Some(fit) => SaturatingInverse::<Micromath>::new(fit, self.top_pressure_kpa)
+                    .pressure_kpa(relative_change),
+                None => self.monotone_cubic.pressure_kpa(relative_change),
+            },
+            Tier::MonotoneCubic => self.monotone_cubic.pressure_kpa(relative_change),
         }
     }
 
@@ -169,14 +189,15 @@ impl TaxelInverses {
     pub fn table(&self) -> &TableInverse {
         &self.table
     }
+
+    /// The polynomial tier, if the fit is monotone.
+    pub fn polynomial(&self) -> Option<&PolynomialInverse> {
+        self.polynomial.as_ref()
+    }
 }
 
 /// Clamps a tier's raw result into `0 ..= top`, mapping NaN to 0.
 #[inline]
 pub(crate) fn clamp_pressure(pressure_kpa: f32, top_pressure_kpa: f32) -> f32 {
-    if pressure_kpa > 0.0 {
-        pressure_kpa.min(top_pressure_kpa)
-    } else {
-        0.0
-    }
+    crate::bounds::clamp_f32(pressure_kpa, 0.0, top_pressure_kpa)
 }

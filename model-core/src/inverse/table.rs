@@ -3,6 +3,7 @@
 //! multiply-add; no search, no division.
 
 use super::{clamp_pressure, InverseCurve, MonotoneCubicInverse};
+use crate::bounds::clamp_f32;
 use crate::calibration::CalibrationCurve;
 
 /// Grid intervals over `0 ..= top relative change`.
@@ -44,10 +45,13 @@ impl TableInverse {
 impl InverseCurve for TableInverse {
     #[inline]
     fn pressure_kpa(&self, relative_change: f32) -> f32 {
-        let position = (relative_change * self.intervals_per_relative_change)
-            .clamp(0.0, TABLE_INTERVALS as f32);
-        // `as` saturates and maps NaN to 0, so the index is always in the table.
-        let index = (position as usize).min(TABLE_INTERVALS);
+        let position = clamp_f32(
+            relative_change * self.intervals_per_relative_change,
+            0.0,
+            TABLE_INTERVALS as f32,
+        );
+        // The position is within 0 ..= TABLE_INTERVALS (NaN went to 0), so is the index.
+        let index = position as usize;
         let fraction = position - index as f32;
         clamp_pressure(
             self.pressures_kpa[index] + fraction * self.steps_kpa[index],

@@ -1,0 +1,397 @@
+//! Parsing of m4-bench's semihosting output: one `kind key=value ...` line per result (a
+//! `description=` field takes the rest of its line).
+
+use std::collections::BTreeMap;
+
+use anyhow::{anyhow, bail, Context, Result};
+use model_core::Tier;
+
+/// One output line: its first word and its fields.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Line {
+    /// First word (`grid`, `hard`, `case`, `count`, `summary`, ...).
+    pub kind: String,
+    /// `key=value` fields.
+    pub fields: BTreeMap<String, String>,
+}
+
+impl Line {
+    /// Splits a line into its kind and fields.
+    pub fn parse(text: &str) -> Option<Self> {
+        let text = text.trim_end();
+        let (kind, mut rest) = match text.split_once(' ') {
+            Some((kind, rest)) => (kind, rest),
+            None => (text, ""),
+        };
+        if kind.is_empty() || kind.contains('=') {
+            return None;
+        }
+        let mut fields = BTreeMap::new();
+        while !rest.is_empty() {
+            rest = rest.trim_start();
+            if let Some(description) = rest.strip_prefix("description=") {
+                fields.insert("description".to_string(), description.to_string());
+                break;
+            }
+            let (token, remainder) = rest.split_once(' ').unwrap_or((rest, ""));
+            if let Some((key, value)) = token.split_once('=') {
+                fields.insert(key.to_string(), value.to_string());
+            }
+            rest = remainder;
+        }
+        Some(Self {
+            kind: kind.to_string(),
+            fields,
+        })
+    }
+
+    /// A field's text.
+    pub fn text(&self, key: &str) -> Result<&str> {
+        self.fields
+            .get(key)
+            .map(String::as_str)
+            .ok_or_else(|| anyhow!("`{}` line without `{key}`", self.kind))
+    }
+
+    /// A numeric field.
+    pub fn number(&self, key: &str) -> Result<f64> {
+        let text = self.text(key)?;
+        text.parse()
+            .with_context(|| format!("`{}` line: `{key}={text}` is not a number", self.kind))
+    }
+
+    /// A field that is a number or `none`.
+    pub fn optional_number(&self, key: &str) -> Result<Option<f64>> {
+        match self.text(key)? {
+            "none" => Ok(None),
+            _ => self.number(key).map(Some),
+        }
+    }
+
+    /// A hexadecimal `0x....` field.
+    pub fn hex(&self, key: &str) -> Result<u16> {
+        let text = self.text(key)?;
+        u16::from_str_radix(text.trim_start_matches("0x"), 16)
+            .with_context(|| format!("`{}` line: `{key}={text}` is not hexadecimal", self.kind))
+    }
+
+    /// A tier-name field.
+    pub fn tier(&self, key: &str) -> Result<Tier> {
+        let name = self.text(key)?;
+        Tier::from_name(name).ok_or_else(|| anyhow!("unknown tier `{name}`"))
+    }
+
+    /// `result=pass`.
+    pub fn passed(&self) -> bool {
+        self.fields.get("result").map(String::as_str) == Some("pass")
+    }
+}
+
+/// A tier's result on the grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridResult {
+    /// The tier.
+    pub tier: Tier,
+    /// Grid points.
+    pub points: u32,
+    /// Points that came out as faults (should be none).
+    pub faults: u32,
+    /// Largest |M4 - f64 reference of the tier|, kPa.
+    pub max_error_kpa: f64,
+    /// rms of the same, kPa.
+    pub rms_error_kpa: f64,
+    /// Where the largest error occurred: pressure, kPa.
+    pub worst_at_kpa: f64,
+    /// Where the largest error occurred: temperature, °C.
+    pub worst_at_c: f64,
+    /// The accepted maximum, kPa.
+    pub tolerance_kpa: f64,
+    /// Largest |M4 - f64 reference curve (monotone cubic)|, kPa.
+    pub max_from_reference_curve_kpa: f64,
+    /// rms of the same, kPa.
+    pub rms_from_reference_curve_kpa: f64,
+    /// Within tolerance and no faults.
+    pub pass: bool,
+}
+
+/// What a hard case feeds the model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CaseInfo {
+    /// Identifier.
+    pub name: String,
+    /// The reading (`raw:code@capdac`, `pf:value`, `unavailable`).
+    pub reading: String,
+    /// The temperature as printed (`Some(25.0)`, `None`, `Some(NaN)`...).
+    pub temperature: String,
+    /// Expected flags.
+    pub expected_flags: u16,
+    /// What the case exercises.
+    pub description: String,
+}
+
+/// One hard case through one tier.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HardResult {
+    /// Case identifier.
+    pub case: String,
+    /// The tier.
+    pub tier: Tier,
+    /// Flags the M4 produced.
+    pub flags: u16,
+    /// Flags expected.
+    pub expected_flags: u16,
+    /// Pressure the M4 produced (None for a fault).
+    pub pressure_kpa: Option<f64>,
+    /// f64 reference (None when a fault is expected).
+    pub reference_kpa: Option<f64>,
+    /// Accepted |difference|, kPa.
+    pub tolerance_kpa: f64,
+    /// Flags equal and pressure within tolerance.
+    pub pass: bool,
+}
+
+/// Instructions per `TaxelModel::convert` call for a tier.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConvertCount {
+    /// The tier.
+    pub tier: Tier,
+    /// Mean over the whole grid.
+    pub mean: f64,
+    /// Fewest, over single inputs (whole kPa at 25 °C).
+    pub min: f64,
+    /// Most, over the same single inputs.
+    pub max: f64,
+    /// Mean over the same single inputs.
+    pub single_mean: f64,
+}
+
+/// Everything one m4-bench run printed.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BenchRun {
+    /// `3` or `s`.
+    pub opt_level: String,
+    /// Per tier, on the grid.
+    pub grid: Vec<GridResult>,
+    /// The hard cases' inputs.
+    pub cases: Vec<CaseInfo>,
+    /// Hard case x tier results.
+    pub hard: Vec<HardResult>,
+    /// `TaxelModel::convert` counts per tier.
+    pub convert: Vec<ConvertCount>,
+    /// `TaxelInverses::pressure_kpa` counts per tier.
+    pub inverse: Vec<(Tier, f64)>,
+    /// `PadModel::process` per taxel, per tier.
+    pub pad: Vec<(Tier, f64)>,
+    /// Other subjects (`table-direct`, `libm-logf`, `libm-expf`, `micromath-ln`, `f32-min`).
+    pub functions: BTreeMap<String, f64>,
+    /// Lines starting `error:` and lines that are not `key=value` results (panics).
+    pub problems: Vec<String>,
+    /// The summary line was present and said pass.
+    pub passed: bool,
+    /// Misses the summary line counted.
+    pub misses: u32,
+}
+
+impl BenchRun {
+    /// Parses a whole run's output.
+    pub fn parse(output: &str) -> Result<Self> {
+        let mut run = BenchRun::default();
+        let mut summary_seen = false;
+        for text in output.lines().filter(|line| !line.trim().is_empty()) {
+            if text.starts_with("error:") {
+                run.problems.push(text.to_string());
+                continue;
+            }
+            let Some(line) = Line::parse(text) else {
+                run.problems.push(text.to_string());
+                continue;
+            };
+            match line.kind.as_str() {
+                "m4-bench" => run.opt_level = line.text("opt-level")?.to_string(),
+                "grid" => run.grid.push(GridResult {
+                    tier: line.tier("tier")?,
+                    points: line.number("points")? as u32,
+                    faults: line.number("faults")? as u32,
+                    max_error_kpa: line.number("max_error_kpa")?,
+                    rms_error_kpa: line.number("rms_error_kpa")?,
+                    worst_at_kpa: line.number("worst_at_kpa")?,
+                    worst_at_c: line.number("worst_at_c")?,
+                    tolerance_kpa: line.number("tolerance_kpa")?,
+                    max_from_reference_curve_kpa: line.number("max_from_reference_curve_kpa")?,
+                    rms_from_reference_curve_kpa: line.number("rms_from_reference_curve_kpa")?,
+                    pass: line.passed(),
+                }),
+                "case" => run.cases.push(CaseInfo {
+                    name: line.text("name")?.to_string(),
+                    reading: line.text("reading")?.to_string(),
+                    temperature: line.text("temperature")?.to_string(),
+                    expected_flags: line.hex("expected_flags")?,
+                    description: line.text("description")?.to_string(),
+                }),
+                "hard" if line.fields.contains_key("reason") => {
+                    run.problems.push(text.to_string());
+                }
+                "hard" => run.hard.push(HardResult {
+                    case: line.text("case")?.to_string(),
+                    tier: line.tier("tier")?,
+                    flags: line.hex("flags")?,
+                    expected_flags: line.hex("expected_flags")?,
+                    pressure_kpa: line.optional_number("pressure_kpa")?,
+                    reference_kpa: line.optional_number("reference_kpa")?,
+                    tolerance_kpa: line.number("tolerance_kpa")?,
+                    pass: line.passed(),
+                }),
+                "count" => match line.text("subject")? {
+                    "convert" => run.convert.push(ConvertCount {
+                        tier: line.tier("tier")?,
+                        mean: line.number("mean")?,
+                        min: line.number("min")?,
+                        max: line.number("max")?,
+                        single_mean: line.number("single_mean")?,
+                    }),
+                    "inverse" => run.inverse.push((line.tier("tier")?, line.number("mean")?)),
+                    "pad-process-per-taxel" => {
+                        run.pad.push((line.tier("tier")?, line.number("mean")?));
+                    }
+                    subject => {
+                        run.functions
+                            .insert(subject.to_string(), line.number("mean")?);
+                    }
+                },
+                "summary" => {
+                    summary_seen = true;
+                    run.misses = line.number("misses")? as u32;
+                    run.passed = line.passed();
+                }
+                _ => run.problems.push(text.to_string()),
+            }
+        }
+        if !summary_seen {
+            run.passed = false;
+            run.problems
+                .push("no summary line: the run stopped early (panic or timeout)".to_string());
+        }
+        Ok(run)
+    }
+
+    /// The convert count of a tier.
+    pub fn convert_count(&self, tier: Tier) -> Result<ConvertCount> {
+        self.convert
+            .iter()
+            .find(|count| count.tier == tier)
+            .copied()
+            .ok_or_else(|| anyhow!("no instruction count for tier {}", tier.name()))
+    }
+
+    /// The grid result of a tier.
+    pub fn grid_result(&self, tier: Tier) -> Result<&GridResult> {
+        self.grid
+            .iter()
+            .find(|result| result.tier == tier)
+            .ok_or_else(|| anyhow!("no grid result for tier {}", tier.name()))
+    }
+
+    /// Fails with every miss listed unless the run passed completely.
+    pub fn require_pass(&self) -> Result<()> {
+        let mut misses: Vec<String> = self.problems.clone();
+        misses.extend(
+            self.grid
+                .iter()
+                .filter(|result| !result.pass)
+                .map(|result| {
+                    format!(
+                        "grid, {}: max error {:.3e} kPa > {:.1e} kPa or {} faults",
+                        result.tier.name(),
+                        result.max_error_kpa,
+                        result.tolerance_kpa,
+                        result.faults
+                    )
+                }),
+        );
+        misses.extend(self.hard.iter().filter(|result| !result.pass).map(|result| {
+            format!(
+                "hard case {}, {}: flags {:#06x} (expected {:#06x}), pressure {:?} (reference {:?} +- {:.1e})",
+                result.case,
+                result.tier.name(),
+                result.flags,
+                result.expected_flags,
+                result.pressure_kpa,
+                result.reference_kpa,
+                result.tolerance_kpa
+            )
+        }));
+        if self.passed && misses.is_empty() {
+            return Ok(());
+        }
+        bail!(
+            "the on-target test failed ({} misses counted on the target):\n  {}",
+            self.misses,
+            misses.join("\n  ")
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SAMPLE: &str = "m4-bench opt-level=3 grid_points=1111 hard_cases=2
+grid tier=table points=1111 faults=0 max_error_kpa=3.870e-5 rms_error_kpa=8.350e-6 worst_at_kpa=48 worst_at_c=50 tolerance_kpa=5.0e-3 max_from_reference_curve_kpa=1.4604e-2 rms_from_reference_curve_kpa=4.0140e-3 result=pass
+case name=temperature-nan reading=raw:1234@3 temperature=Some(NaN) expected_flags=0x0020 description=20 kPa at 25 C, temperature NaN: the tare's is used
+hard case=temperature-nan tier=table flags=0x0020 expected_flags=0x0020 pressure_kpa=2.000000e1 reference_kpa=2.000001e1 tolerance_kpa=5.0e-3 result=pass
+hard case=open-lead tier=table flags=0x0008 expected_flags=0x0008 pressure_kpa=none reference_kpa=none tolerance_kpa=5.0e-3 result=pass
+count subject=convert tier=table mean=119.26 min=70.00 max=124.38 single_mean=120.00 calls=4444 single_inputs=51
+count subject=inverse tier=table mean=56.42 calls=4444
+count subject=libm-logf mean=37.66 calls=256
+summary misses=0 result=pass
+";
+
+    #[test]
+    fn a_complete_run_parses_and_passes() {
+        let run = BenchRun::parse(SAMPLE).unwrap();
+        assert_eq!(run.opt_level, "3");
+        assert!(run.problems.is_empty(), "{:?}", run.problems);
+        assert!(run.require_pass().is_ok());
+        let grid = run.grid_result(Tier::Table).unwrap();
+        assert_eq!(grid.points, 1111);
+        assert!((grid.max_from_reference_curve_kpa - 1.4604e-2).abs() < 1e-12);
+        assert_eq!(
+            run.cases[0].description,
+            "20 kPa at 25 C, temperature NaN: the tare's is used"
+        );
+        assert_eq!(run.cases[0].expected_flags, 0x20);
+        assert_eq!(run.hard[1].pressure_kpa, None);
+        assert_eq!(run.hard[0].pressure_kpa, Some(20.0));
+        let count = run.convert_count(Tier::Table).unwrap();
+        assert_eq!((count.min, count.max), (70.0, 124.38));
+        assert_eq!(run.functions.get("libm-logf"), Some(&37.66));
+    }
+
+    #[test]
+    fn a_failed_check_or_a_missing_summary_fails_with_the_reason() {
+        let failed = SAMPLE.replace(
+            "pressure_kpa=2.000000e1 reference_kpa=2.000001e1 tolerance_kpa=5.0e-3 result=pass",
+            "pressure_kpa=2.100000e1 reference_kpa=2.000001e1 tolerance_kpa=5.0e-3 result=fail",
+        );
+        let message = BenchRun::parse(&failed)
+            .unwrap()
+            .require_pass()
+            .unwrap_err()
+            .to_string();
+        assert!(message.contains("temperature-nan"), "{message}");
+        let truncated = SAMPLE.replace(
+            "summary misses=0 result=pass\n",
+            "panicked at src/main.rs\n",
+        );
+        let run = BenchRun::parse(&truncated).unwrap();
+        assert!(!run.passed);
+        let message = run.require_pass().unwrap_err().to_string();
+        assert!(message.contains("panicked"), "{message}");
+    }
+
+    #[test]
+    fn malformed_numbers_are_errors_not_zeros() {
+        let broken = SAMPLE.replace("mean=119.26", "mean=lots");
+        assert!(BenchRun::parse(&broken).is_err());
+    }
+}
