@@ -73,6 +73,9 @@ pub struct AcquisitionConfig {
     pub reinit_backoff_us: u32,
     /// Sample sets averaged by the tare taken automatically at start (0 = none).
     pub tare_sets_at_start: u16,
+    /// While the primary temperature sensor works, read the fallback every this many cycles to
+    /// learn its offset (the MCU die runs warmer than the pad); 0 = never.
+    pub fallback_offset_check_cycles: u16,
 }
 
 impl Default for AcquisitionConfig {
@@ -82,6 +85,7 @@ impl Default for AcquisitionConfig {
             primary_temperature_retry_cycles: 100,
             reinit_backoff_us: 20_000,
             tare_sets_at_start: 16,
+            fallback_offset_check_cycles: 100,
         }
     }
 }
@@ -99,7 +103,32 @@ pub struct Acquisition<I2C, D, T, F, K> {
     sequence: u32,
     converter_ready: bool,
     primary_failing_cycles: Option<u16>,
+    fallback_offset: FallbackOffset,
     delay_after_failure: D,
+}
+
+/// What the fallback temperature sensor reads above the primary one, learned while both work.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct FallbackOffset {
+    offset_c: Option<f32>,
+    cycles_since_check: u16,
+}
+
+impl FallbackOffset {
+    /// Weight of a new difference in the running offset.
+    const SMOOTHING: f32 = 0.2;
+
+    fn learn(&mut self, fallback_c: f32, primary_c: f32) {
+        let difference_c = fallback_c - primary_c;
+        self.offset_c = Some(match self.offset_c {
+            Some(offset_c) => offset_c + Self::SMOOTHING * (difference_c - offset_c),
+            None => difference_c,
+        });
+    }
+
+    fn correct(&self, fallback_c: f32) -> f32 {
+        fallback_c - self.offset_c.unwrap_or(0.0)
+    }
 }
 
 impl<I2C, D, T, F, K> Acquisition<I2C, D, T, F, K>
@@ -133,6 +162,10 @@ where
             sequence: 0,
             converter_ready: false,
             primary_failing_cycles: None,
+            fallback_offset: FallbackOffset {
+                offset_c: None,
+                cycles_since_check: config.fallback_offset_check_cycles,
+            },
             delay_after_failure: backoff_delay,
         };
         if config.tare_sets_at_start > 0 {
@@ -218,6 +251,11 @@ where
             }
         };
         let (temperature_c, temperature_origin) = self.read_temperature().await;
+        if temperature_origin == TemperatureOrigin::Fallback {
+            for flags in reading_flags.iter_mut() {
+                *flags |= TaxelFlags::TEMPERATURE_FALLBACK;
+            }
+        }
         let input = SampleInput {
             readings,
             reading_flags,
@@ -273,6 +311,7 @@ where
             match self.primary_temperature.read_temperature_c().await {
                 Ok(temperature_c) if temperature_c.is_finite() => {
                     self.primary_failing_cycles = None;
+                    self.check_fallback_offset(temperature_c).await;
                     return (Some(temperature_c), TemperatureOrigin::Primary);
                 }
                 _ => {
@@ -285,14 +324,48 @@ where
             *cycles = cycles.saturating_add(1);
         }
         match self.fallback_temperature.read_temperature_c().await {
-            Ok(temperature_c) if temperature_c.is_finite() => {
-                (Some(temperature_c), TemperatureOrigin::Fallback)
-            }
+            Ok(temperature_c) if temperature_c.is_finite() => (
+                Some(self.fallback_offset.correct(temperature_c)),
+                TemperatureOrigin::Fallback,
+            ),
             _ => {
                 self.counters.temperature_errors = self.counters.temperature_errors.wrapping_add(1);
                 (None, TemperatureOrigin::None)
             }
         }
+    }
+}
+
+impl<I2C, D, T, F, K> Acquisition<I2C, D, T, F, K>
+where
+    I2C: I2c,
+    D: DelayNs,
+    T: TemperatureSource,
+    F: TemperatureSource,
+    K: Clock,
+{
+    /// Reads the fallback sensor now and then while the primary works, to learn its offset.
+    async fn check_fallback_offset(&mut self, primary_c: f32) {
+        let interval = self.config.fallback_offset_check_cycles;
+        if interval == 0 {
+            return;
+        }
+        self.fallback_offset.cycles_since_check =
+            self.fallback_offset.cycles_since_check.saturating_add(1);
+        if self.fallback_offset.cycles_since_check < interval {
+            return;
+        }
+        self.fallback_offset.cycles_since_check = 0;
+        if let Ok(fallback_c) = self.fallback_temperature.read_temperature_c().await {
+            if fallback_c.is_finite() {
+                self.fallback_offset.learn(fallback_c, primary_c);
+            }
+        }
+    }
+
+    /// The fallback sensor's learned offset above the primary, °C (None until learned).
+    pub fn fallback_offset_c(&self) -> Option<f32> {
+        self.fallback_offset.offset_c
     }
 }
 

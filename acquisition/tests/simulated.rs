@@ -352,10 +352,14 @@ fn an_open_lead_is_a_fault() {
 #[test]
 fn a_missing_temperature_sensor_degrades_to_the_fallback_and_comes_back() {
     let simulation = Simulation::new(SimulationConfig::default()).unwrap();
-    simulation.set_scene(ScriptedScene::constant(ScenePoint::new(
-        [10.0, 0.0, 0.0, 0.0],
-        30.0,
-    )));
+    simulation.set_scene(
+        ScriptedScene::new(vec![
+            keyframe(0.0, [0.0; 4], 30.0),
+            keyframe(1.0, [0.0; 4], 30.0),
+            keyframe(1.5, [10.0, 0.0, 0.0, 0.0], 30.0),
+        ])
+        .unwrap(),
+    );
     let mut acquisition = rig(&simulation);
     simulation.inject(
         Fault::Nack(Device::Tmp117),
@@ -380,6 +384,22 @@ fn a_missing_temperature_sensor_degrades_to_the_fallback_and_comes_back() {
         assert_eq!(pair[1].sequence, pair[0].sequence + 1);
     }
     assert!(acquisition.counters().temperature_errors > 0);
+    // The die reads 2 °C warm; the offset learned while the TMP117 worked corrects it, and every
+    // set on the fallback says so.
+    let offset_c = acquisition.fallback_offset_c().unwrap();
+    assert!((offset_c - 2.0).abs() < 0.05, "{offset_c}");
+    let on_fallback = samples.iter().filter(|s| {
+        s.temperature_origin == TemperatureOrigin::Fallback && s.timestamp_us > 2_000_000
+    });
+    for sample in on_fallback {
+        let taxel = sample.output.taxels[0];
+        assert!(
+            taxel.flags().contains(TaxelFlags::TEMPERATURE_FALLBACK),
+            "{taxel:?}"
+        );
+        let pressure = taxel.pressure_kpa().unwrap();
+        assert!((pressure - 10.0).abs() < 0.15, "{pressure} on the fallback");
+    }
 }
 
 #[test]

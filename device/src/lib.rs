@@ -14,6 +14,7 @@ mod control;
 mod convert;
 mod host_input;
 mod persistence;
+mod retained;
 
 pub use control::DeviceControl;
 pub use convert::{
@@ -22,6 +23,7 @@ pub use convert::{
 };
 pub use host_input::{HostInput, HostInputEvent};
 pub use persistence::{CalibrationPersistence, PersistenceFailed};
+pub use retained::{boot_plan, BootPlan, ResetKind, RetainedState, RETAINED_LEN};
 
 use acquisition::{ProcessedSample, TemperatureOrigin};
 use model_core::{Calibration, TareStatus, Tier, UseCase};
@@ -166,6 +168,14 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
     /// Whether samples are being streamed.
     pub fn streaming(&self) -> bool {
         self.streaming
+    }
+
+    /// What must survive an MCU-only reset (keep it in no-init RAM after every step).
+    pub fn retained_state(&self) -> RetainedState {
+        RetainedState {
+            baselines: self.control.pad().baseline_records(),
+            tier: self.control.pad().tier(),
+        }
     }
 
     /// The info frame as of now.

@@ -4,10 +4,11 @@
 
 use acquisition::{Acquisition, AcquisitionConfig, Clock, ProcessedSample, TemperatureOrigin};
 use defmt::{debug, error, info, warn};
-use device::{Device, DeviceConfig, DeviceIdentity};
+use device::{boot_plan, Device, DeviceConfig, DeviceIdentity, ResetKind};
 use embassy_embedded_hal::shared_bus::asynch::i2c::I2cDevice;
 use embassy_stm32::peripherals::ADC1;
 use embassy_stm32::Peri;
+use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use embassy_time::{Delay, Instant};
 use fdc1004::{Fdc1004, Rate};
 use model_core::{PadModel, TaxelFlags};
@@ -17,6 +18,7 @@ use wire::FirmwareVersion;
 use crate::die_temperature::DieTemperature;
 use crate::host_port::UsbHostPort;
 use crate::i2c::SharedBus;
+use crate::retained;
 use crate::storage::FlashPersistence;
 use crate::watchdog;
 
@@ -34,6 +36,9 @@ const CONVERTER_DONE_TIMEOUT_US: u32 = 25_000;
 
 /// The FDC1004 answers about 5 ms after power-up.
 const CONVERTER_POWER_UP_DELAY_US: u32 = 5_000;
+
+/// Sample sets averaged by the tare a power-on takes (the pad is taken to be unloaded then).
+const TARE_SETS_AT_POWER_ON: u16 = 16;
 
 /// A counters line goes to the log (at debug level) every this many sample sets.
 const LOG_COUNTERS_EVERY_SETS: u32 = 1_000;
@@ -74,6 +79,7 @@ pub async fn acquisition_task(
     i2c_bus: &'static SharedBus,
     adc: Peri<'static, ADC1>,
     mut persistence: FlashPersistence,
+    reset: ResetKind,
 ) -> ! {
     let mut tmp117 = Tmp117::new(I2cDevice::new(i2c_bus), Address::Gnd);
     match tmp117.init().await {
@@ -92,37 +98,87 @@ pub async fn acquisition_task(
         },
     );
     let (calibration, calibration_source) = persistence.load_at_boot().await;
+    // Built outside the async body so the model exists once in the task's state, not twice.
+    let mut device = assemble(
+        converter,
+        tmp117,
+        die_temperature,
+        persistence,
+        calibration,
+        calibration_source,
+        reset,
+    );
+    let mut port = UsbHostPort::new();
+    let mut health = HealthLog::default();
+    info!("acquisition running, calibration {}", calibration_source);
+    loop {
+        let sample = device.step(&mut port).await;
+        retained::write(&device.retained_state());
+        watchdog::heartbeat();
+        health.update(&sample);
+    }
+}
+
+/// One device's handle on the shared I2C bus.
+type SharedI2cDevice = I2cDevice<'static, NoopRawMutex, crate::i2c::I2cBus>;
+
+/// The device application type the task runs.
+type FirmwareDevice = Device<
+    Acquisition<SharedI2cDevice, Delay, Tmp117<SharedI2cDevice>, DieTemperature, EmbassyClock>,
+    FlashPersistence,
+>;
+
+/// Boots the model (baselines and tier restored after an MCU-only reset, a tare after a
+/// power-on) and assembles the device application.
+#[inline(never)]
+fn assemble(
+    converter: Fdc1004<SharedI2cDevice, Delay>,
+    tmp117: Tmp117<SharedI2cDevice>,
+    die_temperature: DieTemperature,
+    persistence: FlashPersistence,
+    calibration: model_core::Calibration,
+    calibration_source: wire::CalibrationSource,
+    reset: ResetKind,
+) -> FirmwareDevice {
+    let plan = boot_plan(reset, retained::read(), TARE_SETS_AT_POWER_ON);
+    let mut pad = PadModel::new(calibration);
+    let restored_mask = plan.apply_to(&mut pad);
+    match (reset, plan.restore.is_some()) {
+        (ResetKind::PowerOn, _) => {
+            info!("power-on: taring over {=u16} sets", TARE_SETS_AT_POWER_ON)
+        }
+        (ResetKind::McuOnly, true) => info!(
+            "MCU reset: baselines restored (mask {=u8:#06b})",
+            restored_mask
+        ),
+        (ResetKind::McuOnly, false) => {
+            warn!("MCU reset without a retained record: not tared until the host tares")
+        }
+    }
     let acquisition = Acquisition::new(
         converter,
         tmp117,
         die_temperature,
         EmbassyClock,
-        PadModel::new(calibration),
-        AcquisitionConfig::default(),
+        pad,
+        AcquisitionConfig {
+            tare_sets_at_start: plan.tare_sets_at_start,
+            ..AcquisitionConfig::default()
+        },
         Delay,
     );
     let identity = DeviceIdentity {
         firmware_version: FIRMWARE_VERSION,
         board_serial: embassy_stm32::uid::uid(),
     };
-    let mut device = Device::new(
+    info!("{}", identity);
+    Device::new(
         acquisition,
         persistence,
         identity,
         calibration_source,
         DeviceConfig::default(),
-    );
-    let mut port = UsbHostPort::new();
-    let mut health = HealthLog::default();
-    info!(
-        "acquisition running: {}, calibration {}",
-        identity, calibration_source
-    );
-    loop {
-        let sample = device.step(&mut port).await;
-        watchdog::heartbeat();
-        health.update(&sample);
-    }
+    )
 }
 
 /// Logs changes of the converter's and the temperature sources' state, not every sample.

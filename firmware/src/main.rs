@@ -11,6 +11,7 @@ mod die_temperature;
 mod host_port;
 mod i2c;
 mod panic;
+mod retained;
 mod storage;
 mod usb;
 mod watchdog;
@@ -23,7 +24,7 @@ use embassy_executor::{SpawnError, SpawnToken, Spawner};
 async fn main(spawner: Spawner) {
     let board = board::init();
     info!("taxel firmware {=str} starting", env!("CARGO_PKG_VERSION"));
-    watchdog::report_reset_cause();
+    let reset = watchdog::report_reset_cause();
     watchdog::start(board.iwdg);
 
     match usb::build(board.usb) {
@@ -41,7 +42,7 @@ async fn main(spawner: Spawner) {
             spawn(
                 &spawner,
                 "acquisition",
-                application::acquisition_task(i2c_bus, board.adc, persistence),
+                application::acquisition_task(i2c_bus, board.adc, persistence, reset),
             );
         }
         None => error!("the I2C bus was already set up"),

@@ -6,6 +6,7 @@
 
 use core::cell::RefCell;
 use core::sync::atomic::{AtomicU32, Ordering};
+use device::ResetKind;
 
 use defmt::{error, info, warn};
 use embassy_stm32::gpio::Output;
@@ -36,8 +37,15 @@ static WATCHDOG: Mutex<
 static HEARTBEAT: AtomicU32 = AtomicU32::new(0);
 
 /// Logs why the MCU reset, then clears the reset flags.
-pub fn report_reset_cause() {
+pub fn report_reset_cause() -> ResetKind {
     let reset_flags = embassy_stm32::pac::RCC.csr().read();
+    // A power-on or brown-out clears RAM; every other reset leaves the pad (and the retained
+    // record) as they were.
+    let kind = if reset_flags.porrstf() || reset_flags.borrstf() {
+        ResetKind::PowerOn
+    } else {
+        ResetKind::McuOnly
+    };
     if reset_flags.wdgrstf() {
         warn!("reset by the independent watchdog");
     } else if reset_flags.sftrstf() {
@@ -48,6 +56,7 @@ pub fn report_reset_cause() {
         info!("reset pin");
     }
     embassy_stm32::pac::RCC.csr().modify(|w| w.set_rmvf(true));
+    kind
 }
 
 /// Starts the watchdog; from now on it must be fed.

@@ -21,6 +21,18 @@ pub struct Baseline {
     temperature_c: f32,
 }
 
+/// What a baseline is made from: the tared capacitance and the temperature at the tare (what
+/// is kept across an MCU reset; the rest is derived again from the calibration).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BaselineRecord {
+    /// The tared capacitance.
+    pub capacitance: SplitCapacitance,
+    /// Temperature at the tare, °C.
+    pub temperature_c: f32,
+}
+
 /// Why a baseline was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -38,6 +38,9 @@ bitflags! {
         const INVALID_INPUT = 1 << 10;
         /// Warning: slow baseline tracking has reached its bound; re-tare when unloaded.
         const BASELINE_TRACKING_LIMIT = 1 << 11;
+        /// Warning: the temperature came from the fallback sensor (the MCU's die), corrected by
+        /// the offset last learned against the pad's sensor: less accurate than the pad's own.
+        const TEMPERATURE_FALLBACK = 1 << 12;
 
         /// Every flag that makes a reading carry no pressure.
         const FAULTS = Self::SHORTED.bits()
@@ -57,7 +60,7 @@ impl TaxelFlags {
     }
 
     /// Stable, documented names of the individual flags, in bit order (used in CSV files).
-    pub const NAMES: [(TaxelFlags, &'static str); 12] = [
+    pub const NAMES: [(TaxelFlags, &'static str); 13] = [
         (Self::BELOW_BASELINE, "below_baseline"),
         (Self::OVER_RANGE, "over_range"),
         (Self::SHORTED, "shorted"),
@@ -70,6 +73,7 @@ impl TaxelFlags {
         (Self::STUCK, "stuck"),
         (Self::INVALID_INPUT, "invalid_input"),
         (Self::BASELINE_TRACKING_LIMIT, "baseline_tracking_limit"),
+        (Self::TEMPERATURE_FALLBACK, "temperature_fallback"),
     ];
 
     /// The flag with this documented name, if any.

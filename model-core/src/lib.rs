@@ -40,7 +40,7 @@ pub mod taxel;
 pub mod temperature;
 pub mod use_case;
 
-pub use baseline::{Baseline, BaselineError, BaselineTracking};
+pub use baseline::{Baseline, BaselineError, BaselineRecord, BaselineTracking};
 pub use calibration::{
     Calibration, CalibrationCurve, CalibrationError, CalibrationSpec, CurvePoint, FaultThresholds,
     PermittivityPoint, TaxelCalibration, TaxelCalibrationSpec, TemperatureLaw, ARTICLE_TABLE_1,

@@ -1,7 +1,7 @@
 //! The whole pad: four taxel models, their baselines, the temperature, the tare in progress and
 //! the chosen tier. One call per converter cycle turns four readings into four pressures.
 
-use crate::baseline::{Baseline, BaselineError, BaselineTracking, TareAccumulator};
+use crate::baseline::{Baseline, BaselineError, BaselineRecord, BaselineTracking, TareAccumulator};
 use crate::calibration::{Calibration, TAXEL_COUNT};
 use crate::flags::TaxelFlags;
 use crate::inverse::Tier;
@@ -203,6 +203,41 @@ impl PadModel {
     /// Baselines per taxel.
     pub fn baselines(&self) -> &[Option<Baseline>; TAXEL_COUNT] {
         &self.baselines
+    }
+
+    /// Restores baselines taken earlier (e.g. kept across an MCU reset): each is re-validated
+    /// against this calibration's parasitic capacitance, temperature law and thresholds, and a
+    /// taxel whose baseline does not validate stays untared. Returns which taxels were restored
+    /// (bit n = taxel n).
+    pub fn restore_baselines(&mut self, baselines: &[Option<BaselineRecord>; TAXEL_COUNT]) -> u8 {
+        let mut restored_mask = 0u8;
+        for (taxel, record) in baselines.iter().enumerate() {
+            let Some(record) = record else {
+                continue;
+            };
+            let restored = Baseline::new(
+                record.capacitance,
+                self.taxels[taxel].parasitic_pf(),
+                record.temperature_c,
+                self.calibration.temperature_law(),
+                self.calibration.thresholds(),
+            );
+            if let Ok(baseline) = restored {
+                self.baselines[taxel] = Some(baseline);
+                restored_mask |= 1 << taxel;
+            }
+        }
+        restored_mask
+    }
+
+    /// The baselines as plain records (to keep them across an MCU reset).
+    pub fn baseline_records(&self) -> [Option<BaselineRecord>; TAXEL_COUNT] {
+        self.baselines.map(|baseline| {
+            baseline.map(|baseline| BaselineRecord {
+                capacitance: baseline.tared_capacitance(),
+                temperature_c: baseline.temperature_c(),
+            })
+        })
     }
 
     /// Sets one taxel's baseline directly (e.g. restored from a recording).

@@ -36,6 +36,7 @@ pub enum TaxelReading {
 
 /// A capacitance split into two parts that are each exact in f32.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SplitCapacitance {
     /// The coarse part (CAPDAC offset), pF.

@@ -7,7 +7,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use acquisition::{Acquisition, AcquisitionConfig, Clock, ProcessedSample};
 use calibration_store::{CalibrationStore, LoadOutcome, RamFlash};
 use device::{
-    CalibrationPersistence, Device, DeviceConfig, DeviceIdentity, HostPort, PersistenceFailed,
+    boot_plan, BootPlan, CalibrationPersistence, Device, DeviceConfig, DeviceIdentity, HostPort,
+    PersistenceFailed, ResetKind, RetainedState, RETAINED_LEN,
 };
 use fdc1004::{Config, Fdc1004, Rate};
 use model_core::{Calibration, CalibrationSpec, PadModel};
@@ -30,6 +31,9 @@ pub type SimulatedFlash = RamFlash<FLASH_SIZE, FLASH_PAGE>;
 /// The same CAPDAC on every channel: 3.125 pF under a 1.2 pF cable plus a 4.5 pF taxel keeps
 /// the loaded input (up to about 7 pF) well inside the converter's +-16 pF.
 const CAPDAC: [u8; 4] = [1; 4];
+
+/// Sample sets averaged by the tare at power-on, as the firmware's.
+const TARE_SETS_AT_START: u16 = 16;
 
 /// The simulated clock.
 pub struct SimulatedClock(Simulation);
@@ -127,7 +131,10 @@ pub struct SimulatedDevice {
     device: Device<SimulatedAcquisition, SimulatedPersistence>,
     simulation: Simulation,
     scene: SceneFile,
+    seed: u64,
     passes_with_faults: u64,
+    // The board's no-init RAM: rewritten after every step, read by the next MCU-only boot.
+    retained_ram: [u8; RETAINED_LEN],
 }
 
 /// The board serial the simulated device reports: "SIMULATED" and the seed's low bytes.
@@ -160,7 +167,58 @@ impl SimulatedDevice {
         }
         let store = CalibrationStore::new(SimulatedFlash::new(), 0..FLASH_SIZE as u32)
             .map_err(|_| SimulatedDeviceError::Storage)?;
-        let mut persistence = SimulatedPersistence(store);
+        let device = boot(
+            &simulation,
+            SimulatedPersistence(store),
+            config.seed,
+            boot_plan(ResetKind::PowerOn, None, TARE_SETS_AT_START),
+        )?;
+        Ok(Self {
+            device,
+            simulation,
+            scene: config.scene,
+            seed: config.seed,
+            passes_with_faults: 0,
+            retained_ram: [0; RETAINED_LEN],
+        })
+    }
+
+    /// Resets the MCU alone, as a watchdog reset or a debugger would: the firmware boots again
+    /// (calibration from the simulated flash, baselines and tier from the retained RAM when it
+    /// is intact, no tare of a pad that may be loaded) while the converter and the temperature
+    /// sensor keep running with the state they had.
+    pub fn restart_mcu(&mut self) -> Result<(), SimulatedDeviceError> {
+        self.simulation.simulate_mcu_only_reset();
+        let flash = std::mem::replace(
+            self.device.persistence_mut().store_mut().flash(),
+            SimulatedFlash::new(),
+        );
+        let store = CalibrationStore::new(flash, 0..FLASH_SIZE as u32)
+            .map_err(|_| SimulatedDeviceError::Storage)?;
+        let plan = boot_plan(
+            ResetKind::McuOnly,
+            RetainedState::decode(&self.retained_ram),
+            TARE_SETS_AT_START,
+        );
+        self.device = boot(
+            &self.simulation,
+            SimulatedPersistence(store),
+            self.seed,
+            plan,
+        )?;
+        Ok(())
+    }
+}
+
+/// The firmware's boot on the simulated board: calibration from flash (or defaults), converter,
+/// temperature sources, acquisition loop and device application.
+fn boot(
+    simulation: &Simulation,
+    mut persistence: SimulatedPersistence,
+    seed: u64,
+    plan: BootPlan,
+) -> Result<Device<SimulatedAcquisition, SimulatedPersistence>, SimulatedDeviceError> {
+    {
         // The simulated pad's factory calibration: the article's curve with this pad's
         // parasitic capacitance, as the firmware's defaults would be for a real pad.
         let defaults = simulation
@@ -185,34 +243,35 @@ impl SimulatedDevice {
                 power_up_delay_us: 5_000,
             },
         );
+        let mut pad = PadModel::new(calibration);
+        plan.apply_to(&mut pad);
         let acquisition = Acquisition::new(
             converter,
             Tmp117::new(simulation.i2c(), Address::Gnd),
             SimulatedDieTemperature(simulation.clone()),
             SimulatedClock(simulation.clone()),
-            PadModel::new(calibration),
-            AcquisitionConfig::default(),
+            pad,
+            AcquisitionConfig {
+                tare_sets_at_start: plan.tare_sets_at_start,
+                ..AcquisitionConfig::default()
+            },
             simulation.delay(),
         );
         let identity = DeviceIdentity {
             firmware_version: firmware_version(),
-            board_serial: simulated_board_serial(config.seed),
+            board_serial: simulated_board_serial(seed),
         };
-        let device = Device::new(
+        Ok(Device::new(
             acquisition,
             persistence,
             identity,
             source,
             DeviceConfig::default(),
-        );
-        Ok(Self {
-            device,
-            simulation,
-            scene: config.scene,
-            passes_with_faults: 0,
-        })
+        ))
     }
+}
 
+impl SimulatedDevice {
     /// The simulator (scene, faults, clock).
     pub fn simulation(&self) -> &Simulation {
         &self.simulation
@@ -226,7 +285,9 @@ impl SimulatedDevice {
     /// One converter cycle with its requests and frames.
     pub fn step<H: HostPort>(&mut self, host: &mut H) -> ProcessedSample {
         self.schedule_scene_faults();
-        embassy_futures::block_on(self.device.step(host))
+        let sample = embassy_futures::block_on(self.device.step(host));
+        self.retained_ram = self.device.retained_state().encode();
+        sample
     }
 
     /// Steps until `stop` is set or the scene's simulated time passes `until_s`.

@@ -176,10 +176,14 @@ mod tests {
         assert_eq!(parse_flag_names("below_baseline|not_tared"), Ok(flags));
         assert_eq!(flag_names(TaxelFlags::empty()), "");
         assert_eq!(parse_flag_names(""), Ok(TaxelFlags::empty()));
-        assert_eq!(wire_flag_names(0x1001), "below_baseline|bit12");
         assert_eq!(
-            parse_flag_names("below_baseline|bit12").map(|flags| flags.bits()),
-            Ok(0x1001)
+            wire_flag_names(0x1001),
+            "below_baseline|temperature_fallback"
+        );
+        assert_eq!(wire_flag_names(0x2001), "below_baseline|bit13");
+        assert_eq!(
+            parse_flag_names("below_baseline|bit13").map(|flags| flags.bits()),
+            Ok(0x2001)
         );
         assert_eq!(parse_flag_names("open|bogus"), Err("bogus".to_owned()));
         assert_eq!(flag_words(flags), "below baseline, not tared");

@@ -152,6 +152,24 @@ pub fn record_link<P: Read + Write, W: Write>(
     flush_interval: Duration,
     status: &mut dyn FnMut(&str),
 ) -> anyhow::Result<RecordSummary> {
+    let result = record_until_stopped(link, csv_writer, stop, max_samples, flush_interval, status);
+    if result.is_err() {
+        // One file failing (a full disk, a removed drive) must not cost the other what it has
+        // buffered: flush both as far as they go, then report the first error.
+        let _ = csv_writer.flush();
+        let _ = link.flush_raw_log();
+    }
+    result
+}
+
+fn record_until_stopped<P: Read + Write, W: Write>(
+    link: &mut DeviceLink<P>,
+    csv_writer: &mut csv::Writer<W>,
+    stop: &AtomicBool,
+    max_samples: Option<u64>,
+    flush_interval: Duration,
+    status: &mut dyn FnMut(&str),
+) -> anyhow::Result<RecordSummary> {
     let mut samples = 0u64;
     let mut sequence_gap_samples = 0u64;
     let mut previous_sequence: Option<u32> = None;
@@ -172,7 +190,9 @@ pub fn record_link<P: Read + Write, W: Write>(
                     sequence_gap_samples += sequence_gap(previous, sample.sequence);
                 }
                 previous_sequence = Some(sample.sequence);
-                csv_writer.write_record(sample_cells(&sample))?;
+                csv_writer
+                    .write_record(sample_cells(&sample))
+                    .with_context(|| format!("writing the CSV after {samples} samples"))?;
                 samples += 1;
             }
             Ok(Some(DeviceFrame::Event(event))) => status(&format!(
@@ -205,8 +225,10 @@ pub fn record_link<P: Read + Write, W: Write>(
             Err(error) => break StopReason::Disconnected(error.to_string()),
         }
         if last_flush.elapsed() >= flush_interval {
-            csv_writer.flush()?;
-            link.flush_raw_log()?;
+            csv_writer
+                .flush()
+                .with_context(|| format!("writing the CSV after {samples} samples"))?;
+            link.flush_raw_log().context("writing the raw log")?;
             last_flush = Instant::now();
         }
     };

@@ -355,3 +355,44 @@ impl std::io::Write for SharedBuffer {
         Ok(())
     }
 }
+
+#[test]
+fn a_full_disk_stops_the_recording_with_an_error_and_the_other_file_keeps_everything() {
+    let (_, bytes, _) = frames_with_garbage();
+    let mut link = DeviceLink::new(ChunkedReader::new(bytes.clone(), vec![7]));
+    let raw_log = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+    // Buffered as `taxel record` buffers it: nothing reaches the buffer's owner unless flushed.
+    link.set_raw_log(Box::new(std::io::BufWriter::with_capacity(
+        1 << 16,
+        SharedBuffer(raw_log.clone()),
+    )));
+    // /dev/full accepts the open and fails every write with "no space left on device"; the
+    // CSV's buffer is too small to hide it.
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
+    let mut csv_writer = csv::WriterBuilder::new()
+        .buffer_capacity(8)
+        .from_writer(full);
+    let stop = AtomicBool::new(false);
+    let error = record_link(
+        &mut link,
+        &mut csv_writer,
+        &stop,
+        None,
+        Duration::from_millis(500),
+        &mut |_| {},
+    )
+    .unwrap_err();
+    let text = format!("{error:#}");
+    assert!(text.contains("writing the CSV"), "{text}");
+    assert!(text.to_lowercase().contains("no space"), "{text}");
+    // Everything received up to the failure is in the raw log, flushed.
+    let logged = raw_log.lock().unwrap().clone();
+    assert!(
+        !logged.is_empty() && bytes.starts_with(&logged),
+        "{} bytes logged",
+        logged.len()
+    );
+}

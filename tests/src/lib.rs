@@ -1,1 +1,4 @@
-//! Cross-crate tests live in `tests/`; this library is empty on purpose.
+//! Cross-crate tests live in `tests/`; this library holds the fault-injection harness they share
+//! with the reliability report (`cargo run --release -p taxel-tests --bin reliability`).
+
+pub mod reliability;

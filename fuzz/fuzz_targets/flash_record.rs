@@ -1,0 +1,26 @@
+//! Arbitrary bytes as a stored calibration record and as a whole flash region: never a panic,
+//! and anything that loads is a valid calibration.
+#![no_main]
+
+use calibration_store::{decode_record, CalibrationStore, LoadOutcome, RamFlash};
+use libfuzzer_sys::fuzz_target;
+
+const SIZE: usize = 4096;
+const PAGE: usize = 2048;
+
+fuzz_target!(|bytes: &[u8]| {
+    if let Ok(spec) = decode_record(bytes) {
+        assert!(model_core::Calibration::new(&spec).is_ok());
+    }
+    let mut image = [0xFFu8; SIZE];
+    let length = bytes.len().min(SIZE);
+    image[..length].copy_from_slice(&bytes[..length]);
+    let Ok(mut store) =
+        CalibrationStore::new(RamFlash::<SIZE, PAGE>::from_bytes(image), 0..SIZE as u32)
+    else {
+        return;
+    };
+    if let LoadOutcome::Stored(spec) = embassy_futures::block_on(store.load()) {
+        assert!(model_core::Calibration::new(&spec).is_ok());
+    }
+});

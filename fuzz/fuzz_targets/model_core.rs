@@ -1,0 +1,54 @@
+//! Arbitrary input bits through the whole model: never a panic, never NaN or infinity out, and a
+//! pressure within the curve unless the taxel is flagged as a fault.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use model_core::{Calibration, PadModel, SampleInput, TaxelReading, Tier};
+
+fn reading(chunk: &[u8]) -> TaxelReading {
+    let word = u32::from_le_bytes([chunk[0], chunk[1], chunk[2], chunk[3]]);
+    match chunk[4] % 3 {
+        0 => TaxelReading::CapacitancePf(f32::from_bits(word)),
+        1 => TaxelReading::Raw {
+            code: word as i32 >> (chunk[4] % 9),
+            capdac: chunk[4],
+        },
+        _ => TaxelReading::Unavailable,
+    }
+}
+
+fuzz_target!(|bytes: &[u8]| {
+    let mut pad = PadModel::new(Calibration::default());
+    let mut chunks = bytes.chunks_exact(25);
+    for (index, chunk) in chunks.by_ref().enumerate() {
+        if index == 0 {
+            pad.start_tare(u16::from(chunk[24] % 4));
+        }
+        if let Some(tier) = Tier::from_id(chunk[24] % 6) {
+            let _ = pad.set_tier(tier);
+        }
+        let readings = [
+            reading(&chunk[0..5]),
+            reading(&chunk[5..10]),
+            reading(&chunk[10..15]),
+            reading(&chunk[15..20]),
+        ];
+        let temperature = f32::from_bits(u32::from_le_bytes([
+            chunk[20], chunk[21], chunk[22], chunk[23],
+        ]));
+        let output = pad.process(&SampleInput::new(readings, Some(temperature)));
+        assert!(output.temperature.temperature_c.is_finite());
+        for taxel in output.taxels {
+            match taxel.pressure_kpa() {
+                Some(pressure) => assert!(pressure.is_finite() && (0.0..=50.0).contains(&pressure)),
+                None => assert!(taxel.flags().is_fault()),
+            }
+            if let Some(capacitance) = taxel.capacitance_pf() {
+                assert!(capacitance.is_finite());
+            }
+            if let Some(relative) = taxel.relative_change() {
+                assert!(relative.is_finite() || taxel.flags().is_fault());
+            }
+        }
+    }
+});

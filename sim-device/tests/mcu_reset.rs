@@ -1,0 +1,74 @@
+//! An MCU-only reset while the pad is loaded (a watchdog reset in a gripper holding an object):
+//! the baselines come back from the retained RAM, so the held load still reads as itself (the
+//! policy without an intact record, "not tared" rather than a zero, is tested in `device`).
+
+// Test helpers may unwrap: a failure is the test failing.
+#![allow(clippy::unwrap_used)]
+
+use device::{HostInputEvent, HostPort, Outgoing, QueueFull};
+use sensor_sim::{Keyframe, ScriptedScene};
+use sim_device::{SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+
+/// A host that is connected and throws everything away.
+struct Sink;
+
+impl HostPort for Sink {
+    fn host_connected(&mut self) -> bool {
+        true
+    }
+    fn try_receive(&mut self) -> Option<HostInputEvent> {
+        None
+    }
+    fn try_send(&mut self, _outgoing: Outgoing) -> Result<(), QueueFull> {
+        Ok(())
+    }
+}
+
+fn loaded_device() -> SimulatedDevice {
+    let keyframe = |time_s, pressure_kpa, temperature_c| Keyframe {
+        time_s,
+        pressure_kpa,
+        temperature_c,
+    };
+    let scene = ScriptedScene::new(vec![
+        keyframe(0.0, [0.0; 4], 26.0),
+        keyframe(1.0, [0.0; 4], 26.0),
+        keyframe(1.5, [30.0, 12.0, 0.0, 45.0], 26.0),
+    ])
+    .unwrap();
+    SimulatedDevice::new(SimulatedDeviceConfig {
+        scene: SceneFile {
+            name: "held".into(),
+            repeat: false,
+            scene,
+            faults: Vec::new(),
+        },
+        seed: 5,
+        speed: None,
+    })
+    .unwrap()
+}
+
+fn run_until(device: &mut SimulatedDevice, until_s: f64) -> model_core::PadOutput {
+    let mut last = None;
+    while device.simulation().now_us() < (until_s * 1e6) as u64 {
+        last = Some(device.step(&mut Sink).output);
+    }
+    last.unwrap()
+}
+
+#[test]
+fn a_held_load_survives_an_mcu_only_reset() {
+    let mut device = loaded_device();
+    let before = run_until(&mut device, 3.0);
+    device.restart_mcu().unwrap();
+    let after = run_until(&mut device, 4.0);
+    for (taxel, expected) in [30.0f32, 12.0, 0.0, 45.0].into_iter().enumerate() {
+        let before = before.taxels[taxel].pressure_kpa().unwrap();
+        let after = after.taxels[taxel].pressure_kpa().unwrap();
+        assert!(
+            (before - expected).abs() < 0.5 && (after - expected).abs() < 0.5,
+            "taxel {taxel}: {before} -> {after}"
+        );
+    }
+}

@@ -1,0 +1,47 @@
+//! Writes docs/RELIABILITY.md: every fault of the reliability issue injected end to end through the
+//! simulated device, with what came out. `cargo run --release -p taxel-tests --bin reliability`.
+
+use std::process::ExitCode;
+
+use taxel_tests::reliability::{render_markdown, run_fault, FaultKind};
+
+const COMMAND: &str = "cargo run --release -p taxel-tests --bin reliability";
+const REPETITIONS: u32 = 20;
+
+fn main() -> ExitCode {
+    let output = std::env::args()
+        .nth(1)
+        .unwrap_or_else(|| "docs/RELIABILITY.md".to_string());
+    let mut outcomes = Vec::new();
+    for kind in FaultKind::ALL {
+        eprintln!("{}: {REPETITIONS} runs", kind.name());
+        match run_fault(kind, REPETITIONS) {
+            Ok(outcome) => outcomes.push(outcome),
+            Err(error) => {
+                eprintln!("error: {}: {error}", kind.name());
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    let markdown = render_markdown(&outcomes, COMMAND);
+    if let Err(error) = std::fs::write(&output, markdown) {
+        eprintln!("error: writing {output}: {error}");
+        return ExitCode::FAILURE;
+    }
+    let bad: Vec<_> = outcomes
+        .iter()
+        .filter(|outcome| {
+            outcome.wrong_pressures > 0
+                || outcome.sets_lost_silently() > 0
+                || outcome.recovery_us.len() < outcome.repetitions as usize
+        })
+        .map(|outcome| outcome.kind.name())
+        .collect();
+    eprintln!("wrote {output}");
+    if bad.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        eprintln!("error: faults with wrong pressures, unaccounted losses or no recovery: {bad:?}");
+        ExitCode::FAILURE
+    }
+}

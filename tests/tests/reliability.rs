@@ -1,0 +1,71 @@
+//! Every fault of the reliability report, end to end through the simulated device, a few runs
+//! each: no wrong pressure is ever reported, every missing sample set is accounted for, and the
+//! stream recovers. The full report (20 runs per fault) is
+//! `cargo run --release -p taxel-tests --bin reliability`.
+
+// Test helpers may panic: a failure is the test failing.
+#![allow(clippy::panic)]
+
+use taxel_tests::reliability::{run_fault, FaultKind};
+
+#[test]
+fn every_fault_is_flagged_counted_and_recovered() {
+    for kind in FaultKind::ALL {
+        let outcome = run_fault(kind, 2).unwrap_or_else(|error| panic!("{}: {error}", kind.name()));
+        assert_eq!(outcome.wrong_pressures, 0, "{}: {outcome:?}", kind.name());
+        assert_eq!(
+            outcome.sets_lost_silently(),
+            0,
+            "{}: {outcome:?}",
+            kind.name()
+        );
+        assert_eq!(
+            outcome.recovery_us.len(),
+            2,
+            "{}: did not recover: {outcome:?}",
+            kind.name()
+        );
+        assert!(
+            outcome.pressures_checked > 1000,
+            "{}: {outcome:?}",
+            kind.name()
+        );
+    }
+}
+
+#[test]
+fn wire_flag_bits_are_model_core_flag_bits() {
+    use model_core::TaxelFlags;
+    let pairs = [
+        (wire::flags::BELOW_BASELINE, TaxelFlags::BELOW_BASELINE),
+        (wire::flags::OVER_RANGE, TaxelFlags::OVER_RANGE),
+        (wire::flags::SHORTED, TaxelFlags::SHORTED),
+        (wire::flags::OPEN, TaxelFlags::OPEN),
+        (wire::flags::SATURATED, TaxelFlags::SATURATED),
+        (
+            wire::flags::TEMPERATURE_MISSING,
+            TaxelFlags::TEMPERATURE_MISSING,
+        ),
+        (
+            wire::flags::TEMPERATURE_OUT_OF_RANGE,
+            TaxelFlags::TEMPERATURE_OUT_OF_RANGE,
+        ),
+        (wire::flags::NOT_TARED, TaxelFlags::NOT_TARED),
+        (wire::flags::CONVERTER_ERROR, TaxelFlags::CONVERTER_ERROR),
+        (wire::flags::STUCK, TaxelFlags::STUCK),
+        (wire::flags::INVALID_INPUT, TaxelFlags::INVALID_INPUT),
+        (
+            wire::flags::BASELINE_TRACKING_LIMIT,
+            TaxelFlags::BASELINE_TRACKING_LIMIT,
+        ),
+        (
+            wire::flags::TEMPERATURE_FALLBACK,
+            TaxelFlags::TEMPERATURE_FALLBACK,
+        ),
+    ];
+    for (wire_bit, model_flag) in pairs {
+        assert_eq!(wire_bit, model_flag.bits());
+    }
+    assert_eq!(wire::flags::FAULT_MASK, TaxelFlags::FAULTS.bits());
+    assert_eq!(wire::flags::DEFINED_MASK, TaxelFlags::all().bits());
+}
