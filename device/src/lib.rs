@@ -52,6 +52,8 @@ pub enum Outgoing {
     Frame(DeviceFrame),
     /// A sample as a CSV line (text mode).
     CsvLine(SampleFrame),
+    /// The CSV header line, sent when text mode starts.
+    CsvHeader,
 }
 
 /// The host's queue could not take a frame.
@@ -208,8 +210,12 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         while let Some(event) = host.try_receive() {
             match event {
                 HostInputEvent::Request(request) => {
+                    let was_text_mode = self.text_mode;
                     if let Some(reply) = self.handle(request).await {
                         self.send(host, Outgoing::Frame(DeviceFrame::Reply(reply)));
+                    }
+                    if self.text_mode && !was_text_mode {
+                        self.send(host, Outgoing::CsvHeader);
                     }
                 }
                 HostInputEvent::ErrorReply(reply) => {
@@ -427,6 +433,13 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
 pub fn encode_outgoing(outgoing: &Outgoing, buffer: &mut [u8]) -> Option<usize> {
     match outgoing {
         Outgoing::Frame(frame) => wire::encode_frame(frame, buffer).ok(),
+        Outgoing::CsvHeader => {
+            let length = wire::CSV_HEADER.len() + 2;
+            let destination = buffer.get_mut(..length)?;
+            destination[..length - 2].copy_from_slice(wire::CSV_HEADER.as_bytes());
+            destination[length - 2..].copy_from_slice(b"\r\n");
+            Some(length)
+        }
         Outgoing::CsvLine(sample) => {
             let mut line: heapless::String<{ wire::CSV_LINE_MAX_LEN }> = heapless::String::new();
             wire::format_csv_line(sample, &mut line).ok()?;

@@ -1,0 +1,385 @@
+//! Every command of the protocol, sent to the simulated device (the firmware's own command
+//! handling) through the real encoder and decoder, with its reply and its effect.
+
+// Test helpers may unwrap and panic: a failure is the test failing.
+#![allow(clippy::unwrap_used, clippy::panic)]
+
+use std::collections::VecDeque;
+
+use device::{encode_outgoing, HostInput, HostInputEvent, HostPort, Outgoing, QueueFull};
+use sim_device::{SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+use wire::{
+    CalibrationSource, Command, DeviceFrame, DeviceFrameDecoder, ErrorCode, InfoFrame,
+    ReplyPayload, Request, SampleFrame, TaxelCalibrationRecord, UseCase,
+};
+
+/// A connected host at the end of an in-memory link.
+#[derive(Default)]
+struct Link {
+    to_device: VecDeque<u8>,
+    to_host: Vec<u8>,
+    input: HostInput,
+}
+
+impl HostPort for Link {
+    fn host_connected(&mut self) -> bool {
+        true
+    }
+    fn try_receive(&mut self) -> Option<HostInputEvent> {
+        while let Some(byte) = self.to_device.pop_front() {
+            if let Some(event) = self.input.push(byte) {
+                return Some(event);
+            }
+        }
+        None
+    }
+    fn try_send(&mut self, outgoing: Outgoing) -> Result<(), QueueFull> {
+        let mut buffer = [0u8; device::MAX_OUTGOING_LEN];
+        let length = encode_outgoing(&outgoing, &mut buffer).ok_or(QueueFull)?;
+        self.to_host.extend_from_slice(&buffer[..length]);
+        Ok(())
+    }
+}
+
+struct Host {
+    device: SimulatedDevice,
+    link: Link,
+    decoder: DeviceFrameDecoder,
+    next_request_id: u16,
+    samples: Vec<SampleFrame>,
+}
+
+impl Host {
+    fn new() -> Self {
+        let device = SimulatedDevice::new(SimulatedDeviceConfig {
+            scene: SceneFile::default_scene().unwrap(),
+            seed: 9,
+            speed: None,
+        })
+        .unwrap();
+        let mut host = Self {
+            device,
+            link: Link::default(),
+            decoder: DeviceFrameDecoder::new(),
+            next_request_id: 1,
+            samples: Vec::new(),
+        };
+        host.steps(20);
+        host
+    }
+
+    /// Runs `count` converter cycles and decodes what came out.
+    fn steps(&mut self, count: usize) -> Vec<DeviceFrame> {
+        let mut frames = Vec::new();
+        for _ in 0..count {
+            self.device.step(&mut self.link);
+            let bytes: Vec<u8> = self.link.to_host.drain(..).collect();
+            for frame in self.decoder.feed(&bytes).flatten() {
+                if let DeviceFrame::Sample(sample) = &frame {
+                    self.samples.push(*sample);
+                }
+                frames.push(frame);
+            }
+        }
+        frames
+    }
+
+    fn send_bytes(&mut self, bytes: &[u8]) {
+        self.link.to_device.extend(bytes);
+    }
+
+    /// Sends a command and waits up to 200 cycles for its reply.
+    fn request(&mut self, command: Command) -> Result<ReplyPayload, ErrorCode> {
+        let request_id = self.next_request_id;
+        self.next_request_id += 1;
+        let mut encoded = [0u8; 256];
+        let length = wire::encode_frame(
+            &Request {
+                request_id,
+                command,
+            },
+            &mut encoded,
+        )
+        .unwrap();
+        self.send_bytes(&encoded[..length]);
+        for _ in 0..200 {
+            for frame in self.steps(1) {
+                if let DeviceFrame::Reply(reply) = frame {
+                    if reply.request_id == request_id {
+                        return reply.result;
+                    }
+                }
+            }
+        }
+        panic!("no reply to request {request_id}");
+    }
+
+    fn info(&mut self) -> InfoFrame {
+        match self.request(Command::Info) {
+            Ok(ReplyPayload::Info(info)) => info,
+            other => panic!("{other:?}"),
+        }
+    }
+}
+
+#[test]
+fn info_and_counters_describe_the_device() {
+    let mut host = Host::new();
+    let info = host.info();
+    assert_eq!(info.protocol_version, wire::PROTOCOL_VERSION);
+    assert_eq!(&info.board_serial[..9], b"SIMULATED");
+    assert_eq!(info.calibration_source, CalibrationSource::Defaults);
+    assert_eq!(info.rate_sps, 400);
+    assert_eq!(info.model_tier, model_core::Tier::MonotoneCubic as u8);
+    assert!(info.streaming && !info.text_mode);
+    assert!(matches!(
+        host.request(Command::ReadCounters),
+        Ok(ReplyPayload::Counters(_))
+    ));
+}
+
+#[test]
+fn streaming_stops_and_starts() {
+    let mut host = Host::new();
+    assert_eq!(host.request(Command::StopStreaming), Ok(ReplyPayload::Ack));
+    host.samples.clear();
+    host.steps(50);
+    assert!(host.samples.is_empty());
+    assert_eq!(host.request(Command::StartStreaming), Ok(ReplyPayload::Ack));
+    host.steps(50);
+    assert!(host.samples.len() >= 49);
+}
+
+#[test]
+fn the_rate_changes_and_a_bad_rate_is_refused() {
+    let mut host = Host::new();
+    assert_eq!(
+        host.request(Command::SetRate { rate_sps: 200 }),
+        Ok(ReplyPayload::Ack)
+    );
+    assert_eq!(host.info().rate_sps, 200);
+    host.samples.clear();
+    host.steps(40);
+    let spacing_us: Vec<u64> = host
+        .samples
+        .windows(2)
+        .map(|pair| pair[1].timestamp_us - pair[0].timestamp_us)
+        .collect();
+    // Four conversions at 200 S/s: a sample set every 20 ms.
+    let typical = spacing_us[spacing_us.len() / 2];
+    assert!((19_000..22_000).contains(&typical), "{typical} us");
+    assert_eq!(
+        host.request(Command::SetRate { rate_sps: 150 }),
+        Err(ErrorCode::InvalidArgument)
+    );
+}
+
+#[test]
+fn a_tare_replies_when_done_and_refuses_overlap_and_zero() {
+    let mut host = Host::new();
+    assert_eq!(
+        host.request(Command::Tare { sample_sets: 0 }),
+        Err(ErrorCode::InvalidArgument)
+    );
+    let mut encoded = [0u8; 64];
+    let length = wire::encode_frame(
+        &Request {
+            request_id: 500,
+            command: Command::Tare { sample_sets: 64 },
+        },
+        &mut encoded,
+    )
+    .unwrap();
+    host.send_bytes(&encoded[..length]);
+    host.steps(2);
+    assert_eq!(
+        host.request(Command::Tare { sample_sets: 8 }),
+        Err(ErrorCode::Busy)
+    );
+    let mut reply = None;
+    for _ in 0..100 {
+        for frame in host.steps(1) {
+            if let DeviceFrame::Reply(frame) = frame {
+                if frame.request_id == 500 {
+                    reply = Some(frame.result);
+                }
+            }
+        }
+    }
+    assert_eq!(reply, Some(Ok(ReplyPayload::Ack)));
+}
+
+#[test]
+fn tiers_and_use_cases_are_chosen_or_refused() {
+    let mut host = Host::new();
+    let polynomial = model_core::Tier::Polynomial as u8;
+    assert_eq!(
+        host.request(Command::SetModelTier { tier: polynomial }),
+        Ok(ReplyPayload::Ack)
+    );
+    assert_eq!(host.info().model_tier, polynomial);
+    assert_eq!(
+        host.request(Command::SetModelTier { tier: 99 }),
+        Err(ErrorCode::NotSupported)
+    );
+    let glove = UseCase {
+        pressure_max_kpa: 50.0,
+        temperature_min_c: 25.0,
+        temperature_max_c: 40.0,
+        error_budget_kpa: 1.0,
+    };
+    let chosen = match host.request(Command::SetUseCase(glove)) {
+        Ok(ReplyPayload::ModelTier(tier)) => tier,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(host.info().model_tier, chosen);
+    let too_hot = UseCase {
+        temperature_max_c: 80.0,
+        ..glove
+    };
+    assert_eq!(
+        host.request(Command::SetUseCase(too_hot)),
+        Err(ErrorCode::NotSupported)
+    );
+    let nonsense = UseCase {
+        error_budget_kpa: f32::NAN,
+        ..glove
+    };
+    assert_eq!(
+        host.request(Command::SetUseCase(nonsense)),
+        Err(ErrorCode::InvalidArgument)
+    );
+}
+
+#[test]
+fn a_calibration_is_read_written_saved_kept_across_a_reboot_and_restored() {
+    let mut host = Host::new();
+    let mut record = match host.request(Command::ReadCalibration { taxel_index: 1 }) {
+        Ok(ReplyPayload::Calibration(record)) => record,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(record.calibration.points.len(), 6);
+    assert_eq!(
+        host.request(Command::ReadCalibration { taxel_index: 9 }),
+        Err(ErrorCode::InvalidArgument)
+    );
+    record.calibration_id = 77;
+    record.calibration.points[5].1 = 0.27;
+    assert_eq!(
+        host.request(Command::WriteCalibration(record.clone())),
+        Ok(ReplyPayload::Ack)
+    );
+    let info = host.info();
+    assert_eq!(
+        (info.calibration_id, info.calibration_source),
+        (77, CalibrationSource::Host)
+    );
+    let mut backwards: TaxelCalibrationRecord = record.clone();
+    backwards.calibration.points[2].1 = 0.01;
+    assert_eq!(
+        host.request(Command::WriteCalibration(backwards)),
+        Err(ErrorCode::InvalidArgument)
+    );
+
+    assert_eq!(
+        host.request(Command::SaveCalibration),
+        Ok(ReplyPayload::Ack)
+    );
+    host.device.restart_mcu().unwrap();
+    let info = host.info();
+    assert_eq!(
+        (info.calibration_id, info.calibration_source),
+        (77, CalibrationSource::Flash)
+    );
+    match host.request(Command::ReadCalibration { taxel_index: 1 }) {
+        Ok(ReplyPayload::Calibration(read_back)) => {
+            assert_eq!(read_back.calibration.points[5].1, 0.27)
+        }
+        other => panic!("{other:?}"),
+    }
+
+    assert_eq!(
+        host.request(Command::RestoreDefaults),
+        Ok(ReplyPayload::Ack)
+    );
+    let info = host.info();
+    assert_eq!(
+        (info.calibration_id, info.calibration_source),
+        (0, CalibrationSource::Defaults)
+    );
+}
+
+#[test]
+fn text_mode_prints_a_header_and_csv_lines_and_binary_brings_frames_back() {
+    let mut host = Host::new();
+    let mut encoded = [0u8; 64];
+    let length = wire::encode_frame(
+        &Request {
+            request_id: 600,
+            command: Command::SetTextMode { enabled: true },
+        },
+        &mut encoded,
+    )
+    .unwrap();
+    host.send_bytes(&encoded[..length]);
+    let mut text = Vec::new();
+    for _ in 0..10 {
+        host.device.step(&mut host.link);
+        text.append(&mut host.link.to_host);
+    }
+    // The Ack comes as a binary frame, then the header, then one line per set.
+    let mut decoder = DeviceFrameDecoder::new();
+    let acknowledged = decoder.feed(&text).flatten().any(|frame| {
+        matches!(frame, DeviceFrame::Reply(reply)
+            if reply.request_id == 600 && reply.result == Ok(ReplyPayload::Ack))
+    });
+    assert!(acknowledged);
+    let text = String::from_utf8_lossy(&text);
+    assert!(
+        text.contains(&format!("{}\r\n", wire::CSV_HEADER)),
+        "{text}"
+    );
+    let lines: Vec<&str> = text
+        .lines()
+        .filter(|line| line.matches(',').count() == 10)
+        .collect();
+    assert!(lines.len() >= 10, "{text}");
+    host.send_bytes(b"binary\n");
+    host.samples.clear();
+    host.steps(20);
+    assert!(host.samples.len() >= 18);
+}
+
+#[test]
+fn malformed_and_unknown_requests_are_answered_or_counted_never_fatal() {
+    let mut host = Host::new();
+    // A well-framed request whose command index is unknown: the id is readable, so it is answered.
+    let mut payload = vec![wire::PROTOCOL_VERSION, wire::kind::REQUEST, 0x2A, 0x63];
+    let crc = wire::crc16(&payload);
+    payload.extend_from_slice(&crc.to_le_bytes());
+    let mut framed = vec![0u8; 32];
+    let length = cobs::encode(&payload, &mut framed);
+    framed.truncate(length);
+    framed.push(0);
+    host.send_bytes(&framed);
+    let mut answered = None;
+    for frame in host.steps(5) {
+        if let DeviceFrame::Reply(reply) = frame {
+            answered = Some(reply);
+        }
+    }
+    let reply = answered.unwrap();
+    assert_eq!(
+        (reply.request_id, reply.result),
+        (0x2A, Err(ErrorCode::UnknownCommand))
+    );
+    host.send_bytes(&[0xFF; 300]);
+    host.send_bytes(&[0x00, 0x01, 0x02, 0x00]);
+    host.samples.clear();
+    host.steps(20);
+    assert!(host.samples.len() >= 18);
+    assert!(matches!(
+        host.request(Command::Info),
+        Ok(ReplyPayload::Info(_))
+    ));
+}
