@@ -302,6 +302,30 @@ where
         }
     }
 
+    /// Reads the fallback sensor now and then while the primary works, to learn its offset.
+    async fn check_fallback_offset(&mut self, primary_c: f32) {
+        let interval = self.config.fallback_offset_check_cycles;
+        if interval == 0 {
+            return;
+        }
+        self.fallback_offset.cycles_since_check =
+            self.fallback_offset.cycles_since_check.saturating_add(1);
+        if self.fallback_offset.cycles_since_check < interval {
+            return;
+        }
+        self.fallback_offset.cycles_since_check = 0;
+        if let Ok(fallback_c) = self.fallback_temperature.read_temperature_c().await {
+            if fallback_c.is_finite() {
+                self.fallback_offset.learn(fallback_c, primary_c);
+            }
+        }
+    }
+
+    /// The fallback sensor's learned offset above the primary, °C (None until learned).
+    pub fn fallback_offset_c(&self) -> Option<f32> {
+        self.fallback_offset.offset_c
+    }
+
     async fn read_temperature(&mut self) -> (Option<f32>, TemperatureOrigin) {
         let try_primary = match self.primary_failing_cycles {
             None => true,
@@ -333,46 +357,5 @@ where
                 (None, TemperatureOrigin::None)
             }
         }
-    }
-}
-
-impl<I2C, D, T, F, K> Acquisition<I2C, D, T, F, K>
-where
-    I2C: I2c,
-    D: DelayNs,
-    T: TemperatureSource,
-    F: TemperatureSource,
-    K: Clock,
-{
-    /// Reads the fallback sensor now and then while the primary works, to learn its offset.
-    async fn check_fallback_offset(&mut self, primary_c: f32) {
-        let interval = self.config.fallback_offset_check_cycles;
-        if interval == 0 {
-            return;
-        }
-        self.fallback_offset.cycles_since_check =
-            self.fallback_offset.cycles_since_check.saturating_add(1);
-        if self.fallback_offset.cycles_since_check < interval {
-            return;
-        }
-        self.fallback_offset.cycles_since_check = 0;
-        if let Ok(fallback_c) = self.fallback_temperature.read_temperature_c().await {
-            if fallback_c.is_finite() {
-                self.fallback_offset.learn(fallback_c, primary_c);
-            }
-        }
-    }
-
-    /// The fallback sensor's learned offset above the primary, °C (None until learned).
-    pub fn fallback_offset_c(&self) -> Option<f32> {
-        self.fallback_offset.offset_c
-    }
-}
-
-/// Convenience: the model's output of a processed set.
-impl ProcessedSample {
-    /// The model's result.
-    pub fn pad_output(&self) -> &PadOutput {
-        &self.output
     }
 }

@@ -39,6 +39,7 @@ pub mod reading;
 pub mod taxel;
 pub mod temperature;
 pub mod use_case;
+pub mod validation;
 
 pub use baseline::{Baseline, BaselineError, BaselineRecord, BaselineTracking};
 pub use calibration::{
@@ -53,3 +54,4 @@ pub use reading::{ReadingValue, SplitCapacitance, TaxelReading};
 pub use taxel::{TaxelModel, TaxelOutput};
 pub use temperature::{TemperatureTracker, TemperatureUsed, REFERENCE_TEMPERATURE_C};
 pub use use_case::{select_tier, select_tier_for_taxels, SelectionError, TierChoice, UseCase};
+pub use validation::leave_one_out_errors_kpa;

@@ -3,10 +3,12 @@
 //! served on a pseudo-terminal so that any serial program connects to it as to the board.
 #![deny(missing_docs)]
 
+pub mod memory_port;
 pub mod pty;
 pub mod scene_file;
 pub mod simulated_device;
 
+pub use memory_port::MemoryPort;
 pub use pty::PtyPort;
 pub use scene_file::{FaultKind, SceneFault, SceneFile, SceneFileError, DEFAULT_SCENE_TOML};
 pub use simulated_device::{

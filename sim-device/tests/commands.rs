@@ -4,46 +4,15 @@
 // Test helpers may unwrap and panic: a failure is the test failing.
 #![allow(clippy::unwrap_used, clippy::panic)]
 
-use std::collections::VecDeque;
-
-use device::{encode_outgoing, HostInput, HostInputEvent, HostPort, Outgoing, QueueFull};
-use sim_device::{SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+use sim_device::{MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 use wire::{
     CalibrationSource, Command, DeviceFrame, DeviceFrameDecoder, ErrorCode, InfoFrame,
     ReplyPayload, Request, SampleFrame, TaxelCalibrationRecord, UseCase,
 };
 
-/// A connected host at the end of an in-memory link.
-#[derive(Default)]
-struct Link {
-    to_device: VecDeque<u8>,
-    to_host: Vec<u8>,
-    input: HostInput,
-}
-
-impl HostPort for Link {
-    fn host_connected(&mut self) -> bool {
-        true
-    }
-    fn try_receive(&mut self) -> Option<HostInputEvent> {
-        while let Some(byte) = self.to_device.pop_front() {
-            if let Some(event) = self.input.push(byte) {
-                return Some(event);
-            }
-        }
-        None
-    }
-    fn try_send(&mut self, outgoing: Outgoing) -> Result<(), QueueFull> {
-        let mut buffer = [0u8; device::MAX_OUTGOING_LEN];
-        let length = encode_outgoing(&outgoing, &mut buffer).ok_or(QueueFull)?;
-        self.to_host.extend_from_slice(&buffer[..length]);
-        Ok(())
-    }
-}
-
 struct Host {
     device: SimulatedDevice,
-    link: Link,
+    link: MemoryPort,
     decoder: DeviceFrameDecoder,
     next_request_id: u16,
     samples: Vec<SampleFrame>,
@@ -59,7 +28,7 @@ impl Host {
         .unwrap();
         let mut host = Self {
             device,
-            link: Link::default(),
+            link: MemoryPort::new(usize::MAX),
             decoder: DeviceFrameDecoder::new(),
             next_request_id: 1,
             samples: Vec::new(),
@@ -73,7 +42,7 @@ impl Host {
         let mut frames = Vec::new();
         for _ in 0..count {
             self.device.step(&mut self.link);
-            let bytes: Vec<u8> = self.link.to_host.drain(..).collect();
+            let bytes = self.link.take_for_host(usize::MAX);
             for frame in self.decoder.feed(&bytes).flatten() {
                 if let DeviceFrame::Sample(sample) = &frame {
                     self.samples.push(*sample);
@@ -325,7 +294,7 @@ fn text_mode_prints_a_header_and_csv_lines_and_binary_brings_frames_back() {
     let mut text = Vec::new();
     for _ in 0..10 {
         host.device.step(&mut host.link);
-        text.append(&mut host.link.to_host);
+        text.extend(host.link.take_for_host(usize::MAX));
     }
     // The Ack comes as a binary frame, then the header, then one line per set.
     let mut decoder = DeviceFrameDecoder::new();

@@ -18,8 +18,8 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use model_core::calibration::MAX_CURVE_POINTS;
 use model_core::{
-    Calibration, CalibrationCurve, CalibrationError, CalibrationSpec, CurvePoint, TaxelInverses,
-    TemperatureLaw, Tier, TAXEL_COUNT, TAXEL_NAMES,
+    leave_one_out_errors_kpa, Calibration, CalibrationCurve, CalibrationError, CalibrationSpec,
+    CurvePoint, TaxelInverses, TemperatureLaw, Tier, TAXEL_COUNT, TAXEL_NAMES,
 };
 use wire::{Command, ReplyPayload, TaxelCalibrationRecord, TaxelCalibrationWire};
 
@@ -484,21 +484,6 @@ pub fn cross_validate(points: &[CurvePoint]) -> Vec<TierFitError> {
     let full = CalibrationCurve::new(points, 0)
         .ok()
         .map(|curve| TaxelInverses::new(&curve));
-    let interior = 1..points.len().saturating_sub(1);
-    let folds: Vec<Option<TaxelInverses>> = interior
-        .clone()
-        .map(|left_out| {
-            let reduced: Vec<CurvePoint> = points
-                .iter()
-                .enumerate()
-                .filter(|(index, _)| *index != left_out)
-                .map(|(_, point)| *point)
-                .collect();
-            CalibrationCurve::new(&reduced, 0)
-                .ok()
-                .map(|curve| TaxelInverses::new(&curve))
-        })
-        .collect();
     Tier::ALL
         .iter()
         .map(|&tier| {
@@ -515,18 +500,9 @@ pub fn cross_validate(points: &[CurvePoint]) -> Vec<TierFitError> {
                         })
                         .fold(0.0, f64::max)
                 });
-            let leave_one_out_kpa = interior
-                .clone()
-                .zip(&folds)
-                .map(|(left_out, fold)| {
-                    let point = points[left_out];
-                    fold.as_ref()
-                        .filter(|inverses| inverses.supports(tier))
-                        .map(|inverses| {
-                            predict_kpa(inverses, tier, point.relative_change)
-                                - f64::from(point.pressure_kpa)
-                        })
-                })
+            let leave_one_out_kpa = leave_one_out_errors_kpa(points, tier)
+                .iter()
+                .map(|error| error.map(f64::from))
                 .collect();
             TierFitError {
                 tier,

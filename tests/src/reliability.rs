@@ -5,13 +5,11 @@
 //! counted by the device, and the time to the first clean set after the fault is measured in
 //! simulated time.
 
-use std::collections::VecDeque;
 use std::fmt::Write as _;
 
-use device::{encode_outgoing, HostInput, HostInputEvent, HostPort, Outgoing, QueueFull};
 use model_core::TaxelFlags;
 use sensor_sim::{Device as SimDevice, Fault, Keyframe, ScriptedScene, Window};
-use sim_device::{SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+use sim_device::{MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 use wire::{CountersFrame, DeviceFrame, DeviceFrameDecoder, SampleFrame, TemperatureSource};
 
 /// Largest difference between a reported pressure and the scene that still counts as right, kPa
@@ -103,40 +101,6 @@ impl FaultKind {
             FaultKind::UnplugMidFrame => "link cut after 20 bytes of a frame, the rest lost; 1 s unplugged; then plugged back",
             FaultKind::Garbage => "64 random bytes injected into the device-to-host stream every 50 ms for 2 s, and 64 into the host-to-device stream",
         }
-    }
-}
-
-/// An in-memory USB link with the host's decoder at its far end.
-struct Link {
-    connected: bool,
-    to_host: VecDeque<u8>,
-    to_device: VecDeque<u8>,
-    input: HostInput,
-    capacity_bytes: usize,
-}
-
-impl HostPort for Link {
-    fn host_connected(&mut self) -> bool {
-        self.connected
-    }
-
-    fn try_receive(&mut self) -> Option<HostInputEvent> {
-        while let Some(byte) = self.to_device.pop_front() {
-            if let Some(event) = self.input.push(byte) {
-                return Some(event);
-            }
-        }
-        None
-    }
-
-    fn try_send(&mut self, outgoing: Outgoing) -> Result<(), QueueFull> {
-        let mut buffer = [0u8; device::MAX_OUTGOING_LEN];
-        let length = encode_outgoing(&outgoing, &mut buffer).ok_or(QueueFull)?;
-        if self.to_host.len() + length > self.capacity_bytes {
-            return Err(QueueFull);
-        }
-        self.to_host.extend(&buffer[..length]);
-        Ok(())
     }
 }
 
@@ -268,13 +232,7 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
     if let Some(fault) = sensor_fault {
         simulation.inject(fault, window);
     }
-    let mut link = Link {
-        connected: true,
-        to_host: VecDeque::new(),
-        to_device: VecDeque::new(),
-        input: HostInput::new(),
-        capacity_bytes: LINK_CAPACITY_BYTES,
-    };
+    let mut link = MemoryPort::new(LINK_CAPACITY_BYTES);
     let mut decoder = DeviceFrameDecoder::new();
     let mut result = RunResult::default();
     let mut previous_sequence: Option<u32> = None;
@@ -336,8 +294,7 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
         if !link.connected {
             continue;
         }
-        let available = link.to_host.len().min(read_budget);
-        let bytes: Vec<u8> = link.to_host.drain(..available).collect();
+        let bytes = link.take_for_host(read_budget);
         for decoded in decoder.feed(&bytes) {
             match decoded {
                 Ok(DeviceFrame::Sample(frame)) => {
