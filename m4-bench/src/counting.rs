@@ -175,7 +175,25 @@ pub fn corrected_inversion_dispatched_loop(
     }
 }
 
-/// The loops of [`corrected_inversion_loop`] without the work.
+/// `Baseline::relative_change` alone: the dC/C0 part of [`corrected_inversion_loop`], the floor
+/// under every tier's corrected inversion.
+#[inline(never)]
+pub fn relative_change_loop(
+    baseline: &Baseline,
+    inputs: &[(SplitCapacitance, f32)],
+    repetitions: u32,
+) {
+    for _ in 0..repetitions {
+        for (capacitance, inverse_permittivity_ratio) in inputs {
+            black_box(black_box(baseline).relative_change(
+                black_box(*capacitance),
+                black_box(*inverse_permittivity_ratio),
+            ));
+        }
+    }
+}
+
+/// The loops of [`corrected_inversion_loop`] and [`relative_change_loop`] without the work.
 #[inline(never)]
 pub fn corrected_inversion_overhead_loop(
     baseline: &Baseline,

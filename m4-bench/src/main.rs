@@ -17,7 +17,10 @@ mod format;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
 use model_core::inverse::{Libm, Micromath, SaturatingInverse};
-use model_core::{ReadingValue, SampleInput, SplitCapacitance, TaxelReading, Tier};
+use model_core::{
+    Baseline, InverseCurve, ReadingValue, SampleInput, SplitCapacitance, TaxelInverses,
+    TaxelReading, Tier,
+};
 use panic_semihosting as _;
 
 use counting::{Context, Counter, Input};
@@ -59,16 +62,20 @@ fn run() -> u32 {
         return 1;
     };
     hprintln!(
-        "m4-bench opt-level={} grid_points={} hard_cases={}",
+        "m4-bench opt-level={} grid_points={} hard_cases={} grid_repetitions={} single_repetitions={}",
         env!("M4_BENCH_OPT_LEVEL"),
         header.grid_count,
-        header.hard_case_count
+        header.hard_case_count,
+        GRID_REPETITIONS,
+        SINGLE_REPETITIONS
     );
     let Some(taxel) = checks::GridTaxel::new(&header.grid_setup) else {
         hprintln!("error: the grid's calibration or tare was refused");
         return 1;
     };
-    if cfg!(feature = "instruction-mix") {
+    // Decided at run time, so that both builds hold the same code: the trace of the one then
+    // describes the instructions counted in the other.
+    if core::hint::black_box(cfg!(feature = "instruction-mix")) {
         return instruction_mix_probe(&header, &taxel);
     }
     let mut misses = checks::grid(GOLDEN, &header, &taxel);
@@ -149,12 +156,122 @@ fn instruction_mix_probe(header: &Header, taxel: &checks::GridTaxel) -> u32 {
         counting::convert_loop(context, tier, single, 1);
         counting::convert_overhead_loop(context, tier, single, 1);
     }
+    let mut capacitances = [(SplitCapacitance::default(), 1.0f32); SINGLE_CAPACITY];
+    let capacitance_count = capacitance_inputs(single, &mut capacitances);
+    let capacitances = &capacitances[..capacitance_count];
+    let inverses = taxel.model.inverses();
+    let top_pressure_kpa = taxel.calibration.taxels()[0].curve.top().pressure_kpa;
+    for tier in Tier::ALL {
+        let mut probe = DirectProbe {
+            baseline: context.baseline,
+            capacitances,
+        };
+        if with_direct_inverse(inverses, tier, top_pressure_kpa, &mut probe).is_none() {
+            hprintln!("error: tier {} unavailable for the grid taxel", tier.name());
+            return 1;
+        }
+    }
+    counting::relative_change_loop(context.baseline, capacitances, 1);
+    counting::corrected_inversion_overhead_loop(context.baseline, capacitances, 1);
     hprintln!(
-        "mix tiers={} inputs_per_tier={}",
+        "mix tiers={} inputs_per_tier={} corrected_inputs={}",
         Tier::ALL.len(),
-        single.len()
+        single.len(),
+        capacitances.len()
     );
     0
+}
+
+/// The capacitance readings among `inputs` with their temperature factors; returns how many.
+fn capacitance_inputs(inputs: &[Input], capacitances: &mut [(SplitCapacitance, f32)]) -> usize {
+    let mut count = 0;
+    for input in inputs {
+        if let (ReadingValue::Capacitance(capacitance), Some(slot)) =
+            (input.value, capacitances.get_mut(count))
+        {
+            *slot = (capacitance, input.inverse_permittivity_ratio);
+            count += 1;
+        }
+    }
+    count
+}
+
+/// Something done with one tier's inverse called directly: generic over the inverse, so the
+/// call is static and inlined as in a build fixed to one tier.
+trait DirectInverseAction {
+    /// Does it with `inverse`.
+    fn run<I: InverseCurve>(&mut self, inverse: &I) -> f32;
+}
+
+/// Runs `action` with a tier's inverse (the saturating ones built from the fit with their
+/// backend); `None` when the taxel's curve does not support the tier.
+fn with_direct_inverse<A: DirectInverseAction>(
+    inverses: &TaxelInverses,
+    tier: Tier,
+    top_pressure_kpa: f32,
+    action: &mut A,
+) -> Option<f32> {
+    match tier {
+        Tier::Linear => Some(action.run(inverses.linear())),
+        Tier::PiecewiseLinear => Some(action.run(inverses.piecewise_linear())),
+        Tier::MonotoneCubic => Some(action.run(inverses.monotone_cubic())),
+        Tier::Table => Some(action.run(inverses.table())),
+        Tier::Polynomial => inverses
+            .polynomial()
+            .map(|polynomial| action.run(polynomial)),
+        Tier::Saturating => inverses
+            .saturating_fit()
+            .map(|fit| action.run(&SaturatingInverse::<Libm>::new(fit, top_pressure_kpa))),
+        Tier::SaturatingMicromath => inverses
+            .saturating_fit()
+            .map(|fit| action.run(&SaturatingInverse::<Micromath>::new(fit, top_pressure_kpa))),
+    }
+}
+
+/// Counts the corrected inversion through an inverse called directly.
+struct DirectCount<'a> {
+    counter: &'a Counter,
+    baseline: &'a Baseline,
+    capacitances: &'a [(SplitCapacitance, f32)],
+    calls: u32,
+}
+
+impl DirectInverseAction for DirectCount<'_> {
+    fn run<I: InverseCurve>(&mut self, inverse: &I) -> f32 {
+        let (baseline, capacitances) = (self.baseline, self.capacitances);
+        self.counter.per_call(
+            self.calls,
+            || {
+                counting::corrected_inversion_loop(
+                    inverse,
+                    baseline,
+                    capacitances,
+                    GRID_REPETITIONS,
+                )
+            },
+            || {
+                counting::corrected_inversion_overhead_loop(
+                    baseline,
+                    capacitances,
+                    GRID_REPETITIONS,
+                )
+            },
+        )
+    }
+}
+
+/// Runs the corrected inversion once over the inputs, then the empty loop, for the trace.
+struct DirectProbe<'a> {
+    baseline: &'a Baseline,
+    capacitances: &'a [(SplitCapacitance, f32)],
+}
+
+impl DirectInverseAction for DirectProbe<'_> {
+    fn run<I: InverseCurve>(&mut self, inverse: &I) -> f32 {
+        counting::corrected_inversion_loop(inverse, self.baseline, self.capacitances, 1);
+        counting::corrected_inversion_overhead_loop(self.baseline, self.capacitances, 1);
+        0.0
+    }
 }
 
 fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
@@ -219,13 +336,7 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
         );
     }
     let mut capacitances = [(SplitCapacitance::default(), 1.0f32); GRID_CAPACITY];
-    let mut capacitance_count = 0;
-    for input in grid {
-        if let ReadingValue::Capacitance(capacitance) = input.value {
-            capacitances[capacitance_count] = (capacitance, input.inverse_permittivity_ratio);
-            capacitance_count += 1;
-        }
-    }
+    let capacitance_count = capacitance_inputs(grid, &mut capacitances);
     let capacitances = &capacitances[..capacitance_count];
     let corrected_calls = capacitance_count as u32 * GRID_REPETITIONS;
     let baseline = context.baseline;
@@ -233,108 +344,16 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
         || counting::corrected_inversion_overhead_loop(baseline, capacitances, GRID_REPETITIONS);
     let top_pressure_kpa = taxel.calibration.taxels()[0].curve.top().pressure_kpa;
     for tier in Tier::ALL {
-        let direct = match tier {
-            Tier::Linear => counter.per_call(
-                corrected_calls,
-                || {
-                    counting::corrected_inversion_loop(
-                        inverses.linear(),
-                        baseline,
-                        capacitances,
-                        GRID_REPETITIONS,
-                    )
-                },
-                overhead,
-            ),
-            Tier::PiecewiseLinear => counter.per_call(
-                corrected_calls,
-                || {
-                    counting::corrected_inversion_loop(
-                        inverses.piecewise_linear(),
-                        baseline,
-                        capacitances,
-                        GRID_REPETITIONS,
-                    )
-                },
-                overhead,
-            ),
-            Tier::MonotoneCubic => counter.per_call(
-                corrected_calls,
-                || {
-                    counting::corrected_inversion_loop(
-                        inverses.monotone_cubic(),
-                        baseline,
-                        capacitances,
-                        GRID_REPETITIONS,
-                    )
-                },
-                overhead,
-            ),
-            Tier::Table => counter.per_call(
-                corrected_calls,
-                || {
-                    counting::corrected_inversion_loop(
-                        inverses.table(),
-                        baseline,
-                        capacitances,
-                        GRID_REPETITIONS,
-                    )
-                },
-                overhead,
-            ),
-            Tier::Polynomial => {
-                let Some(polynomial) = inverses.polynomial() else {
-                    hprintln!("error: no polynomial fit for the grid taxel");
-                    return 1;
-                };
-                counter.per_call(
-                    corrected_calls,
-                    || {
-                        counting::corrected_inversion_loop(
-                            polynomial,
-                            baseline,
-                            capacitances,
-                            GRID_REPETITIONS,
-                        )
-                    },
-                    overhead,
-                )
-            }
-            Tier::Saturating | Tier::SaturatingMicromath => {
-                let Some(fit) = inverses.saturating_fit() else {
-                    hprintln!("error: no saturating fit for the grid taxel");
-                    return 1;
-                };
-                if tier == Tier::Saturating {
-                    let inverse = SaturatingInverse::<Libm>::new(fit, top_pressure_kpa);
-                    counter.per_call(
-                        corrected_calls,
-                        || {
-                            counting::corrected_inversion_loop(
-                                &inverse,
-                                baseline,
-                                capacitances,
-                                GRID_REPETITIONS,
-                            )
-                        },
-                        overhead,
-                    )
-                } else {
-                    let inverse = SaturatingInverse::<Micromath>::new(fit, top_pressure_kpa);
-                    counter.per_call(
-                        corrected_calls,
-                        || {
-                            counting::corrected_inversion_loop(
-                                &inverse,
-                                baseline,
-                                capacitances,
-                                GRID_REPETITIONS,
-                            )
-                        },
-                        overhead,
-                    )
-                }
-            }
+        let mut direct_count = DirectCount {
+            counter,
+            baseline,
+            capacitances,
+            calls: corrected_calls,
+        };
+        let Some(direct) = with_direct_inverse(inverses, tier, top_pressure_kpa, &mut direct_count)
+        else {
+            hprintln!("error: tier {} unavailable for the grid taxel", tier.name());
+            return 1;
         };
         let dispatched = counter.per_call(
             corrected_calls,
@@ -357,6 +376,17 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
             corrected_calls
         );
     }
+
+    let relative_change = counter.per_call(
+        corrected_calls,
+        || counting::relative_change_loop(baseline, capacitances, GRID_REPETITIONS),
+        overhead,
+    );
+    hprintln!(
+        "count subject=relative-change mean={:.2} calls={}",
+        relative_change,
+        corrected_calls
+    );
 
     let table = counter.per_call(
         grid_calls,

@@ -21,7 +21,7 @@ pub const MEASURED_INSTRUCTIONS: [(Tier, u32); 7] = [
     (Tier::Saturating, 146),
     (Tier::SaturatingMicromath, 132),
     (Tier::Table, 108),
-    (Tier::Polynomial, 105),
+    (Tier::Polynomial, 102),
 ];
 
 /// rms converter noise at 100 S/s, pF (FDC1004: about 16 effective bits, 0.5 fF).

@@ -165,11 +165,29 @@ pub struct ConvertCount {
     pub single_mean: f64,
 }
 
+/// Instructions per temperature-corrected inversion (`Baseline::relative_change`, then the tier's
+/// inverse) for a tier.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CorrectedCount {
+    /// The tier.
+    pub tier: Tier,
+    /// With the inverse called directly (a build fixed to one tier).
+    pub direct: f64,
+    /// Through `TaxelInverses::pressure_kpa` (tier chosen at run time).
+    pub dispatched: f64,
+}
+
 /// Everything one m4-bench run printed.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BenchRun {
     /// `3` or `s`.
     pub opt_level: String,
+    /// Readings in the grid.
+    pub grid_points: u32,
+    /// Passes over the grid behind each grid mean.
+    pub grid_repetitions: u32,
+    /// Repetitions of each single input behind its own count.
+    pub single_repetitions: u32,
     /// Per tier, on the grid.
     pub grid: Vec<GridResult>,
     /// The hard cases' inputs.
@@ -180,9 +198,12 @@ pub struct BenchRun {
     pub convert: Vec<ConvertCount>,
     /// `TaxelInverses::pressure_kpa` counts per tier.
     pub inverse: Vec<(Tier, f64)>,
+    /// Temperature-corrected inversion counts per tier.
+    pub corrected: Vec<CorrectedCount>,
     /// `PadModel::process` per taxel, per tier.
     pub pad: Vec<(Tier, f64)>,
-    /// Other subjects (`table-direct`, `libm-logf`, `libm-expf`, `micromath-ln`, `f32-min`).
+    /// Other subjects (`relative-change`, `table-direct`, `libm-logf`, `libm-expf`,
+    /// `micromath-ln`, `f32-min`); one with a tier is filed as `subject/tier`.
     pub functions: BTreeMap<String, f64>,
     /// Lines starting `error:` and lines that are not `key=value` results (panics).
     pub problems: Vec<String>,
@@ -207,7 +228,12 @@ impl BenchRun {
                 continue;
             };
             match line.kind.as_str() {
-                "m4-bench" => run.opt_level = line.text("opt-level")?.to_string(),
+                "m4-bench" => {
+                    run.opt_level = line.text("opt-level")?.to_string();
+                    run.grid_points = line.number("grid_points")? as u32;
+                    run.grid_repetitions = line.number("grid_repetitions")? as u32;
+                    run.single_repetitions = line.number("single_repetitions")? as u32;
+                }
                 "grid" => run.grid.push(GridResult {
                     tier: line.tier("tier")?,
                     points: line.number("points")? as u32,
@@ -250,12 +276,20 @@ impl BenchRun {
                         single_mean: line.number("single_mean")?,
                     }),
                     "inverse" => run.inverse.push((line.tier("tier")?, line.number("mean")?)),
+                    "corrected-inversion" => run.corrected.push(CorrectedCount {
+                        tier: line.tier("tier")?,
+                        direct: line.number("mean")?,
+                        dispatched: line.number("dispatched")?,
+                    }),
                     "pad-process-per-taxel" => {
                         run.pad.push((line.tier("tier")?, line.number("mean")?));
                     }
                     subject => {
-                        run.functions
-                            .insert(subject.to_string(), line.number("mean")?);
+                        let key = match line.fields.get("tier") {
+                            Some(tier) => format!("{subject}/{tier}"),
+                            None => subject.to_string(),
+                        };
+                        run.functions.insert(key, line.number("mean")?);
                     }
                 },
                 "summary" => {
@@ -281,6 +315,15 @@ impl BenchRun {
             .find(|count| count.tier == tier)
             .copied()
             .ok_or_else(|| anyhow!("no instruction count for tier {}", tier.name()))
+    }
+
+    /// The corrected-inversion count of a tier.
+    pub fn corrected_count(&self, tier: Tier) -> Result<CorrectedCount> {
+        self.corrected
+            .iter()
+            .find(|count| count.tier == tier)
+            .copied()
+            .ok_or_else(|| anyhow!("no corrected-inversion count for tier {}", tier.name()))
     }
 
     /// The grid result of a tier.
@@ -335,13 +378,18 @@ impl BenchRun {
 mod tests {
     use super::*;
 
-    const SAMPLE: &str = "m4-bench opt-level=3 grid_points=1111 hard_cases=2
+    const SAMPLE: &str = "m4-bench opt-level=3 grid_points=1111 hard_cases=2 grid_repetitions=4 single_repetitions=64
 grid tier=table points=1111 faults=0 max_error_kpa=3.870e-5 rms_error_kpa=8.350e-6 worst_at_kpa=48 worst_at_c=50 tolerance_kpa=5.0e-3 max_from_reference_curve_kpa=1.4604e-2 rms_from_reference_curve_kpa=4.0140e-3 result=pass
 case name=temperature-nan reading=raw:1234@3 temperature=Some(NaN) expected_flags=0x0020 description=20 kPa at 25 C, temperature NaN: the tare's is used
 hard case=temperature-nan tier=table flags=0x0020 expected_flags=0x0020 pressure_kpa=2.000000e1 reference_kpa=2.000001e1 tolerance_kpa=5.0e-3 result=pass
 hard case=open-lead tier=table flags=0x0008 expected_flags=0x0008 pressure_kpa=none reference_kpa=none tolerance_kpa=5.0e-3 result=pass
 count subject=convert tier=table mean=119.26 min=70.00 max=124.38 single_mean=120.00 calls=4444 single_inputs=51
 count subject=inverse tier=table mean=56.42 calls=4444
+count subject=corrected-inversion tier=table mean=45.92 dispatched=58.93 calls=4444
+count subject=corrected-inversion tier=linear mean=28.00 dispatched=37.95 calls=4444
+count subject=relative-change mean=14.00 calls=4444
+count subject=future-subject tier=table mean=1.5 calls=4444
+count subject=future-subject tier=linear mean=2.5 calls=4444
 count subject=libm-logf mean=37.66 calls=256
 summary misses=0 result=pass
 ";
@@ -365,6 +413,22 @@ summary misses=0 result=pass
         let count = run.convert_count(Tier::Table).unwrap();
         assert_eq!((count.min, count.max), (70.0, 124.38));
         assert_eq!(run.functions.get("libm-logf"), Some(&37.66));
+        assert_eq!(
+            (
+                run.grid_points,
+                run.grid_repetitions,
+                run.single_repetitions
+            ),
+            (1111, 4, 64)
+        );
+        let corrected = run.corrected_count(Tier::Table).unwrap();
+        assert_eq!((corrected.direct, corrected.dispatched), (45.92, 58.93));
+        assert_eq!(run.corrected_count(Tier::Linear).unwrap().direct, 28.0);
+        assert!(run.corrected_count(Tier::Polynomial).is_err());
+        assert_eq!(run.functions.get("relative-change"), Some(&14.0));
+        // An unknown subject per tier keeps one value per tier instead of overwriting.
+        assert_eq!(run.functions.get("future-subject/table"), Some(&1.5));
+        assert_eq!(run.functions.get("future-subject/linear"), Some(&2.5));
     }
 
     #[test]

@@ -1,5 +1,5 @@
 //! What the ELF files say: section addresses (to prove the right memory map was linked),
-//! function symbols (for the instruction-mix trace) and flash/RAM use (for the firmware hook).
+//! function symbols (for the instruction-mix trace) and flash/RAM use (for the firmware footprint).
 
 use std::path::Path;
 

@@ -5,10 +5,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, Context, Result};
+use model_core::inverse::{InverseCurve, PolynomialInverse, POLYNOMIAL_DEGREE};
 use model_core::use_case::{evaluate_tier, CONVERTER_NOISE_PF, NOMINAL_SENSOR_PF};
 use model_core::{
-    select_tier, CalibrationCurve, CurvePoint, SelectionError, TaxelInverses, Tier, TierChoice,
-    UseCase, ARTICLE_TABLE_1,
+    leave_one_out_errors_kpa, select_tier, CalibrationCurve, SelectionError, TaxelInverses, Tier,
+    TierChoice, UseCase, ARTICLE_TABLE_1,
 };
 
 use crate::m4;
@@ -85,26 +86,12 @@ pub struct LeaveOneOut {
 /// support the tier.
 pub fn leave_one_out(tier: Tier) -> Option<LeaveOneOut> {
     let points = ARTICLE_TABLE_1;
-    let mut errors = Vec::new();
-    for left_out in 1..points.len() - 1 {
-        let reduced: Vec<CurvePoint> = points
-            .iter()
-            .enumerate()
-            .filter(|(index, _)| *index != left_out)
-            .map(|(_, point)| *point)
-            .collect();
-        let curve = CalibrationCurve::new(&reduced, 0).ok()?;
-        let inverses = TaxelInverses::new(&curve);
-        if !inverses.supports(tier) {
-            return None;
-        }
-        let point = points[left_out];
-        let predicted = inverses.pressure_kpa(tier, point.relative_change);
-        errors.push((
-            point.pressure_kpa,
-            f64::from((predicted - point.pressure_kpa).abs()),
-        ));
-    }
+    let folds = leave_one_out_errors_kpa(&points, tier);
+    let errors: Vec<(f32, f64)> = points[1..points.len() - 1]
+        .iter()
+        .zip(folds.iter())
+        .map(|(point, error)| error.map(|error| (point.pressure_kpa, f64::from(error.abs()))))
+        .collect::<Option<_>>()?;
     let max = errors.iter().map(|(_, error)| *error).fold(0.0, f64::max);
     let rms =
         (errors.iter().map(|(_, error)| error * error).sum::<f64>() / errors.len() as f64).sqrt();
@@ -123,6 +110,68 @@ pub fn pressure_noise_kpa(inverses: &TaxelInverses, tier: Tier, pressure_kpa: f3
     let up = inverses.pressure_kpa(tier, relative_change + sigma);
     let down = inverses.pressure_kpa(tier, relative_change - sigma);
     f64::from(up - down) / 2.0
+}
+
+/// Values of dC/C0, evenly spaced from 0 to the top point, at which the polynomial fits by degree
+/// are compared with the monotone cubic.
+pub const POLYNOMIAL_SWEEP_POINTS: usize = 2001;
+
+/// Largest distance of a least-squares polynomial of the inverse with `coefficients` (u^1 up,
+/// u = dC/C0 / top, evaluated as model-core's polynomial tier does, clamped to 0..top) from the
+/// monotone cubic over 0 <= dC/C0 <= top, kPa.
+fn polynomial_distance_kpa(
+    inverses: &TaxelInverses,
+    curve: &CalibrationCurve,
+    coefficients: &[f32],
+) -> f64 {
+    let top = curve.top();
+    let (top_relative_change, top_pressure_kpa) =
+        (f64::from(top.relative_change), f64::from(top.pressure_kpa));
+    (0..POLYNOMIAL_SWEEP_POINTS)
+        .map(|index| {
+            let relative_change =
+                top_relative_change * index as f64 / (POLYNOMIAL_SWEEP_POINTS - 1) as f64;
+            let u = relative_change / top_relative_change;
+            let horner = coefficients
+                .iter()
+                .rev()
+                .fold(0.0, |sum, coefficient| sum * u + f64::from(*coefficient));
+            let pressure_kpa = (horner * u).clamp(0.0, top_pressure_kpa);
+            let reference_kpa = f64::from(
+                inverses
+                    .monotone_cubic()
+                    .pressure_kpa(relative_change as f32),
+            );
+            (pressure_kpa - reference_kpa).abs()
+        })
+        .fold(0.0, f64::max)
+}
+
+/// For each degree of model-core's polynomial fit of the inverse (1 up to one above the
+/// polynomial tier's), on the article's curve: (degree, largest distance from the monotone cubic
+/// in kPa, or None when the fit is refused as not monotone).
+pub fn polynomial_degree_distances() -> Vec<(usize, Option<f64>)> {
+    let curve = CalibrationCurve::article_default();
+    let inverses = TaxelInverses::new(&curve);
+    let reference = inverses.monotone_cubic();
+    let distance = |coefficients: Option<&[f32]>| {
+        coefficients.map(|coefficients| polynomial_distance_kpa(&inverses, &curve, coefficients))
+    };
+    macro_rules! degrees {
+        ($($degree:literal),*) => {
+            vec![$((
+                $degree,
+                distance(
+                    PolynomialInverse::with_degree::<$degree>(reference, &curve)
+                        .as_ref()
+                        .map(|coefficients| &coefficients[..]),
+                ),
+            )),*]
+        };
+    }
+    let mut distances = degrees!(1, 2, 3, 4, 5, 6, 7, 8, 9);
+    distances.retain(|(degree, _)| *degree <= POLYNOMIAL_DEGREE + 1);
+    distances
 }
 
 /// The article's curve, all tiers.
@@ -208,6 +257,38 @@ mod tests {
         let linear_low = pressure_noise_kpa(&inverses, Tier::Linear, 5.0);
         let linear_high = pressure_noise_kpa(&inverses, Tier::Linear, 45.0);
         assert!((linear_low - linear_high).abs() < 1e-3 * linear_low.max(1e-9) + 1e-5);
+    }
+
+    #[test]
+    fn the_polynomial_tier_degree_matches_its_own_inverse_and_higher_degrees_fit_closer() {
+        let distances = polynomial_degree_distances();
+        assert_eq!(distances.len(), POLYNOMIAL_DEGREE + 1);
+        let at = |degree: usize| {
+            distances
+                .iter()
+                .find(|(candidate, _)| *candidate == degree)
+                .and_then(|(_, distance)| *distance)
+        };
+        // The polynomial tier itself, evaluated by model-core in f32, against the same reference.
+        let inverses = article_inverses();
+        let top = CalibrationCurve::article_default().top().relative_change;
+        let tier_distance = (0..=2000)
+            .map(|index| {
+                let relative_change = top * index as f32 / 2000.0;
+                f64::from(
+                    (inverses.pressure_kpa(Tier::Polynomial, relative_change)
+                        - inverses.monotone_cubic().pressure_kpa(relative_change))
+                    .abs(),
+                )
+            })
+            .fold(0.0, f64::max);
+        let own = at(POLYNOMIAL_DEGREE).unwrap();
+        assert!(
+            (own - tier_distance).abs() < 1e-3,
+            "{own} vs {tier_distance}"
+        );
+        assert!(at(1).unwrap() > at(3).unwrap(), "{distances:?}");
+        assert!(at(1).unwrap() > 1.0, "{distances:?}");
     }
 
     #[test]

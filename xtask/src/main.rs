@@ -3,15 +3,19 @@
 //! - `m4-test`: builds m4-bench for the Cortex-M4F, checks it was linked for QEMU's mps2-an386,
 //!   runs it under QEMU with a timeout, fails on any miss against the f64 references and when an
 //!   instruction count drifts more than 15 % from `model_core::use_case::MEASURED_INSTRUCTIONS`.
-//! - `report`: the same at opt-level 3 and "s", the instruction-mix trace, criterion on the host
-//!   and model-core's own figures, written to docs/PERFORMANCE.md and docs/speed-vs-error.svg.
+//! - `sim-bench [steps]`: throughput and latency of the simulated device, in a release build.
+//! - `report`: the same at opt-level 3 and "s", the instruction-mix trace, criterion on the host,
+//!   model-core's own figures, the firmware's footprint and the simulator's figures, written to
+//!   docs/PERFORMANCE.md and docs/speed-vs-error.svg.
 
 mod bench_output;
 mod elf;
+mod firmware;
 mod host;
 mod m4;
 mod mix;
 mod report;
+mod simulator;
 mod svg;
 
 use std::path::{Path, PathBuf};
@@ -31,6 +35,9 @@ const USAGE: &str = "usage: cargo xtask <command>
 commands:
   m4-test   build m4-bench, run it on QEMU's Cortex-M4F (mps2-an386), fail on any miss or on an
             instruction count more than 15 % away from model_core::use_case::MEASURED_INSTRUCTIONS
+  sim-bench [steps]
+            throughput and latency of the simulated device over `steps` sample sets (default
+            200000), always in a release build
   report    write docs/PERFORMANCE.md and docs/speed-vs-error.svg (takes minutes: criterion)";
 
 fn main() -> ExitCode {
@@ -38,6 +45,7 @@ fn main() -> ExitCode {
     let result = match command.as_deref() {
         Some("m4-test") => m4_test(),
         Some("report") => report(),
+        Some("sim-bench") => sim_bench(std::env::args().nth(2).as_deref()),
         Some("help" | "--help" | "-h") => {
             println!("{USAGE}");
             return ExitCode::SUCCESS;
@@ -86,13 +94,14 @@ fn run_m4_bench(root: &Path, profile: &str) -> Result<BenchRun> {
 
 fn print_summary(run: &BenchRun) {
     println!(
-        "\n{:<22} {:>12} {:>12} {:>10} {:>26} {:>9}",
+        "\n{:<22} {:>12} {:>12} {:>10} {:>26} {:>9} {:>18}",
         "tier (opt-level 3)",
         "max err kPa",
         "rms err kPa",
         "tolerance",
         "instructions mean (min-max)",
-        "constant"
+        "constant",
+        "corrected inversion"
     );
     for tier in Tier::ALL {
         let grid = run.grid_result(tier).ok();
@@ -101,8 +110,9 @@ fn print_summary(run: &BenchRun) {
             .iter()
             .find(|(candidate, _)| *candidate == tier)
             .map_or(0, |(_, constant)| *constant);
+        let corrected = run.corrected_count(tier).ok();
         println!(
-            "{:<22} {:>12} {:>12} {:>10} {:>26} {:>9}",
+            "{:<22} {:>12} {:>12} {:>10} {:>26} {:>9} {:>18}",
             tier.name(),
             grid.map_or("-".to_string(), |grid| format!(
                 "{:.2e}",
@@ -120,9 +130,17 @@ fn print_summary(run: &BenchRun) {
                 "{:.1} ({:.1}-{:.1})",
                 count.mean, count.min, count.max
             )),
-            constant
+            constant,
+            corrected.map_or("-".to_string(), |count| format!(
+                "{:.1} ({:.1})",
+                count.direct, count.dispatched
+            ))
         );
     }
+    println!(
+        "corrected inversion: Baseline::relative_change and the inverse called directly \
+         (through TaxelInverses::pressure_kpa in brackets)"
+    );
     let passed = run.hard.iter().filter(|result| result.pass).count();
     println!(
         "hard cases: {passed} of {} case x tier results pass ({} cases)\n",
@@ -135,7 +153,10 @@ fn print_summary(run: &BenchRun) {
 /// `MEASURED_INSTRUCTIONS` constant (or the constant is missing or zero).
 fn check_drift(run: &BenchRun) -> Result<()> {
     let mut drifted = Vec::new();
-    let mut suggestion = String::from("pub const MEASURED_INSTRUCTIONS: [(Tier, u32); 6] = [\n");
+    let mut suggestion = format!(
+        "pub const MEASURED_INSTRUCTIONS: [(Tier, u32); {}] = [\n",
+        Tier::ALL.len()
+    );
     for tier in Tier::ALL {
         let measured = run.convert_count(tier)?.mean;
         suggestion.push_str(&format!(
@@ -236,25 +257,14 @@ fn load_average() -> String {
         .unwrap_or_else(|| "unknown".to_string())
 }
 
-/// Hook for the firmware's footprint: reads the release (or `firmware` profile) ELF if built.
-fn firmware_section(root: &Path) -> Result<report::Firmware> {
-    let target = m4::target_directory(root, "Cargo.toml")?;
-    let candidates = ["release", "firmware"];
-    let mut looked_at = Vec::new();
-    for profile in candidates {
-        let relative = format!("{}/{profile}/firmware", m4::TARGET);
-        let path = target.join(&relative);
-        looked_at.push(format!("target/{relative}"));
-        if path.is_file() {
-            let (flash_bytes, ram_bytes) = elf::flash_and_ram(&elf::sections(&path)?);
-            return Ok(report::Firmware::Built {
-                path: format!("target/{relative}"),
-                flash_bytes,
-                ram_bytes,
-            });
-        }
-    }
-    Ok(report::Firmware::NotBuilt { looked_at })
+fn sim_bench(steps: Option<&str>) -> Result<()> {
+    let steps = match steps {
+        None => simulator::DEFAULT_STEPS,
+        Some(text) => text
+            .parse()
+            .with_context(|| format!("`{text}` is not a number of steps"))?,
+    };
+    simulator::command(&workspace_root()?, steps)
 }
 
 fn report() -> Result<()> {
@@ -276,6 +286,16 @@ fn report() -> Result<()> {
     let mix = mix.map_err(|error| format!("{error:#}"));
     if let Err(error) = &mix {
         eprintln!("warning: no instruction mix: {error}");
+    }
+
+    let firmware = firmware::build_and_measure(&root).map_err(|error| format!("{error:#}"));
+    if let Err(error) = &firmware {
+        eprintln!("warning: no firmware footprint: {error}");
+    }
+    let simulator = simulator::run_release(&root, simulator::DEFAULT_STEPS)
+        .map_err(|error| format!("{error:#}"));
+    if let Err(error) = &simulator {
+        eprintln!("warning: no simulator figures: {error}");
     }
 
     println!("running criterion (cargo bench -p model-core --bench tiers)");
@@ -318,8 +338,10 @@ fn report() -> Result<()> {
             })
             .collect(),
         use_cases: host::use_case_selections(),
+        polynomial_degrees: host::polynomial_degree_distances(),
         machine,
-        firmware: firmware_section(&root)?,
+        firmware,
+        simulator,
     };
     let docs = root.join("docs");
     std::fs::create_dir_all(&docs)?;

@@ -1,12 +1,14 @@
 //! The dynamic instruction mix of each tier's conversion, from a QEMU trace, and the cycle
 //! estimate built on it.
 //!
-//! The `instruction-mix` build of m4-bench runs each tier's conversion loop once over 51 inputs,
-//! then the same loop without the conversion. QEMU logs (`-d in_asm,exec,nochain`) every
-//! translated block and every block executed, restricted by `-dfilter` to those two loops and the
-//! functions they call (found by following branch targets until no new function appears). The
-//! blocks executed between two loop entries, classified instruction by instruction, minus the
-//! empty loop's, divided by the inputs, give the mix per conversion.
+//! The `instruction-mix` build of m4-bench runs each tier's conversion loop once over its single
+//! inputs, then the same loop without the conversion; then each tier's temperature-corrected
+//! inversion (dC/C0 and the inverse called directly) and its empty loop; then dC/C0 alone and
+//! the empty loop. QEMU logs (`-d in_asm,exec,nochain`) every translated block and every block
+//! executed, restricted by `-dfilter` to those loops and the functions they call (found by
+//! following branch targets until no new function appears). The blocks executed between two loop
+//! entries, classified instruction by instruction, minus the empty loop's, divided by the inputs,
+//! give the mix per call.
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
@@ -262,12 +264,57 @@ fn branch_targets(trace: &Trace) -> Vec<u64> {
 /// The instruction mix per conversion of every tier, and the functions that were traced.
 #[derive(Debug, Clone)]
 pub struct MixReport {
-    /// Per tier, per conversion.
+    /// Per tier, per `TaxelModel::convert`.
     pub per_tier: Vec<(Tier, Mix)>,
+    /// Per tier, per temperature-corrected inversion (dC/C0, then the inverse called directly).
+    pub corrected: Vec<(Tier, Mix)>,
+    /// Per `Baseline::relative_change` (dC/C0 alone).
+    pub relative_change: Mix,
     /// Inputs each tier converted.
     pub inputs_per_tier: u32,
+    /// Inputs of each corrected inversion (the capacitance readings among them).
+    pub corrected_inputs: u32,
     /// Functions inside the address filter.
     pub traced_functions: Vec<String>,
+}
+
+/// What a traced loop is, from the function whose entry starts it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum LoopKind {
+    Convert,
+    ConvertEmpty,
+    Corrected,
+    CorrectedEmpty,
+    RelativeChange,
+}
+
+/// The loop entries of the probe, in the order it runs them: per tier the conversion and its
+/// empty loop, per tier the corrected inversion and its empty loop, then dC/C0 and the empty loop.
+fn expected_loops() -> Vec<LoopKind> {
+    let mut expected = Vec::new();
+    for _ in Tier::ALL {
+        expected.extend([LoopKind::Convert, LoopKind::ConvertEmpty]);
+    }
+    for _ in Tier::ALL {
+        expected.extend([LoopKind::Corrected, LoopKind::CorrectedEmpty]);
+    }
+    expected.extend([LoopKind::RelativeChange, LoopKind::CorrectedEmpty]);
+    expected
+}
+
+/// Work minus empty loop, per input, for consecutive (work, empty) segments.
+fn per_call(segments: &[(LoopKind, Mix)], inputs: u32) -> Vec<Mix> {
+    segments
+        .chunks(2)
+        .filter_map(|pair| match pair {
+            [(_, work), (_, empty)] => {
+                let mut difference = *work;
+                difference.add(empty, -1.0);
+                Some(difference.scaled(1.0 / f64::from(inputs.max(1))))
+            }
+            _ => None,
+        })
+        .collect()
 }
 
 /// A legacy-mangled Rust name (`_ZN8m4_bench8counting12convert_loop17h...E`) as a path without
@@ -300,20 +347,50 @@ pub fn demangle(name: &str) -> String {
     segments.join("::")
 }
 
-fn find<'a>(functions: &'a [Function], fragment: &str) -> Result<&'a Function> {
-    functions
+/// Every function whose (mangled) name contains `fragment`; at least one.
+fn find_all(functions: &[Function], fragment: &str) -> Result<Vec<Function>> {
+    let found: Vec<Function> = functions
         .iter()
-        .find(|function| function.name.contains(fragment))
-        .ok_or_else(|| anyhow!("no function named like `{fragment}` in the instruction-mix ELF"))
+        .filter(|function| function.name.contains(fragment))
+        .cloned()
+        .collect();
+    if found.is_empty() {
+        bail!("no function named like `{fragment}` in the instruction-mix ELF");
+    }
+    Ok(found)
 }
 
 /// Traces the instruction-mix build of m4-bench. `log_path` is a scratch file.
 pub fn trace(elf: &Path, log_path: &Path) -> Result<MixReport> {
     let functions = crate::elf::functions(elf)?;
-    let work = find(&functions, "8counting12convert_loop")?.clone();
-    let overhead = find(&functions, "8counting21convert_overhead_loop")?.clone();
-    let mut filtered = vec![work.clone(), overhead.clone()];
+    let mut entries: Vec<(u64, LoopKind)> = Vec::new();
+    let mut filtered: Vec<Function> = Vec::new();
+    for (fragment, kind) in [
+        ("8counting12convert_loop17h", LoopKind::Convert),
+        (
+            "8counting21convert_overhead_loop17h",
+            LoopKind::ConvertEmpty,
+        ),
+        (
+            "8counting24corrected_inversion_loop17h",
+            LoopKind::Corrected,
+        ),
+        (
+            "8counting33corrected_inversion_overhead_loop17h",
+            LoopKind::CorrectedEmpty,
+        ),
+        (
+            "8counting20relative_change_loop17h",
+            LoopKind::RelativeChange,
+        ),
+    ] {
+        for function in find_all(&functions, fragment)? {
+            entries.push((function.address, kind));
+            filtered.push(function);
+        }
+    }
     let mut inputs_per_tier = 0;
+    let mut corrected_inputs = 0;
     let mut trace = Trace::default();
     for _round in 0..8 {
         let ranges: Vec<String> = filtered
@@ -347,6 +424,7 @@ pub fn trace(elf: &Path, log_path: &Path) -> Result<MixReport> {
         }
         if let Some(line) = line {
             inputs_per_tier = line.number("inputs_per_tier")? as u32;
+            corrected_inputs = line.number("corrected_inputs")? as u32;
         }
         trace = parse_trace(log_path)?;
         let mut added = false;
@@ -368,10 +446,10 @@ pub fn trace(elf: &Path, log_path: &Path) -> Result<MixReport> {
     }
     let _ = std::fs::remove_file(log_path);
 
-    let mut segments: Vec<(bool, Mix)> = Vec::new();
+    let mut segments: Vec<(LoopKind, Mix)> = Vec::new();
     for pc in &trace.executed {
-        if *pc == work.address || *pc == overhead.address {
-            segments.push((*pc == work.address, Mix::default()));
+        if let Some((_, kind)) = entries.iter().find(|(address, _)| address == pc) {
+            segments.push((*kind, Mix::default()));
         }
         let (Some((_, mix)), Some(block)) = (segments.last_mut(), trace.blocks.get(pc)) else {
             continue;
@@ -380,29 +458,32 @@ pub fn trace(elf: &Path, log_path: &Path) -> Result<MixReport> {
             mix.count(&instruction.mnemonic, &instruction.operands);
         }
     }
-    if segments.len() != 2 * Tier::ALL.len() || inputs_per_tier == 0 {
+    let kinds: Vec<LoopKind> = segments.iter().map(|(kind, _)| *kind).collect();
+    if kinds != expected_loops() || inputs_per_tier == 0 || corrected_inputs == 0 {
         bail!(
-            "the trace has {} loop runs for {} tiers (expected a work and an empty loop each)",
-            segments.len(),
-            Tier::ALL.len()
+            "the trace's loop runs are not the probe's (expected a work and an empty loop per \
+             tier for the conversion, then for the corrected inversion, then dC/C0): {kinds:?}"
         );
     }
-    let mut per_tier = Vec::new();
-    for (tier, pair) in Tier::ALL.into_iter().zip(segments.chunks(2)) {
-        let [(true, work), (false, empty)] = pair else {
-            bail!("the trace's loop runs are out of order");
-        };
-        let mut difference = *work;
-        difference.add(empty, -1.0);
-        per_tier.push((tier, difference.scaled(1.0 / f64::from(inputs_per_tier))));
-    }
+    let tiers = Tier::ALL.len();
+    let convert = per_call(&segments[..2 * tiers], inputs_per_tier);
+    let corrected = per_call(&segments[2 * tiers..4 * tiers], corrected_inputs);
+    let relative_change = per_call(&segments[4 * tiers..], corrected_inputs);
     Ok(MixReport {
-        per_tier,
+        per_tier: Tier::ALL.into_iter().zip(convert).collect(),
+        corrected: Tier::ALL.into_iter().zip(corrected).collect(),
+        relative_change: relative_change.first().copied().unwrap_or_default(),
         inputs_per_tier,
+        corrected_inputs,
         traced_functions: filtered
             .into_iter()
             .map(|function| demangle(&function.name))
-            .collect(),
+            .fold(Vec::new(), |mut names, name| {
+                if !names.contains(&name) {
+                    names.push(name);
+                }
+                names
+            }),
     })
 }
 

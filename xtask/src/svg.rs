@@ -31,6 +31,17 @@ pub enum Guide {
     Vertical(f64, String),
 }
 
+/// A thin line between two points in data coordinates (e.g. one tier's two measures).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Link {
+    /// Start (x, y).
+    pub from: (f64, f64),
+    /// End (x, y).
+    pub to: (f64, f64),
+    /// CSS colour.
+    pub colour: &'static str,
+}
+
 /// Everything the plot shows.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plot {
@@ -46,6 +57,8 @@ pub struct Plot {
     pub points: Vec<Point>,
     /// Reference lines.
     pub guides: Vec<Guide>,
+    /// Lines between points, drawn under the markers.
+    pub links: Vec<Link>,
 }
 
 const WIDTH: f64 = 820.0;
@@ -109,7 +122,10 @@ pub fn render(plot: &Plot) -> String {
     let (decade_low, decade_high) = if y_min.is_finite() {
         (
             y_min.log10().floor(),
-            y_max.log10().ceil().max(y_min.log10().floor() + 1.0),
+            // Headroom: a point just under a decade line would otherwise sit on the frame.
+            (y_max.log10() + 0.2)
+                .ceil()
+                .max(y_min.log10().floor() + 1.0),
         )
     } else {
         (-6.0, 1.0)
@@ -172,10 +188,19 @@ pub fn render(plot: &Plot) -> String {
         svg,
         r#"<rect x="{LEFT}" y="{TOP}" width="{plot_width:.1}" height="{plot_height:.1}" fill="none" stroke="black"/>"#
     );
+    let text_width = |text: &str| 0.62 * FONT_PX * text.chars().count() as f64;
+    // Labels of the points avoid these, and the guides and links below.
+    let mut placed: Vec<Box> = Vec::new();
     for guide in &plot.guides {
         match guide {
             Guide::Horizontal(value, label) => {
                 let y = y_of(*value);
+                placed.push(Box {
+                    left: WIDTH - RIGHT - 4.0 - text_width(label),
+                    right: WIDTH - RIGHT - 4.0,
+                    top: y - 4.0 - FONT_PX,
+                    bottom: y - 2.0,
+                });
                 let _ = writeln!(
                     svg,
                     r##"<line x1="{LEFT}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#888888" stroke-dasharray="6,4"/>"##,
@@ -191,6 +216,12 @@ pub fn render(plot: &Plot) -> String {
             }
             Guide::Vertical(value, label) => {
                 let x = x_of(*value);
+                placed.push(Box {
+                    left: x + 4.0,
+                    right: x + 4.0 + text_width(label),
+                    top: TOP + 14.0 - FONT_PX,
+                    bottom: TOP + 16.0,
+                });
                 let _ = writeln!(
                     svg,
                     r##"<line x1="{x:.1}" y1="{TOP}" x2="{x:.1}" y2="{:.1}" stroke="#888888" stroke-dasharray="6,4"/>"##,
@@ -206,6 +237,47 @@ pub fn render(plot: &Plot) -> String {
             }
         }
     }
+    let mut lines: Vec<Box> = plot
+        .guides
+        .iter()
+        .map(|guide| match guide {
+            Guide::Horizontal(value, _) => Box {
+                left: LEFT,
+                right: WIDTH - RIGHT,
+                top: y_of(*value) - 1.0,
+                bottom: y_of(*value) + 1.0,
+            },
+            Guide::Vertical(value, _) => Box {
+                left: x_of(*value) - 1.0,
+                right: x_of(*value) + 1.0,
+                top: TOP,
+                bottom: TOP + plot_height,
+            },
+        })
+        .collect();
+    for link in &plot.links {
+        let (x1, y1, x2, y2) = (
+            x_of(link.from.0),
+            y_of(link.from.1),
+            x_of(link.to.0),
+            y_of(link.to.1),
+        );
+        lines.push(Box {
+            left: x1.min(x2),
+            right: x1.max(x2),
+            top: y1.min(y2) - 2.0,
+            bottom: y1.max(y2) + 2.0,
+        });
+        let _ = writeln!(
+            svg,
+            r#"<line x1="{:.1}" y1="{:.1}" x2="{:.1}" y2="{:.1}" stroke="{}" stroke-width="1.5" stroke-opacity="0.6"/>"#,
+            x_of(link.from.0),
+            y_of(link.from.1),
+            x_of(link.to.0),
+            y_of(link.to.1),
+            link.colour
+        );
+    }
     let markers: Vec<(f64, f64)> = plot
         .points
         .iter()
@@ -219,12 +291,11 @@ pub fn render(plot: &Plot) -> String {
             point.colour
         );
     }
-    let mut placed: Vec<Box> = Vec::new();
     for (point, (x, y)) in plot.points.iter().zip(&markers) {
         let Some(label) = &point.label else {
             continue;
         };
-        let width = 0.62 * FONT_PX * label.chars().count() as f64;
+        let width = text_width(label);
         let candidates = (0..8).flat_map(|ring| {
             let step = ring as f64 * (FONT_PX + 2.0);
             [
@@ -248,7 +319,10 @@ pub fn render(plot: &Plot) -> String {
                 && candidate.right <= WIDTH - RIGHT
                 && candidate.top >= TOP
                 && candidate.bottom <= TOP + plot_height;
-            let free = placed.iter().all(|other| !other.overlaps(&candidate))
+            let free = placed
+                .iter()
+                .chain(&lines)
+                .all(|other| !other.overlaps(&candidate))
                 && markers.iter().all(|(marker_x, marker_y)| {
                     !candidate.overlaps(&Box {
                         left: marker_x - 6.0,
@@ -345,6 +419,11 @@ mod tests {
                 Guide::Horizontal(0.5, "0.5 kPa".to_string()),
                 Guide::Vertical(30.0, "30".to_string()),
             ],
+            links: vec![Link {
+                from: (119.0, 0.0146),
+                to: (160.0, 0.0146),
+                colour: "#1f77b4",
+            }],
         }
     }
 
@@ -353,6 +432,8 @@ mod tests {
         let svg = render(&sample());
         assert!(svg.starts_with("<svg ") && svg.ends_with("</svg>\n"));
         assert_eq!(svg.matches("<circle").count(), 3);
+        assert_eq!(svg.matches("stroke-opacity").count(), 1);
+        assert!(svg.find("stroke-opacity") < svg.find("<circle"));
         assert!(svg.contains(">table</text>") && svg.contains(">saturating</text>"));
         assert!(svg.contains("speed &lt;vs&gt; error"));
         assert!(!svg.contains("NaN") && !svg.contains("=\"inf"));
@@ -385,6 +466,19 @@ mod tests {
         };
         let (table, saturating) = (label_box("table"), label_box("saturating"));
         assert!(!table.overlaps(&saturating), "{table:?} {saturating:?}");
+        for line in svg.split("<line").skip(1) {
+            if !line.contains("stroke-opacity") {
+                continue;
+            }
+            let coordinate = |name: &str| -> f64 { attribute(line, name).parse().unwrap() };
+            let link = Box {
+                left: coordinate("x1").min(coordinate("x2")),
+                right: coordinate("x1").max(coordinate("x2")),
+                top: coordinate("y1").min(coordinate("y2")) - 1.0,
+                bottom: coordinate("y1").max(coordinate("y2")) + 1.0,
+            };
+            assert!(!link.overlaps(&table), "{link:?} {table:?}");
+        }
         for circle in svg.split("<circle").skip(1) {
             let x: f64 = attribute(circle, "cx").parse().unwrap();
             let y: f64 = attribute(circle, "cy").parse().unwrap();

@@ -118,8 +118,9 @@ impl InverseCurve for PolynomialInverse {
     #[inline]
     fn pressure_kpa(&self, relative_change: f32) -> f32 {
         let u = relative_change * self.inverse_top_relative_change;
-        let mut pressure_kpa = 0.0;
-        for coefficient in self.coefficients.iter().rev() {
+        let [lower @ .., highest] = self.coefficients;
+        let mut pressure_kpa = highest;
+        for coefficient in lower.iter().rev() {
             pressure_kpa = pressure_kpa * u + coefficient;
         }
         clamp_pressure(pressure_kpa * u, self.top_pressure_kpa)

@@ -1,0 +1,118 @@
+//! The firmware's footprint for the report: builds it with `cargo fw-build` (a no-op when it is
+//! up to date), reads its sections, and the opt-level of the `firmware` profile from Cargo.toml.
+
+use std::path::Path;
+
+use anyhow::{anyhow, Context, Result};
+
+use crate::elf::{self, Section};
+use crate::m4;
+
+/// Flash budget of the firmware image (vector table, code, constants, .data initialisers).
+pub const FLASH_BUDGET_BYTES: u64 = 96 * 1024;
+/// Static RAM budget (.data, .bss, .uninit; the stack comes on top).
+pub const STATIC_RAM_BUDGET_BYTES: u64 = 24 * 1024;
+
+/// The profile `cargo fw-build` uses.
+pub const PROFILE: &str = "firmware";
+
+/// What the report says about the firmware.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Footprint {
+    /// The ELF, relative to the target directory.
+    pub path: String,
+    /// The `firmware` profile's opt-level as Cargo.toml gives it (`"z"`, `3`, ...).
+    pub opt_level: String,
+    /// Allocated sections.
+    pub sections: Vec<Section>,
+    /// Flash bytes (every read-only section and the initial values of `.data`).
+    pub flash_bytes: u64,
+    /// Static RAM bytes (`.data`, `.bss`, `.uninit`).
+    pub ram_bytes: u64,
+}
+
+impl Footprint {
+    /// Within both budgets.
+    pub fn within_budget(&self) -> bool {
+        self.flash_bytes <= FLASH_BUDGET_BYTES && self.ram_bytes <= STATIC_RAM_BUDGET_BYTES
+    }
+}
+
+/// The opt-level of `[profile.<profile>]` in a Cargo.toml, following `inherits` (a profile
+/// without one of its own inherits it; `release` and `bench` default to 3, the others to 0).
+pub fn profile_opt_level(manifest: &str, profile: &str) -> Result<String> {
+    let document: toml::Table = manifest.parse().context("parsing Cargo.toml")?;
+    let profiles = document.get("profile").and_then(toml::Value::as_table);
+    let mut name = profile.to_string();
+    for _ in 0..8 {
+        let table = profiles
+            .and_then(|profiles| profiles.get(&name))
+            .and_then(toml::Value::as_table);
+        if let Some(level) = table.and_then(|table| table.get("opt-level")) {
+            return Ok(match level {
+                toml::Value::String(text) => format!("\"{text}\""),
+                other => other.to_string(),
+            });
+        }
+        match table
+            .and_then(|table| table.get("inherits"))
+            .and_then(toml::Value::as_str)
+        {
+            Some(parent) => name = parent.to_string(),
+            None if matches!(name.as_str(), "release" | "bench") => return Ok("3".to_string()),
+            None if matches!(name.as_str(), "dev" | "test") => return Ok("0".to_string()),
+            None => return Err(anyhow!("profile `{name}` has no opt-level and no inherits")),
+        }
+    }
+    Err(anyhow!("profile `{profile}` inherits in a loop"))
+}
+
+/// Builds the firmware (`cargo fw-build`) and reads its footprint.
+pub fn build_and_measure(root: &Path) -> Result<Footprint> {
+    println!("building the firmware (cargo fw-build; a no-op when it is up to date)");
+    m4::run_checked(m4::cargo().current_dir(root).arg("fw-build"))?;
+    let relative = format!("{}/{PROFILE}/firmware", m4::TARGET);
+    let path = m4::target_directory(root, "Cargo.toml")?.join(&relative);
+    let sections = elf::sections(&path).with_context(|| format!("reading {}", path.display()))?;
+    let (flash_bytes, ram_bytes) = elf::flash_and_ram(&sections);
+    let manifest =
+        std::fs::read_to_string(root.join("Cargo.toml")).context("reading Cargo.toml")?;
+    Ok(Footprint {
+        path: relative,
+        opt_level: profile_opt_level(&manifest, PROFILE)?,
+        sections,
+        flash_bytes,
+        ram_bytes,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_opt_level_is_read_through_inherits() {
+        let manifest = r#"
+[profile.release]
+lto = "fat"
+
+[profile.firmware]
+inherits = "release"
+opt-level = "z"
+
+[profile.small]
+inherits = "firmware"
+
+[profile.fast]
+inherits = "release"
+
+[profile.numeric]
+opt-level = 2
+"#;
+        assert_eq!(profile_opt_level(manifest, "firmware").unwrap(), "\"z\"");
+        assert_eq!(profile_opt_level(manifest, "small").unwrap(), "\"z\"");
+        assert_eq!(profile_opt_level(manifest, "fast").unwrap(), "3");
+        assert_eq!(profile_opt_level(manifest, "numeric").unwrap(), "2");
+        assert!(profile_opt_level(manifest, "missing").is_err());
+    }
+}
