@@ -1,8 +1,15 @@
-//! The calibration record: `[format version][postcard body of CalibrationSpec][CRC-32 LE]`.
+//! The calibration record: `[format version][save counter, u32 LE][postcard body of
+//! CalibrationSpec][CRC-32 LE]`.
 //!
-//! The CRC covers the version byte and the body. A record is accepted only if it is intact (length,
-//! CRC), of a known version, parses completely, and validates with [`Calibration::new`]: a record
-//! that parses into a calibration the model would refuse is as corrupt as one with a bad CRC.
+//! The CRC covers the version byte, the save counter and the body. A record is accepted only if it
+//! is intact (length, CRC), of the current version, parses completely, and validates with
+//! [`Calibration::new`]: a record that parses into a calibration the model would refuse is as
+//! corrupt as one with a bad CRC. Version 1 (the same without the save counter) was never shipped
+//! and is refused like any other unknown version.
+//!
+//! The save counter orders records independently of where the flash layer put them: the store
+//! gives every save the highest counter it can read plus one, and loads the valid record with the
+//! highest counter.
 
 use core::fmt;
 
@@ -13,7 +20,7 @@ use model_core::calibration::{
 };
 
 /// The format version written in the first byte of every record.
-pub const RECORD_FORMAT_VERSION: u8 = 1;
+pub const RECORD_FORMAT_VERSION: u8 = 2;
 
 /// The record CRC: CRC-32/ISO-HDLC (poly 0x04C11DB7, init and xorout 0xFFFFFFFF, reflected,
 /// check value 0xCBF43926), appended little-endian.
@@ -22,6 +29,8 @@ pub const RECORD_CRC_ALGORITHM: &Algorithm<u32> = &CRC_32_ISO_HDLC;
 const RECORD_CRC: Crc<u32> = Crc::<u32>::new(RECORD_CRC_ALGORITHM);
 
 const VERSION_LEN: usize = 1;
+const SAVE_COUNTER_LEN: usize = 4;
+const HEADER_LEN: usize = VERSION_LEN + SAVE_COUNTER_LEN;
 const CRC_LEN: usize = 4;
 const F32_LEN: usize = 4;
 /// postcard writes a u32 as a varint: 7 bits per byte, so up to 5 bytes.
@@ -43,8 +52,29 @@ const _: () = assert!(MAX_CURVE_POINTS < 128 && MAX_TEMPERATURE_POINTS < 128);
 pub const MAX_BODY_LEN: usize =
     VARINT_U32_MAX_LEN + TAXEL_COUNT * TAXEL_MAX_LEN + TEMPERATURE_LAW_MAX_LEN + THRESHOLDS_LEN;
 
-/// The longest record: version + [`MAX_BODY_LEN`] + CRC = 627 bytes.
-pub const MAX_RECORD_LEN: usize = VERSION_LEN + MAX_BODY_LEN + CRC_LEN;
+/// The longest record: version + save counter + [`MAX_BODY_LEN`] + CRC = 631 bytes.
+pub const MAX_RECORD_LEN: usize = HEADER_LEN + MAX_BODY_LEN + CRC_LEN;
+
+/// A decoded record: the calibration and the save counter it was written with.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SavedRecord {
+    /// The save counter: higher is newer.
+    pub save_counter: u32,
+    /// The calibration, validated.
+    pub spec: CalibrationSpec,
+}
+
+#[cfg(feature = "defmt")]
+impl defmt::Format for SavedRecord {
+    fn format(&self, formatter: defmt::Formatter) {
+        defmt::write!(
+            formatter,
+            "SavedRecord(save {=u32}, id {=u32})",
+            self.save_counter,
+            self.spec.id
+        );
+    }
+}
 
 /// Why a record could not be written or read.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -52,7 +82,7 @@ pub const MAX_RECORD_LEN: usize = VERSION_LEN + MAX_BODY_LEN + CRC_LEN;
 pub enum RecordError {
     /// Encoding: the output buffer is shorter than the record ([`MAX_RECORD_LEN`] always fits).
     BufferTooSmall,
-    /// Decoding: fewer bytes than a version, an empty body and a CRC.
+    /// Decoding: fewer bytes than a version, a save counter, an empty body and a CRC.
     TooShort,
     /// Decoding: the CRC does not match; the record was corrupted or torn.
     BadCrc,
@@ -87,20 +117,28 @@ impl fmt::Display for RecordError {
 
 impl core::error::Error for RecordError {}
 
-/// Writes `spec` as a record at the start of `out` and returns the record's length.
+/// Writes `spec` with `save_counter` as a record at the start of `out` and returns the record's
+/// length.
 ///
 /// The calibration is validated first: a spec the model would refuse is never written.
-pub fn encode_record(spec: &CalibrationSpec, out: &mut [u8]) -> Result<usize, RecordError> {
+pub fn encode_record(
+    spec: &CalibrationSpec,
+    save_counter: u32,
+    out: &mut [u8],
+) -> Result<usize, RecordError> {
     Calibration::new(spec).map_err(RecordError::Invalid)?;
-    let (version, body_space) = out.split_first_mut().ok_or(RecordError::BufferTooSmall)?;
-    *version = RECORD_FORMAT_VERSION;
+    let (header, body_space) = out
+        .split_first_chunk_mut::<HEADER_LEN>()
+        .ok_or(RecordError::BufferTooSmall)?;
+    header[0] = RECORD_FORMAT_VERSION;
+    header[VERSION_LEN..].copy_from_slice(&save_counter.to_le_bytes());
     let body_len = postcard::to_slice(spec, body_space)
         .map_err(|error| match error {
             postcard::Error::SerializeBufferFull => RecordError::BufferTooSmall,
             other => RecordError::Postcard(other),
         })?
         .len();
-    let crc_start = VERSION_LEN + body_len;
+    let crc_start = HEADER_LEN + body_len;
     let crc = RECORD_CRC.checksum(&out[..crc_start]);
     out.get_mut(crc_start..crc_start + CRC_LEN)
         .ok_or(RecordError::BufferTooSmall)?
@@ -110,13 +148,22 @@ pub fn encode_record(spec: &CalibrationSpec, out: &mut [u8]) -> Result<usize, Re
 
 /// Reads a record that fills `bytes` exactly and returns its calibration, validated.
 pub fn decode_record(bytes: &[u8]) -> Result<CalibrationSpec, RecordError> {
+    decode_saved_record(bytes).map(|record| record.spec)
+}
+
+/// Reads a record that fills `bytes` exactly and returns its save counter and its calibration,
+/// validated.
+pub fn decode_saved_record(bytes: &[u8]) -> Result<SavedRecord, RecordError> {
     let (checked, crc_bytes) = bytes
         .split_last_chunk::<CRC_LEN>()
         .ok_or(RecordError::TooShort)?;
-    let (&version, body) = checked.split_first().ok_or(RecordError::TooShort)?;
+    let (header, body) = checked
+        .split_first_chunk::<HEADER_LEN>()
+        .ok_or(RecordError::TooShort)?;
     if RECORD_CRC.checksum(checked) != u32::from_le_bytes(*crc_bytes) {
         return Err(RecordError::BadCrc);
     }
+    let [version, counter @ ..] = *header;
     if version != RECORD_FORMAT_VERSION {
         return Err(RecordError::UnsupportedVersion { found: version });
     }
@@ -126,7 +173,10 @@ pub fn decode_record(bytes: &[u8]) -> Result<CalibrationSpec, RecordError> {
         return Err(RecordError::TrailingBytes);
     }
     Calibration::new(&spec).map_err(RecordError::Invalid)?;
-    Ok(spec)
+    Ok(SavedRecord {
+        save_counter: u32::from_le_bytes(counter),
+        spec,
+    })
 }
 
 #[cfg(test)]
@@ -136,7 +186,7 @@ mod tests {
     #[test]
     fn maximum_lengths_add_up() {
         assert_eq!(MAX_BODY_LEN, 622);
-        assert_eq!(MAX_RECORD_LEN, 627);
+        assert_eq!(MAX_RECORD_LEN, 631);
     }
 
     #[test]
@@ -148,7 +198,13 @@ mod tests {
     fn default_spec_round_trips() {
         let spec = CalibrationSpec::default();
         let mut buffer = [0u8; MAX_RECORD_LEN];
-        let length = encode_record(&spec, &mut buffer).unwrap();
-        assert_eq!(decode_record(&buffer[..length]), Ok(spec));
+        let length = encode_record(&spec, 7, &mut buffer).unwrap();
+        assert_eq!(
+            decode_saved_record(&buffer[..length]),
+            Ok(SavedRecord {
+                save_counter: 7,
+                spec
+            })
+        );
     }
 }

@@ -11,7 +11,8 @@
 mod common;
 
 use calibration_store::{
-    decode_record, encode_record, RecordError, MAX_RECORD_LEN, RECORD_FORMAT_VERSION,
+    decode_record, decode_saved_record, encode_record, RecordError, SavedRecord, MAX_RECORD_LEN,
+    RECORD_FORMAT_VERSION,
 };
 use common::{config, spec, valid_spec, worst_case_spec};
 use crc::{Crc, CRC_32_ISO_HDLC};
@@ -21,15 +22,23 @@ use proptest::prelude::*;
 /// Re-declared here rather than taken from the crate, so a wrong algorithm there fails.
 const INDEPENDENT_CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
 
+/// The save counter the tests that do not care about it use.
+const COUNTER: u32 = 0x0102_0304;
+
 fn encode(spec: &CalibrationSpec) -> Vec<u8> {
+    encode_with_counter(spec, COUNTER)
+}
+
+fn encode_with_counter(spec: &CalibrationSpec, save_counter: u32) -> Vec<u8> {
     let mut buffer = [0u8; MAX_RECORD_LEN];
-    let length = encode_record(spec, &mut buffer).unwrap();
+    let length = encode_record(spec, save_counter, &mut buffer).unwrap();
     buffer[..length].to_vec()
 }
 
-/// version + body + a correct CRC, whatever the body is.
+/// version + save counter + body + a correct CRC, whatever the body is.
 fn record_with_body(version: u8, body: &[u8]) -> Vec<u8> {
     let mut record = vec![version];
+    record.extend_from_slice(&COUNTER.to_le_bytes());
     record.extend_from_slice(body);
     let crc = INDEPENDENT_CRC.checksum(&record);
     record.extend_from_slice(&crc.to_le_bytes());
@@ -37,16 +46,47 @@ fn record_with_body(version: u8, body: &[u8]) -> Vec<u8> {
 }
 
 #[test]
-fn layout_is_version_postcard_body_and_little_endian_crc32() {
+fn layout_is_version_save_counter_postcard_body_and_little_endian_crc32() {
     let spec = spec(7);
-    let record = encode(&spec);
+    let record = encode_with_counter(&spec, 0xA1B2_C3D4);
     let body = postcard_body(&spec);
-    assert_eq!(record[0], 1);
-    assert_eq!(RECORD_FORMAT_VERSION, 1);
-    assert_eq!(&record[1..record.len() - 4], body.as_slice());
+    assert_eq!(record[0], 2);
+    assert_eq!(RECORD_FORMAT_VERSION, 2);
+    assert_eq!(&record[1..5], &[0xD4, 0xC3, 0xB2, 0xA1]);
+    assert_eq!(&record[5..record.len() - 4], body.as_slice());
     let crc = INDEPENDENT_CRC.checksum(&record[..record.len() - 4]);
     assert_eq!(&record[record.len() - 4..], &crc.to_le_bytes());
     assert_eq!(INDEPENDENT_CRC.checksum(b"123456789"), 0xCBF4_3926);
+    assert_eq!(
+        decode_saved_record(&record),
+        Ok(SavedRecord {
+            save_counter: 0xA1B2_C3D4,
+            spec
+        })
+    );
+}
+
+#[test]
+fn the_save_counter_round_trips_at_its_extremes() {
+    for save_counter in [0, 1, 0x7F, 0x80, u32::MAX] {
+        let record = encode_with_counter(&spec(2), save_counter);
+        let decoded = decode_saved_record(&record).unwrap();
+        assert_eq!(decoded.save_counter, save_counter);
+        assert_eq!(decode_record(&record), Ok(decoded.spec));
+    }
+}
+
+/// Version 1 (no save counter) was never shipped: an intact version 1 record is refused.
+#[test]
+fn an_intact_version_1_record_is_refused() {
+    let mut version_1 = vec![1u8];
+    version_1.extend_from_slice(&postcard_body(&spec(3)));
+    let crc = INDEPENDENT_CRC.checksum(&version_1);
+    version_1.extend_from_slice(&crc.to_le_bytes());
+    assert_eq!(
+        decode_record(&version_1),
+        Err(RecordError::UnsupportedVersion { found: 1 })
+    );
 }
 
 /// postcard's `alloc` feature is off in the workspace: serialize into a large slice instead.
@@ -60,13 +100,13 @@ fn worst_case_spec_fills_max_record_len_exactly() {
     let worst = worst_case_spec(u32::MAX);
     let record = encode(&worst);
     assert_eq!(record.len(), MAX_RECORD_LEN);
-    assert_eq!(MAX_RECORD_LEN, 627);
+    assert_eq!(MAX_RECORD_LEN, 631);
     assert_eq!(decode_record(&record), Ok(worst));
 }
 
 #[test]
 fn default_record_length_is_measured() {
-    assert_eq!(encode(&CalibrationSpec::default()).len(), 255);
+    assert_eq!(encode(&CalibrationSpec::default()).len(), 259);
 }
 
 #[test]
@@ -75,7 +115,7 @@ fn every_too_short_buffer_is_refused_without_writing_past_it() {
     for length in 0..MAX_RECORD_LEN {
         let mut buffer = vec![0xA5u8; length];
         assert_eq!(
-            encode_record(&worst, &mut buffer),
+            encode_record(&worst, COUNTER, &mut buffer),
             Err(RecordError::BufferTooSmall),
             "buffer of {length} bytes"
         );
@@ -88,7 +128,7 @@ fn an_invalid_spec_is_refused_before_anything_is_written() {
     invalid.taxels[3].points.truncate(1);
     let mut buffer = [0x5Au8; MAX_RECORD_LEN];
     assert_eq!(
-        encode_record(&invalid, &mut buffer),
+        encode_record(&invalid, COUNTER, &mut buffer),
         Err(RecordError::Invalid(CalibrationError::TooFewPoints {
             taxel: 3
         }))
@@ -98,9 +138,9 @@ fn an_invalid_spec_is_refused_before_anything_is_written() {
 
 #[test]
 fn short_inputs_are_too_short() {
-    for length in 0..=4 {
+    for length in 0..=8 {
         assert_eq!(
-            decode_record(&[1, 0, 0, 0, 0][..length]),
+            decode_record(&[2, 0, 0, 0, 0, 0, 0, 0, 0][..length]),
             Err(RecordError::TooShort),
             "{length} bytes"
         );
@@ -118,21 +158,21 @@ fn a_changed_byte_is_a_crc_error() {
 #[test]
 fn an_intact_record_of_another_version_is_refused_by_version() {
     let record = encode(&spec(3));
-    let other_version = record_with_body(2, &record[1..record.len() - 4]);
+    let other_version = record_with_body(3, &record[5..record.len() - 4]);
     assert_eq!(
         decode_record(&other_version),
-        Err(RecordError::UnsupportedVersion { found: 2 })
+        Err(RecordError::UnsupportedVersion { found: 3 })
     );
 }
 
 #[test]
 fn an_intact_record_with_a_garbage_body_is_a_postcard_error() {
     assert!(matches!(
-        decode_record(&record_with_body(1, &[])),
+        decode_record(&record_with_body(2, &[])),
         Err(RecordError::Postcard(_))
     ));
     assert!(matches!(
-        decode_record(&record_with_body(1, &[0xFF; 40])),
+        decode_record(&record_with_body(2, &[0xFF; 40])),
         Err(RecordError::Postcard(_))
     ));
 }
@@ -140,10 +180,10 @@ fn an_intact_record_with_a_garbage_body_is_a_postcard_error() {
 #[test]
 fn an_intact_record_with_bytes_after_the_body_is_refused() {
     let record = encode(&spec(3));
-    let mut body = record[1..record.len() - 4].to_vec();
+    let mut body = record[5..record.len() - 4].to_vec();
     body.push(0);
     assert_eq!(
-        decode_record(&record_with_body(1, &body)),
+        decode_record(&record_with_body(2, &body)),
         Err(RecordError::TrailingBytes)
     );
 }
@@ -154,7 +194,7 @@ fn an_intact_record_that_does_not_validate_is_refused() {
     invalid.taxels[1].points[2] = CurvePoint::new(5.0, 0.01);
     let body = postcard_body(&invalid);
     assert_eq!(
-        decode_record(&record_with_body(1, &body)),
+        decode_record(&record_with_body(2, &body)),
         Err(RecordError::Invalid(
             CalibrationError::NotStrictlyIncreasing { taxel: 1, point: 2 }
         ))
@@ -163,7 +203,7 @@ fn an_intact_record_that_does_not_validate_is_refused() {
     invalid.thresholds.dead_band_relative = f32::NAN;
     let body = postcard_body(&invalid);
     assert_eq!(
-        decode_record(&record_with_body(1, &body)),
+        decode_record(&record_with_body(2, &body)),
         Err(RecordError::Invalid(CalibrationError::InvalidThresholds))
     );
 }
@@ -211,7 +251,7 @@ proptest! {
     }
 
     /// CRC-32 has a Hamming distance of at least 4 up to 91607 bits, so up to three flipped bits
-    /// in a record of at most 5016 bits are always detected.
+    /// in a record of at most 5048 bits are always detected.
     #[test]
     fn up_to_three_bit_flips_never_decode(
         spec in valid_spec(),
@@ -246,7 +286,7 @@ proptest! {
     fn random_bodies_with_a_correct_crc_never_panic(
         body in proptest::collection::vec(any::<u8>(), 0..=MAX_RECORD_LEN),
     ) {
-        let record = record_with_body(1, &body);
+        let record = record_with_body(2, &body);
         if let Ok(spec) = decode_record(&record) {
             prop_assert!(Calibration::new(&spec).is_ok());
         }
@@ -261,10 +301,10 @@ proptest! {
         value in any::<u8>(),
     ) {
         let record = encode(&spec);
-        let mut body = record[1..record.len() - 4].to_vec();
+        let mut body = record[5..record.len() - 4].to_vec();
         let position = position % body.len();
         body[position] = value;
-        let edited = record_with_body(1, &body);
+        let edited = record_with_body(2, &body);
         if let Ok(decoded) = decode_record(&edited) {
             prop_assert!(Calibration::new(&decoded).is_ok());
         }
