@@ -208,70 +208,7 @@ impl SimulatedDevice {
         )?;
         Ok(())
     }
-}
 
-/// The firmware's boot on the simulated board: calibration from flash (or defaults), converter,
-/// temperature sources, acquisition loop and device application.
-fn boot(
-    simulation: &Simulation,
-    mut persistence: SimulatedPersistence,
-    seed: u64,
-    plan: BootPlan,
-) -> Result<Device<SimulatedAcquisition, SimulatedPersistence>, SimulatedDeviceError> {
-    {
-        // The simulated pad's factory calibration: the article's curve with this pad's
-        // parasitic capacitance, as the firmware's defaults would be for a real pad.
-        let defaults = simulation
-            .physics()
-            .matching_calibration()
-            .unwrap_or_default();
-        let (calibration, source) = match embassy_futures::block_on(persistence.0.load()) {
-            LoadOutcome::Stored(spec) => match Calibration::new(&spec) {
-                Ok(calibration) => (calibration, CalibrationSource::Flash),
-                Err(_) => (defaults, CalibrationSource::DefaultsAfterCorruptFlash),
-            },
-            LoadOutcome::Absent => (defaults, CalibrationSource::Defaults),
-            LoadOutcome::Corrupt(_) => (defaults, CalibrationSource::DefaultsAfterCorruptFlash),
-        };
-        let converter = Fdc1004::new(
-            simulation.i2c(),
-            simulation.delay(),
-            Config {
-                rate: Rate::Hz400,
-                capdac: CAPDAC,
-                done_timeout_us: 30_000,
-                power_up_delay_us: 5_000,
-            },
-        );
-        let mut pad = PadModel::new(calibration);
-        plan.apply_to(&mut pad);
-        let acquisition = Acquisition::new(
-            converter,
-            Tmp117::new(simulation.i2c(), Address::Gnd),
-            SimulatedDieTemperature(simulation.clone()),
-            SimulatedClock(simulation.clone()),
-            pad,
-            AcquisitionConfig {
-                tare_sets_at_start: plan.tare_sets_at_start,
-                ..AcquisitionConfig::default()
-            },
-            simulation.delay(),
-        );
-        let identity = DeviceIdentity {
-            firmware_version: firmware_version(),
-            board_serial: simulated_board_serial(seed),
-        };
-        Ok(Device::new(
-            acquisition,
-            persistence,
-            identity,
-            source,
-            DeviceConfig::default(),
-        ))
-    }
-}
-
-impl SimulatedDevice {
     /// The simulator (scene, faults, clock).
     pub fn simulation(&self) -> &Simulation {
         &self.simulation
@@ -334,5 +271,66 @@ pub fn firmware_version() -> FirmwareVersion {
         major: part(env!("CARGO_PKG_VERSION_MAJOR")),
         minor: part(env!("CARGO_PKG_VERSION_MINOR")),
         patch: part(env!("CARGO_PKG_VERSION_PATCH")),
+    }
+}
+
+/// The firmware's boot on the simulated board: calibration from flash (or defaults), converter,
+/// temperature sources, acquisition loop and device application.
+fn boot(
+    simulation: &Simulation,
+    mut persistence: SimulatedPersistence,
+    seed: u64,
+    plan: BootPlan,
+) -> Result<Device<SimulatedAcquisition, SimulatedPersistence>, SimulatedDeviceError> {
+    {
+        // The simulated pad's factory calibration: the article's curve with this pad's
+        // parasitic capacitance, as the firmware's defaults would be for a real pad.
+        let defaults = simulation
+            .physics()
+            .matching_calibration()
+            .unwrap_or_default();
+        let (calibration, source) = match embassy_futures::block_on(persistence.0.load()) {
+            LoadOutcome::Stored(spec) => match Calibration::new(&spec) {
+                Ok(calibration) => (calibration, CalibrationSource::Flash),
+                Err(_) => (defaults, CalibrationSource::DefaultsAfterCorruptFlash),
+            },
+            LoadOutcome::Absent => (defaults, CalibrationSource::Defaults),
+            LoadOutcome::Corrupt(_) => (defaults, CalibrationSource::DefaultsAfterCorruptFlash),
+        };
+        let converter = Fdc1004::new(
+            simulation.i2c(),
+            simulation.delay(),
+            Config {
+                rate: Rate::Hz400,
+                capdac: CAPDAC,
+                done_timeout_us: 30_000,
+                power_up_delay_us: 5_000,
+            },
+        );
+        let mut pad = PadModel::new(calibration);
+        plan.apply_to(&mut pad);
+        let acquisition = Acquisition::new(
+            converter,
+            Tmp117::new(simulation.i2c(), Address::Gnd),
+            SimulatedDieTemperature(simulation.clone()),
+            SimulatedClock(simulation.clone()),
+            pad,
+            AcquisitionConfig {
+                tare_sets_at_start: plan.tare_sets_at_start,
+                ..AcquisitionConfig::default()
+            },
+            simulation.delay(),
+        );
+        let identity = DeviceIdentity {
+            firmware_version: firmware_version(),
+            board_serial: simulated_board_serial(seed),
+        };
+        Ok(Device::new(
+            acquisition,
+            persistence,
+            identity,
+            source,
+            DeviceConfig::default(),
+        ))
     }
 }

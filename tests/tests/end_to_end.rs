@@ -124,3 +124,72 @@ fn a_recording_of_the_simulated_device_matches_its_scene() {
     assert!(rms < RMS_TOLERANCE_KPA, "RMS {rms}");
     assert!(shorted_rows > 250, "{shorted_rows}");
 }
+
+/// `taxel calibrate --upload --save` as it runs against a board: a fitted calibration goes to
+/// the simulated device over the pseudo-terminal, is saved in its flash, and is what the device
+/// reports and loads after its MCU reboots.
+#[test]
+fn a_calibration_uploaded_and_saved_over_the_serial_path_survives_a_reboot() {
+    use model_core::{Calibration, CalibrationSpec};
+    use taxel::calibrate::upload;
+    use wire::{CalibrationSource, Command, ReplyPayload};
+
+    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
+        scene: SceneFile::default_scene().unwrap(),
+        seed: 4,
+        speed: Some(20.0),
+    })
+    .unwrap();
+    let mut port = PtyPort::open().unwrap();
+    let path = port.path().to_string_lossy().into_owned();
+    let stop = Arc::new(AtomicBool::new(false));
+    let reboot = Arc::new(AtomicBool::new(false));
+    let device_thread = {
+        let (stop, reboot) = (Arc::clone(&stop), Arc::clone(&reboot));
+        thread::spawn(move || {
+            while !stop.load(Ordering::Relaxed) {
+                if reboot.swap(false, Ordering::Relaxed) {
+                    device.restart_mcu().unwrap();
+                }
+                device.step(&mut port);
+            }
+        })
+    };
+    let opened = open_serial(&path, Duration::from_millis(50)).unwrap();
+    let mut link = DeviceLink::new(opened.port);
+    let mut spec = CalibrationSpec {
+        id: 4242,
+        ..CalibrationSpec::default()
+    };
+    for (taxel, calibration) in spec.taxels.iter_mut().enumerate() {
+        calibration.parasitic_pf = 1.0 + 0.1 * taxel as f32;
+    }
+    let calibration = Calibration::new(&spec).unwrap();
+    let timeout = Duration::from_secs(5);
+    upload(&mut link, &calibration, true, timeout, &mut |_| {}).unwrap();
+
+    let info = |link: &mut DeviceLink<_>| match link.request(Command::Info, timeout) {
+        Ok(ReplyPayload::Info(info)) => info,
+        other => panic!("{other:?}"),
+    };
+    let before = info(&mut link);
+    assert_eq!(
+        (before.calibration_id, before.calibration_source),
+        (4242, CalibrationSource::Flash)
+    );
+    reboot.store(true, Ordering::Relaxed);
+    thread::sleep(Duration::from_millis(200));
+    let after = info(&mut link);
+    assert_eq!(
+        (after.calibration_id, after.calibration_source),
+        (4242, CalibrationSource::Flash)
+    );
+    match link.request(Command::ReadCalibration { taxel_index: 3 }, timeout) {
+        Ok(ReplyPayload::Calibration(record)) => {
+            assert!((record.calibration.parasitic_pf - 1.3).abs() < 1e-6);
+        }
+        other => panic!("{other:?}"),
+    }
+    stop.store(true, Ordering::Relaxed);
+    device_thread.join().unwrap();
+}
