@@ -5,43 +5,9 @@
 mod common;
 
 use common::*;
-use wire::{
-    flags, Command, DeviceFrame, ErrorCode, ReplyFrame, ReplyPayload, Request, SampleFrame,
-    TaxelSample, TemperatureSource, WireMessage,
-};
+use wire::{Command, DeviceFrame, ErrorCode, ReplyFrame, ReplyPayload, Request, WireMessage};
 
 const PROTOCOL: &str = include_str!("../../docs/PROTOCOL.md");
-
-fn example_sample() -> SampleFrame {
-    SampleFrame {
-        sequence: 1234,
-        timestamp_us: 5_000_250,
-        temperature_c: Some(23.5),
-        temperature_source: TemperatureSource::Tmp117,
-        taxels: [
-            TaxelSample {
-                pressure_kpa: Some(12.5),
-                capacitance_pf: 4.75,
-                flags: 0,
-            },
-            TaxelSample {
-                pressure_kpa: None,
-                capacitance_pf: -0.25,
-                flags: flags::SHORTED | flags::BELOW_BASELINE,
-            },
-            TaxelSample {
-                pressure_kpa: Some(0.0),
-                capacitance_pf: 4.5,
-                flags: flags::NOT_TARED,
-            },
-            TaxelSample {
-                pressure_kpa: Some(-1.0625),
-                capacitance_pf: 4.25,
-                flags: flags::BELOW_BASELINE,
-            },
-        ],
-    }
-}
 
 /// The examples, by the name used in the document.
 fn examples() -> Vec<(&'static str, Vec<u8>)> {

@@ -6,45 +6,14 @@ use common::*;
 use heapless::String;
 use proptest::prelude::*;
 use wire::{
-    flags, format_csv_line, CsvLineTooLong, SampleFrame, TaxelSample, TemperatureSource,
-    TextCommand, TextCommandParser, CSV_HEADER, CSV_LINE_MAX_LEN,
+    format_csv_line, CsvLineTooLong, TemperatureSource, TextCommand, TextCommandParser, CSV_HEADER,
+    CSV_LINE_MAX_LEN,
 };
-
-fn typical_sample() -> SampleFrame {
-    SampleFrame {
-        sequence: 1234,
-        timestamp_us: 5_000_250,
-        temperature_c: Some(23.5),
-        temperature_source: TemperatureSource::Tmp117,
-        taxels: [
-            TaxelSample {
-                pressure_kpa: Some(12.5),
-                capacitance_pf: 4.75,
-                flags: 0,
-            },
-            TaxelSample {
-                pressure_kpa: None,
-                capacitance_pf: -0.25,
-                flags: flags::SHORTED | flags::BELOW_BASELINE,
-            },
-            TaxelSample {
-                pressure_kpa: Some(0.0),
-                capacitance_pf: 4.5,
-                flags: flags::NOT_TARED,
-            },
-            TaxelSample {
-                pressure_kpa: Some(-1.0625),
-                capacitance_pf: 4.25,
-                flags: flags::BELOW_BASELINE,
-            },
-        ],
-    }
-}
 
 #[test]
 fn csv_line_has_the_header_columns() {
     let mut line = String::<CSV_LINE_MAX_LEN>::new();
-    format_csv_line(&typical_sample(), &mut line).unwrap();
+    format_csv_line(&example_sample(), &mut line).unwrap();
     assert_eq!(
         line.as_str(),
         "1234,5.000250,23.500,12.500,nan,0.000,-1.062,0,5,128,1\r\n"
@@ -57,7 +26,7 @@ fn csv_line_has_the_header_columns() {
 
 #[test]
 fn missing_temperature_and_faulted_pressure_never_print_a_number() {
-    let mut sample = typical_sample();
+    let mut sample = example_sample();
     sample.temperature_c = None;
     sample.temperature_source = TemperatureSource::None;
     for taxel in &mut sample.taxels {
@@ -90,7 +59,7 @@ fn worst_case_line_has_the_documented_length() {
 fn a_too_small_string_is_an_error_and_left_empty() {
     let mut line = String::<20>::new();
     assert_eq!(
-        format_csv_line(&typical_sample(), &mut line),
+        format_csv_line(&example_sample(), &mut line),
         Err(CsvLineTooLong)
     );
     assert!(line.is_empty());

@@ -423,3 +423,35 @@ pub fn raw_frame(version: u8, kind: u8, body: &[u8]) -> Vec<u8> {
     frame.push(0);
     frame
 }
+
+/// The sample frame of PROTOCOL.md's examples and of the text-mode tests.
+pub fn example_sample() -> SampleFrame {
+    SampleFrame {
+        sequence: 1234,
+        timestamp_us: 5_000_250,
+        temperature_c: Some(23.5),
+        temperature_source: TemperatureSource::Tmp117,
+        taxels: [
+            TaxelSample {
+                pressure_kpa: Some(12.5),
+                capacitance_pf: 4.75,
+                flags: 0,
+            },
+            TaxelSample {
+                pressure_kpa: None,
+                capacitance_pf: -0.25,
+                flags: wire::flags::SHORTED | wire::flags::BELOW_BASELINE,
+            },
+            TaxelSample {
+                pressure_kpa: Some(0.0),
+                capacitance_pf: 4.5,
+                flags: wire::flags::NOT_TARED,
+            },
+            TaxelSample {
+                pressure_kpa: Some(-1.0625),
+                capacitance_pf: 4.25,
+                flags: wire::flags::BELOW_BASELINE,
+            },
+        ],
+    }
+}
