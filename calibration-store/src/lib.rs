@@ -33,6 +33,6 @@ pub use record::{
     MAX_RECORD_LEN, RECORD_CRC_ALGORITHM, RECORD_FORMAT_VERSION,
 };
 pub use store::{
-    CalibrationStore, CorruptReason, LoadOutcome, RegionError, StoreError, CALIBRATION_KEY,
-    STM32F411_CALIBRATION_RANGE,
+    CalibrationKey, CalibrationStore, CorruptReason, LoadOutcome, RegionError, StoreError,
+    CALIBRATION_KEY, STM32F411_CALIBRATION_RANGE,
 };

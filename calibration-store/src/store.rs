@@ -34,15 +34,35 @@ use core::ops::Range;
 use embedded_storage_async::nor_flash::{ErrorType, NorFlash};
 use model_core::CalibrationSpec;
 use sequential_storage::cache::{Cache, Uncached};
-use sequential_storage::map::{MapConfig, MapConfigError, MapStorage};
+use sequential_storage::map::{Key, MapConfig, MapConfigError, MapStorage, SerializationError};
 
 use crate::page_view::{PageView, View, ViewError};
 use crate::record::{
     decode_record, decode_saved_record, encode_record, RecordError, MAX_RECORD_LEN,
 };
 
-/// The map key of the calibration record (the only key this store writes).
-pub const CALIBRATION_KEY: u8 = 0;
+/// The map key of the calibration record, the only kind of item this store writes.
+///
+/// It serialises to no bytes. sequential-storage 8.0.2 slices an item's data by the key length
+/// without checking it against the item's (`data[..len][key_len..]` while iterating,
+/// `len - key_len` when fetching), so a one-byte key panics on a zero-length item that corrupt
+/// flash can hold (found by the `flash_record` fuzz target). A key of no bytes can never be
+/// longer than an item.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CalibrationKey;
+
+impl Key for CalibrationKey {
+    fn serialize_into(&self, _buffer: &mut [u8]) -> Result<usize, SerializationError> {
+        Ok(0)
+    }
+
+    fn deserialize_from(_buffer: &[u8]) -> Result<(Self, usize), SerializationError> {
+        Ok((CalibrationKey, 0))
+    }
+}
+
+/// The key of the calibration record.
+pub const CALIBRATION_KEY: CalibrationKey = CalibrationKey;
 
 /// The region the STM32F411CE firmware uses: sectors 6 and 7 (2 x 128 KiB, 0x0804_0000 to
 /// 0x0807_FFFF) as offsets from the start of flash, which is how embassy-stm32's `Flash`
@@ -53,7 +73,7 @@ pub const STM32F411_CALIBRATION_RANGE: Range<u32> = 0x0004_0000..0x0008_0000;
 /// the next page change.
 const PAGE_COUNT: u32 = 2;
 
-const KEY_LEN: usize = 1;
+const KEY_LEN: usize = 0;
 /// sequential-storage supports flash words of up to 32 bytes and reads whole words into the
 /// buffer, so key + record rounded up to 32 fits every flash.
 const LARGEST_WORD_SIZE: usize = 32;
@@ -64,7 +84,8 @@ const ITEM_BUFFER_LEN: usize = (KEY_LEN + MAX_RECORD_LEN).next_multiple_of(LARGE
 #[repr(align(4))]
 struct ItemBuffer([u8; ITEM_BUFFER_LEN]);
 
-type Map<F> = MapStorage<u8, PageView<F>, Cache<Uncached, Uncached, Uncached, u8>>;
+type Map<F> =
+    MapStorage<CalibrationKey, PageView<F>, Cache<Uncached, Uncached, Uncached, CalibrationKey>>;
 type MapError<F> = sequential_storage::Error<ViewError<<F as ErrorType>::Error>>;
 
 /// Why a flash range cannot hold the calibration.

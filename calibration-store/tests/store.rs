@@ -11,8 +11,8 @@
 mod common;
 
 use calibration_store::{
-    encode_record, CalibrationStore, CorruptReason, LoadOutcome, RamFlash, RamFlashError,
-    RecordError, RegionError, StoreError, Tear, CALIBRATION_KEY, MAX_RECORD_LEN,
+    encode_record, CalibrationKey, CalibrationStore, CorruptReason, LoadOutcome, RamFlash,
+    RamFlashError, RecordError, RegionError, StoreError, Tear, CALIBRATION_KEY, MAX_RECORD_LEN,
     STM32F411_CALIBRATION_RANGE,
 };
 use common::{
@@ -53,8 +53,11 @@ fn find_all(flash: &SmallFlash, needle: &[u8]) -> Vec<usize> {
 /// Writes `value` as the calibration item directly through sequential-storage, bypassing the
 /// record encoder: an intact flash item with whatever content.
 fn store_raw_item(flash: &mut SmallFlash, value: &[u8]) {
-    let mut map =
-        MapStorage::<u8, _, _>::new(flash, MapConfig::new(SMALL_RANGE), Cache::new_uncached());
+    let mut map = MapStorage::<CalibrationKey, _, _>::new(
+        flash,
+        MapConfig::new(SMALL_RANGE),
+        Cache::new_uncached(),
+    );
     let mut buffer = [0u8; 1024];
     block_on(map.store_item(&mut buffer, &CALIBRATION_KEY, &value)).unwrap();
 }
@@ -569,4 +572,18 @@ fn a_layout_where_neither_page_can_be_erased_alone_is_still_saved_over() {
         "torn saves from a layout no single fault produces: {torn_saves}, older or none: {older}"
     );
     assert!(torn_saves > 0);
+}
+
+/// Regression: a flash image found by the `flash_record` fuzz target, whose zero-length item made
+/// sequential-storage slice past the item with the old one-byte key (a panic at boot: a
+/// watchdog reset loop on the board). It must load to some outcome, never panic.
+#[test]
+fn the_fuzzed_zero_length_item_image_loads_without_panicking() {
+    let bytes = include_bytes!("data/fuzz-crash-zero-length-item.bin");
+    let mut image = [0xFFu8; 4096];
+    image[..bytes.len()].copy_from_slice(bytes);
+    let mut store =
+        CalibrationStore::new(RamFlash::<4096, 2048>::from_bytes(image), 0..4096).unwrap();
+    let outcome = block_on(store.load());
+    assert!(!matches!(outcome, LoadOutcome::Stored(_)), "{outcome:?}");
 }
