@@ -109,13 +109,14 @@ pub struct Device<A, P> {
     calibration_source: CalibrationSource,
     streaming: bool,
     text_mode: bool,
-    host_was_connected: bool,
+    host_connected: bool,
     pending_tare: Option<u16>,
     host_counters: HostCounters,
     sets_since_counters: u32,
     last_converter_reinits: u32,
     last_temperature_origin: Option<TemperatureOrigin>,
     announce_flash_corrupt: bool,
+    retained_written: Option<RetainedState>,
 }
 
 impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
@@ -136,7 +137,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             calibration_source,
             streaming: config.streaming_at_start,
             text_mode: false,
-            host_was_connected: false,
+            host_connected: false,
             pending_tare: None,
             host_counters: HostCounters::default(),
             sets_since_counters: 0,
@@ -144,6 +145,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             last_temperature_origin: None,
             announce_flash_corrupt: calibration_source
                 == CalibrationSource::DefaultsAfterCorruptFlash,
+            retained_written: None,
         }
     }
 
@@ -172,12 +174,23 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         self.streaming
     }
 
-    /// What must survive an MCU-only reset (keep it in no-init RAM after every step).
+    /// What must survive an MCU-only reset.
     pub fn retained_state(&self) -> RetainedState {
         RetainedState {
             baselines: self.control.pad().baseline_records(),
             tier: self.control.pad().tier(),
         }
+    }
+
+    /// The state to keep in no-init RAM when it changed since the last call (after a tare or a
+    /// tier change), `None` otherwise: the sampling loop encodes and writes the record only then.
+    pub fn retained_state_change(&mut self) -> Option<RetainedState> {
+        let state = self.retained_state();
+        if self.retained_written == Some(state) {
+            return None;
+        }
+        self.retained_written = Some(state);
+        Some(state)
     }
 
     /// The info frame as of now.
@@ -198,15 +211,18 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
     /// One converter cycle with everything around it: requests received since the last step
     /// are applied first, then the cycle runs and its frames are queued.
     pub async fn step<H: HostPort>(&mut self, host: &mut H) -> ProcessedSample {
+        // Read once per step: asking the port again for every frame costs a system call on
+        // the desktop's pseudo-terminal and tells nothing new within one cycle.
         let connected = host.host_connected();
-        if connected && !self.host_was_connected {
+        let newly_connected = connected && !self.host_connected;
+        self.host_connected = connected;
+        if newly_connected {
             self.send(host, Outgoing::Frame(DeviceFrame::Info(self.info())));
             if self.announce_flash_corrupt {
                 self.announce_flash_corrupt = false;
                 self.send_event(host, 0, DeviceEvent::CalibrationFlashCorrupt);
             }
         }
-        self.host_was_connected = connected;
         while let Some(event) = host.try_receive() {
             match event {
                 HostInputEvent::Request(request) => {
@@ -313,7 +329,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
     }
 
     fn send<H: HostPort>(&mut self, host: &mut H, outgoing: Outgoing) {
-        if !host.host_connected() || host.try_send(outgoing).is_err() {
+        if !self.host_connected || host.try_send(outgoing).is_err() {
             self.host_counters.frames_dropped_no_host =
                 self.host_counters.frames_dropped_no_host.wrapping_add(1);
         }

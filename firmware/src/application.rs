@@ -113,7 +113,9 @@ pub async fn acquisition_task(
     info!("acquisition running, calibration {}", calibration_source);
     loop {
         let sample = device.step(&mut port).await;
-        retained::write(&device.retained_state());
+        if let Some(state) = device.retained_state_change() {
+            retained::write(&state);
+        }
         watchdog::heartbeat();
         health.update(&sample);
     }

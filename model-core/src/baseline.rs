@@ -15,7 +15,6 @@ pub struct Baseline {
     tracked_drift_pf: f32,
     reference: SplitCapacitance,
     tared_sensor_pf: f32,
-    sensor_pf: f32,
     permittivity_ratio: f32,
     permittivity_ratio_per_sensor_pf: f32,
     temperature_c: f32,
@@ -73,7 +72,6 @@ impl Baseline {
             tracked_drift_pf: 0.0,
             reference: capacitance,
             tared_sensor_pf: sensor_pf,
-            sensor_pf,
             permittivity_ratio,
             permittivity_ratio_per_sensor_pf: permittivity_ratio / sensor_pf,
             temperature_c,
@@ -92,7 +90,7 @@ impl Baseline {
 
     /// The sensor's own unloaded capacitance C0 (baseline minus parasitic), pF.
     pub fn sensor_pf(&self) -> f32 {
-        self.sensor_pf
+        self.tared_sensor_pf + self.tracked_drift_pf
     }
 
     /// Temperature at the tare, °C.
@@ -120,14 +118,13 @@ impl Baseline {
     /// Moves the baseline by `fraction` of the reading's offset from it (tracking), bounded to
     /// `max_drift_relative` of C0 away from the tared value. Returns whether the bound was hit.
     fn track(&mut self, relative_change: f32, tracking: &BaselineTracking) -> bool {
-        let step_pf = relative_change * self.sensor_pf * tracking.rate_per_sample;
+        let step_pf = relative_change * self.sensor_pf() * tracking.rate_per_sample;
         let limit_pf = tracking.max_drift_relative * self.tared_sensor_pf;
         let drift_pf = self.tracked_drift_pf + step_pf;
         let bounded_drift_pf = clamp_f32(drift_pf, -limit_pf, limit_pf);
         self.tracked_drift_pf = bounded_drift_pf;
         self.reference.fine_pf = self.tared_capacitance.fine_pf + bounded_drift_pf;
-        self.sensor_pf = self.tared_sensor_pf + bounded_drift_pf;
-        self.permittivity_ratio_per_sensor_pf = self.permittivity_ratio / self.sensor_pf;
+        self.permittivity_ratio_per_sensor_pf = self.permittivity_ratio / self.sensor_pf();
         bounded_drift_pf != drift_pf
     }
 }

@@ -98,6 +98,11 @@ impl PtyPort {
             self.output.clear();
             return;
         }
+        self.flush();
+    }
+
+    /// Writes what is queued, as far as the terminal takes it now.
+    fn flush(&mut self) {
         while !self.output.is_empty() {
             let (front, _) = self.output.as_slices();
             match nix::unistd::write(&self.master, front) {
@@ -130,7 +135,7 @@ impl HostPort for PtyPort {
             return Err(QueueFull);
         }
         self.output.extend(&encoded[..length]);
-        self.pump();
+        self.flush();
         Ok(())
     }
 }

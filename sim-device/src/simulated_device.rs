@@ -223,7 +223,9 @@ impl SimulatedDevice {
     pub fn step<H: HostPort>(&mut self, host: &mut H) -> ProcessedSample {
         self.schedule_scene_faults();
         let sample = embassy_futures::block_on(self.device.step(host));
-        self.retained_ram = self.device.retained_state().encode();
+        if let Some(state) = self.device.retained_state_change() {
+            self.retained_ram = state.encode();
+        }
         sample
     }
 

@@ -85,7 +85,7 @@ impl InfoFrame {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CountersFrame {
-    /// Sample sets produced but not sent because the output queue was full.
+    /// Sample sets the acquisition loop's own queue refused (never turned into a frame).
     pub dropped_sample_sets: u32,
     /// Times the converter was reset and reconfigured after an error.
     pub converter_reinits: u32,
@@ -93,7 +93,8 @@ pub struct CountersFrame {
     pub i2c_errors: u32,
     /// Failed or implausible temperature-sensor readings.
     pub temperature_sensor_errors: u32,
-    /// Frames discarded because no host had the port open.
+    /// Frames of any kind discarded because no host had the port open or the output queue
+    /// towards it was full.
     pub frames_dropped_no_host: u32,
     /// Frames from the host that were rejected without a reply (bad COBS, CRC, version, kind).
     pub host_frames_rejected: u32,
