@@ -98,6 +98,17 @@ pub enum CalibrationError {
     InvalidThresholds,
 }
 
+/// The first `N` items of `items` in a bounded vector. Every caller copies between vectors of
+/// the same capacity (or a constant that fits), so nothing is dropped; unlike heapless'
+/// `collect`, a longer input could not panic.
+pub(crate) fn bounded_copy<T: Copy, const N: usize>(items: &[T]) -> Vec<T, N> {
+    let mut copy = Vec::new();
+    for item in items.iter().take(N) {
+        let _ = copy.push(*item);
+    }
+    copy
+}
+
 /// Index used in [`CalibrationError`] for errors that belong to no taxel.
 pub const NO_TAXEL: u8 = u8::MAX;
 
@@ -146,7 +157,7 @@ impl CalibrationCurve {
     /// The article's Table 1.
     pub fn article_default() -> Self {
         Self {
-            points: Vec::from_iter(ARTICLE_TABLE_1),
+            points: bounded_copy(&ARTICLE_TABLE_1),
         }
     }
 
@@ -163,17 +174,24 @@ impl CalibrationCurve {
             .unwrap_or(CurvePoint::new(0.0, 0.0))
     }
 
+    /// One coordinate of every point, widened to f64.
+    fn widened(&self, coordinate: impl Fn(&CurvePoint) -> f32) -> Vec<f64, MAX_CURVE_POINTS> {
+        let mut values = Vec::new();
+        for point in &self.points {
+            // Same capacity as the points: a push cannot fail.
+            let _ = values.push(f64::from(coordinate(point)));
+        }
+        values
+    }
+
     /// Pressures as f64, for construction-time fits.
     pub(crate) fn pressures_kpa(&self) -> Vec<f64, MAX_CURVE_POINTS> {
-        self.points.iter().map(|p| p.pressure_kpa as f64).collect()
+        self.widened(|point| point.pressure_kpa)
     }
 
     /// Relative changes as f64, for construction-time fits.
     pub(crate) fn relative_changes(&self) -> Vec<f64, MAX_CURVE_POINTS> {
-        self.points
-            .iter()
-            .map(|p| p.relative_change as f64)
-            .collect()
+        self.widened(|point| point.relative_change)
     }
 }
 
@@ -192,7 +210,7 @@ impl TemperatureLaw {
     /// linear is the least-assumption reading.
     pub fn article_default() -> Self {
         Self {
-            points: Vec::from_iter([
+            points: bounded_copy(&[
                 PermittivityPoint {
                     temperature_c: 25.0,
                     permittivity_ratio: 1.0,
@@ -253,6 +271,23 @@ impl TemperatureLaw {
     /// Highest characterised temperature, °C.
     pub fn characterised_max_c(&self) -> f32 {
         self.characterised_max_c
+    }
+
+    /// The steepest |d(eps_r ratio)/dT| of the law inside `low_c ..= high_c`, per °C (the law
+    /// is flat outside its points).
+    pub fn steepest_slope_per_c(&self, low_c: f32, high_c: f32) -> f32 {
+        let mut steepest = 0.0f32;
+        for pair in self.points.windows(2) {
+            if let [low, high] = pair {
+                let overlaps = low.temperature_c < high_c && high.temperature_c > low_c;
+                let slope = (high.permittivity_ratio - low.permittivity_ratio)
+                    / (high.temperature_c - low.temperature_c);
+                if overlaps && slope.abs() > steepest {
+                    steepest = slope.abs();
+                }
+            }
+        }
+        steepest
     }
 
     /// eps_r(T) / eps_r(reference) for a temperature already clamped to the characterised range.
@@ -382,7 +417,7 @@ impl TaxelCalibration {
     /// Back to plain data.
     pub fn to_spec(&self) -> TaxelCalibrationSpec {
         TaxelCalibrationSpec {
-            points: Vec::from_iter(self.curve.points().iter().copied()),
+            points: bounded_copy(self.curve.points()),
             parasitic_pf: self.parasitic_pf,
         }
     }
@@ -447,7 +482,7 @@ impl Calibration {
                 self.taxels[2].to_spec(),
                 self.taxels[3].to_spec(),
             ],
-            temperature_points: Vec::from_iter(self.temperature_law.points().iter().copied()),
+            temperature_points: bounded_copy(self.temperature_law.points()),
             characterised_min_c: self.temperature_law.characterised_min_c(),
             characterised_max_c: self.temperature_law.characterised_max_c(),
             thresholds: self.thresholds,

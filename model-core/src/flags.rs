@@ -41,6 +41,12 @@ bitflags! {
         /// Warning: the temperature came from the fallback sensor (the MCU's die), corrected by
         /// the offset last learned against the pad's sensor: less accurate than the pad's own.
         const TEMPERATURE_FALLBACK = 1 << 12;
+        /// Warning: the measured temperature jumped further from the one in use than the pad can
+        /// change between two sample sets (more than
+        /// [`crate::temperature::MAX_PLAUSIBLE_STEP_C`]); it was not applied as measured, the
+        /// temperature in use moves towards it by at most
+        /// [`crate::temperature::SLEW_C_PER_SET`] per sample set.
+        const TEMPERATURE_IMPLAUSIBLE = 1 << 13;
 
         /// Every flag that makes a reading carry no pressure.
         const FAULTS = Self::SHORTED.bits()
@@ -60,7 +66,7 @@ impl TaxelFlags {
     }
 
     /// Stable, documented names of the individual flags, in bit order (used in CSV files).
-    pub const NAMES: [(TaxelFlags, &'static str); 13] = [
+    pub const NAMES: [(TaxelFlags, &'static str); 14] = [
         (Self::BELOW_BASELINE, "below_baseline"),
         (Self::OVER_RANGE, "over_range"),
         (Self::SHORTED, "shorted"),
@@ -74,6 +80,7 @@ impl TaxelFlags {
         (Self::INVALID_INPUT, "invalid_input"),
         (Self::BASELINE_TRACKING_LIMIT, "baseline_tracking_limit"),
         (Self::TEMPERATURE_FALLBACK, "temperature_fallback"),
+        (Self::TEMPERATURE_IMPLAUSIBLE, "temperature_implausible"),
     ];
 
     /// The flag with this documented name, if any.

@@ -31,6 +31,7 @@
 pub mod baseline;
 mod bounds;
 pub mod calibration;
+pub mod conditioning;
 pub mod flags;
 pub mod inverse;
 pub mod monotone_cubic;
@@ -53,5 +54,5 @@ pub use pad::{PadModel, PadOutput, SampleInput, TareStatus, TierUnavailable};
 pub use reading::{ReadingValue, SplitCapacitance, TaxelReading};
 pub use taxel::{TaxelModel, TaxelOutput};
 pub use temperature::{TemperatureTracker, TemperatureUsed, REFERENCE_TEMPERATURE_C};
-pub use use_case::{select_tier, select_tier_for_taxels, SelectionError, TierChoice, UseCase};
+pub use use_case::{select_tier_for_taxels, SelectionError, TaxelEvidence, TierChoice, UseCase};
 pub use validation::leave_one_out_errors_kpa;

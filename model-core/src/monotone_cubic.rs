@@ -30,6 +30,87 @@ impl CubicSegment {
         let [_, c1, c2, c3] = self.coefficients;
         c1 + s * (2.0 * c2 + s * (3.0 * c3))
     }
+
+    /// Smallest and largest slope over local coordinates `s_low ..= s_high` (clamped to the
+    /// interval), from the coefficients in f64: the derivative is a quadratic, so its extremes
+    /// are at the ends or at its vertex.
+    pub fn slope_range(&self, s_low: f64, s_high: f64) -> (f64, f64) {
+        let [_, c1, c2, c3] = self.coefficients.map(f64::from);
+        let width = f64::from(self.width);
+        let (s_low, s_high) = (s_low.clamp(0.0, width), s_high.clamp(0.0, width));
+        let slope = |s: f64| c1 + s * (2.0 * c2 + s * 3.0 * c3);
+        let (at_low, at_high) = (slope(s_low), slope(s_high));
+        let (mut low, mut high) = (at_low.min(at_high), at_low.max(at_high));
+        if c3 != 0.0 {
+            let vertex = -c2 / (3.0 * c3);
+            if vertex > s_low && vertex < s_high {
+                low = low.min(slope(vertex));
+                high = high.max(slope(vertex));
+            }
+        }
+        (low, high)
+    }
+
+    /// Largest |second derivative| over the interval (it is linear in `s`), in f64.
+    pub fn curvature_max(&self) -> f64 {
+        let [_, _, c2, c3] = self.coefficients.map(f64::from);
+        let width = f64::from(self.width);
+        (2.0 * c2).abs().max((2.0 * c2 + 6.0 * c3 * width).abs())
+    }
+}
+
+/// Secant slopes of the intervals between strictly increasing points (the valid prefix of at
+/// most [`MAX_CURVE_POINTS`] points).
+fn secant_slopes(xs: &[f64], ys: &[f64]) -> [f64; MAX_CURVE_POINTS - 1] {
+    let mut secant_slopes = [0.0f64; MAX_CURVE_POINTS - 1];
+    for ((slot, x), y) in secant_slopes
+        .iter_mut()
+        .zip(xs.windows(2))
+        .zip(ys.windows(2))
+    {
+        if let ([x0, x1], [y0, y1]) = (x, y) {
+            *slot = (y1 - y0) / (x1 - x0);
+        }
+    }
+    secant_slopes
+}
+
+/// Fritsch–Carlson tangents at the points: three-point means (zero at a change of sign), the
+/// secants at the ends, then each interval's `(alpha, beta)` pulled into the circle of radius 3,
+/// which is sufficient for the cubic on each interval to be monotone.
+fn tangents(xs: &[f64], ys: &[f64]) -> [f64; MAX_CURVE_POINTS] {
+    let count = xs.len().min(ys.len()).min(MAX_CURVE_POINTS);
+    let secant_slopes = secant_slopes(xs, ys);
+    let mut tangents = [0.0f64; MAX_CURVE_POINTS];
+    if count >= 2 {
+        tangents[0] = secant_slopes[0];
+        tangents[count - 1] = secant_slopes[count - 2];
+    }
+    for k in 1..count.saturating_sub(1) {
+        let (left, right) = (secant_slopes[k - 1], secant_slopes[k]);
+        tangents[k] = if left * right <= 0.0 {
+            0.0
+        } else {
+            0.5 * (left + right)
+        };
+    }
+    for k in 0..count.saturating_sub(1) {
+        let secant = secant_slopes[k];
+        if secant == 0.0 {
+            tangents[k] = 0.0;
+            tangents[k + 1] = 0.0;
+            continue;
+        }
+        let alpha = tangents[k] / secant;
+        let beta = tangents[k + 1] / secant;
+        let radius_squared = alpha * alpha + beta * beta;
+        if radius_squared > 9.0 {
+            let tau = 3.0 / libm::sqrt(radius_squared);
+            tangents[k] = tau * alpha * secant;
+            tangents[k + 1] = tau * beta * secant;
+        }
+    }
+    tangents
 }
 
 /// A monotone piecewise cubic through up to [`MAX_CURVE_POINTS`] points.
@@ -47,41 +128,8 @@ impl MonotoneCubic {
     /// else gives an interpolant over the valid prefix rather than a panic.
     pub fn new(xs: &[f64], ys: &[f64]) -> Self {
         let count = xs.len().min(ys.len()).min(MAX_CURVE_POINTS);
-        let mut secant_slopes = [0.0f64; MAX_CURVE_POINTS - 1];
-        for k in 0..count.saturating_sub(1) {
-            secant_slopes[k] = (ys[k + 1] - ys[k]) / (xs[k + 1] - xs[k]);
-        }
-        let mut tangents = [0.0f64; MAX_CURVE_POINTS];
-        if count >= 2 {
-            tangents[0] = secant_slopes[0];
-            tangents[count - 1] = secant_slopes[count - 2];
-        }
-        for k in 1..count.saturating_sub(1) {
-            let (left, right) = (secant_slopes[k - 1], secant_slopes[k]);
-            tangents[k] = if left * right <= 0.0 {
-                0.0
-            } else {
-                0.5 * (left + right)
-            };
-        }
-        // Fritsch–Carlson: keep (alpha, beta) inside the circle of radius 3, which is
-        // sufficient for the cubic on each interval to be monotone.
-        for k in 0..count.saturating_sub(1) {
-            let secant = secant_slopes[k];
-            if secant == 0.0 {
-                tangents[k] = 0.0;
-                tangents[k + 1] = 0.0;
-                continue;
-            }
-            let alpha = tangents[k] / secant;
-            let beta = tangents[k + 1] / secant;
-            let radius_squared = alpha * alpha + beta * beta;
-            if radius_squared > 9.0 {
-                let tau = 3.0 / libm::sqrt(radius_squared);
-                tangents[k] = tau * alpha * secant;
-                tangents[k + 1] = tau * beta * secant;
-            }
-        }
+        let tangents = tangents(xs, ys);
+        let secant_slopes = secant_slopes(xs, ys);
         let mut segments = [CubicSegment::default(); MAX_CURVE_POINTS - 1];
         for k in 0..count.saturating_sub(1) {
             let width = xs[k + 1] - xs[k];

@@ -3,12 +3,13 @@
 
 use crate::baseline::{Baseline, BaselineError, BaselineRecord, BaselineTracking, TareAccumulator};
 use crate::calibration::{Calibration, TAXEL_COUNT};
+use crate::conditioning::NOMINAL_SENSOR_PF;
 use crate::flags::TaxelFlags;
 use crate::inverse::Tier;
 use crate::reading::{ReadingValue, TaxelReading};
 use crate::taxel::{TaxelModel, TaxelOutput};
 use crate::temperature::{TemperatureTracker, TemperatureUsed};
-use crate::use_case::{select_tier_for_taxels, SelectionError, TierChoice, UseCase};
+use crate::use_case::{select_tier_for_taxels, SelectionError, TaxelEvidence, TierChoice, UseCase};
 
 /// One converter cycle's input.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -98,12 +99,15 @@ impl PadModel {
         }
     }
 
-    /// Replaces the calibration; baselines are kept (the capacitance they hold does not depend on
-    /// the curve), but a tier the new curves cannot provide falls back to the default.
+    /// Replaces the calibration. Each baseline is derived again from its tared capacitance and
+    /// temperature with the new parasitic capacitance, temperature law and thresholds (a
+    /// baseline keeps no number computed with the old ones); a taxel whose baseline does not
+    /// validate under the new calibration becomes untared. A tier the new curves cannot provide
+    /// falls back to the default.
     pub fn set_calibration(&mut self, calibration: Calibration) {
         let tier = self.tier;
+        let records = self.baseline_records();
         *self = Self {
-            baselines: self.baselines,
             tracking: self.tracking,
             temperature: self.temperature,
             tare: self.tare.take(),
@@ -111,6 +115,7 @@ impl PadModel {
             last_tare_errors: self.last_tare_errors,
             ..Self::new(calibration)
         };
+        self.restore_baselines(&records);
         if self.set_tier(tier).is_err() {
             self.tier = Tier::default();
         }
@@ -145,23 +150,17 @@ impl PadModel {
         self.tier
     }
 
-    /// The cheapest tier that fits a use case on all four taxels (see [`select_tier_for_taxels`]).
+    /// The cheapest tier that fits a use case on all four taxels (see
+    /// [`select_tier_for_taxels`]); each taxel's C0 is its baseline's when tared, else nominal.
     pub fn select_tier_for(&self, use_case: &UseCase) -> Result<TierChoice, SelectionError> {
-        let inverses = self.taxels.each_ref().map(TaxelModel::inverses);
-        let top_pressure_kpa = self
-            .calibration
-            .taxels()
-            .iter()
-            .map(|taxel| taxel.curve.top().pressure_kpa)
-            .fold(f32::INFINITY, f32::min);
-        let law = self.calibration.temperature_law();
-        select_tier_for_taxels(
-            &inverses,
-            top_pressure_kpa,
-            law.characterised_min_c(),
-            law.characterised_max_c(),
-            use_case,
-        )
+        let evidence = core::array::from_fn::<_, TAXEL_COUNT, _>(|taxel| TaxelEvidence {
+            inverses: self.taxels[taxel].inverses(),
+            curve: &self.calibration.taxels()[taxel].curve,
+            sensor_pf: self.baselines[taxel]
+                .as_ref()
+                .map_or(NOMINAL_SENSOR_PF, Baseline::sensor_pf),
+        });
+        select_tier_for_taxels(&evidence, self.calibration.temperature_law(), use_case)
     }
 
     /// Selects and applies the cheapest tier for a use case.

@@ -16,6 +16,11 @@ pub const CAPDAC_STEP_PF: f32 = 3.125;
 pub const CAPDAC_MAX: u8 = 31;
 /// Codes per pF (2^19).
 pub const CODES_PER_PF: f32 = 524_288.0;
+/// Largest capacitance the converter can report: the top CAPDAC offset plus the top of the
+/// +-16 pF input range, pF. A recorded capacitance above it cannot have come from the converter.
+pub const MAX_MEASURABLE_PF: f32 = CAPDAC_MAX as f32 * CAPDAC_STEP_PF + 16.0;
+/// Smallest capacitance the converter can report (CAPDAC 0, bottom of the input range), pF.
+pub const MIN_MEASURABLE_PF: f32 = -16.0;
 
 /// One taxel's reading, as the converter or a recording gives it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -66,7 +71,8 @@ pub enum ReadingValue {
     Capacitance(SplitCapacitance),
     /// The converter reported a saturated code.
     Saturated,
-    /// The code or CAPDAC is out of the converter's range, or the value is not finite.
+    /// The code or CAPDAC is out of the converter's range, or the value is not finite or beyond
+    /// what the converter can report.
     Invalid,
     /// There was no reading.
     Unavailable,
@@ -90,7 +96,9 @@ impl TaxelReading {
                     })
                 }
             }
-            TaxelReading::CapacitancePf(pf) if pf.is_finite() => {
+            TaxelReading::CapacitancePf(pf)
+                if (MIN_MEASURABLE_PF..=MAX_MEASURABLE_PF).contains(&pf) =>
+            {
                 ReadingValue::Capacitance(SplitCapacitance {
                     offset_pf: 0.0,
                     fine_pf: pf,
@@ -131,10 +139,19 @@ mod tests {
             capdac: 32,
         };
         assert_eq!(bad_capdac.value(), ReadingValue::Invalid);
-        assert_eq!(
-            TaxelReading::CapacitancePf(f32::INFINITY).value(),
-            ReadingValue::Invalid
-        );
+        for beyond_reach in [f32::INFINITY, 1e30, -1e30, 112.9, -16.1, f32::NAN] {
+            assert_eq!(
+                TaxelReading::CapacitancePf(beyond_reach).value(),
+                ReadingValue::Invalid,
+                "{beyond_reach}"
+            );
+        }
+        for within_reach in [112.875f32, 4.5, 0.0, -16.0] {
+            assert!(matches!(
+                TaxelReading::CapacitancePf(within_reach).value(),
+                ReadingValue::Capacitance(_)
+            ));
+        }
     }
 
     #[test]

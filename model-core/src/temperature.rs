@@ -1,5 +1,14 @@
 //! Which temperature a sample is corrected with: the measured one clamped to the characterised
 //! range, or, when it is missing, the last valid one (else the tare's, else the reference).
+//!
+//! Plausibility: the pad (1 mm of PDMS composite on a gripper or glove) cannot change its
+//! temperature by more than [`MAX_PLAUSIBLE_STEP_C`] between two sample sets (the pad sensor
+//! itself updates about once a second, and a real warm-up moves by a fraction of a degree per
+//! update). A reading further than that from the temperature in use is flagged
+//! `temperature_implausible` and not applied as measured: the temperature in use moves towards
+//! it by at most [`SLEW_C_PER_SET`] per sample set (5–20 °C/s at 100–400 sets/s, faster than any
+//! real change of the pad), so a one-set glitch moves it by 0.05 °C, and a real jump (a sensor
+//! back after a gap) is followed within a second, flagged until it is reached.
 
 use crate::bounds::clamp_f32;
 use crate::calibration::TemperatureLaw;
@@ -7,6 +16,12 @@ use crate::flags::TaxelFlags;
 
 /// Temperature at which the calibration curve holds and the permittivity ratio is 1, °C.
 pub const REFERENCE_TEMPERATURE_C: f32 = 25.0;
+
+/// Largest step between two sample sets that is applied as measured, °C.
+pub const MAX_PLAUSIBLE_STEP_C: f32 = 2.0;
+
+/// Largest move of the temperature in use towards an implausible reading per sample set, °C.
+pub const SLEW_C_PER_SET: f32 = 0.05;
 
 /// The temperature a sample was corrected with.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,13 +54,20 @@ impl TemperatureTracker {
         let (temperature_c, flags) = match measured_c {
             Some(value) if value.is_finite() => {
                 let clamped = clamp_f32(value, minimum_c, maximum_c);
-                self.last_valid_c = Some(clamped);
-                let flags = if clamped != value {
+                let mut flags = if clamped != value {
                     TaxelFlags::TEMPERATURE_OUT_OF_RANGE
                 } else {
                     TaxelFlags::empty()
                 };
-                (clamped, flags)
+                let applied = match self.last_valid_c {
+                    Some(last) if !((clamped - last).abs() <= MAX_PLAUSIBLE_STEP_C) => {
+                        flags |= TaxelFlags::TEMPERATURE_IMPLAUSIBLE;
+                        last + clamp_f32(clamped - last, -SLEW_C_PER_SET, SLEW_C_PER_SET)
+                    }
+                    _ => clamped,
+                };
+                self.last_valid_c = Some(applied);
+                (applied, flags)
             }
             _ => {
                 let substitute = self
@@ -74,6 +96,37 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_one_set_glitch_is_flagged_and_barely_applied() {
+        let law = TemperatureLaw::article_default();
+        let mut tracker = TemperatureTracker::default();
+        assert_eq!(tracker.resolve(Some(25.0), None, &law).temperature_c, 25.0);
+        let glitch = tracker.resolve(Some(55.0), None, &law);
+        assert_eq!(glitch.flags, TaxelFlags::TEMPERATURE_IMPLAUSIBLE);
+        assert!((glitch.temperature_c - 25.05).abs() < 1e-5);
+        let back = tracker.resolve(Some(25.0), None, &law);
+        assert_eq!(back.flags, TaxelFlags::empty());
+        assert_eq!(back.temperature_c, 25.0);
+        // A real warm-up of 1 °C per update is applied as measured.
+        for step in 1..=10 {
+            let used = tracker.resolve(Some(25.0 + step as f32), None, &law);
+            assert_eq!(used.temperature_c, 25.0 + step as f32);
+            assert_eq!(used.flags, TaxelFlags::empty());
+        }
+        // A lasting jump is followed at the slew rate, flagged until it is reached.
+        let mut sets = 0;
+        loop {
+            let used = tracker.resolve(Some(50.0), None, &law);
+            sets += 1;
+            if used.flags.is_empty() {
+                assert_eq!(used.temperature_c, 50.0);
+                break;
+            }
+            assert!(sets < 1000);
+        }
+        assert!((250..=300).contains(&sets), "{sets}");
+    }
+
+    #[test]
     fn hard_temperatures_are_clamped_or_substituted_and_flagged() {
         let law = TemperatureLaw::article_default();
         let mut tracker = TemperatureTracker::default();
@@ -92,6 +145,12 @@ mod tests {
             (f32::NEG_INFINITY, 55.0, TaxelFlags::TEMPERATURE_MISSING),
             (f32::NAN, 55.0, TaxelFlags::TEMPERATURE_MISSING),
         ] {
+            // Each input as the first reading (so no plausibility step), the non-finite ones
+            // after a valid 55 °C.
+            let mut tracker = TemperatureTracker::default();
+            if !input.is_finite() {
+                tracker.resolve(Some(55.0), None, &law);
+            }
             let used = tracker.resolve(Some(input), None, &law);
             assert_eq!(used.temperature_c, expected, "input {input}");
             assert_eq!(used.flags, flags, "input {input}");

@@ -4,7 +4,10 @@
 use heapless::Vec;
 
 use crate::calibration::{CalibrationCurve, CurvePoint, MAX_CURVE_POINTS};
-use crate::inverse::{TaxelInverses, Tier};
+use crate::inverse::{
+    InverseCurve, Libm, LinearInverse, Micromath, MonotoneCubicInverse, PiecewiseLinearInverse,
+    PolynomialInverse, SaturatingFit, SaturatingInverse, TableInverse, Tier,
+};
 
 /// Per interior point (index 1 ..= n - 2, in order), the tier's predicted pressure minus the
 /// applied one when the curve is rebuilt without that point, kPa; `None` where the reduced curve
@@ -14,25 +17,54 @@ pub fn leave_one_out_errors_kpa(
     tier: Tier,
 ) -> Vec<Option<f32>, MAX_CURVE_POINTS> {
     let mut errors = Vec::new();
-    for left_out in 1..points.len().saturating_sub(1) {
-        let reduced: Vec<CurvePoint, MAX_CURVE_POINTS> = points
+    for (left_out, point) in points
+        .iter()
+        .enumerate()
+        .skip(1)
+        .take(points.len().saturating_sub(2))
+    {
+        let mut reduced: Vec<CurvePoint, MAX_CURVE_POINTS> = Vec::new();
+        let mut fits = true;
+        for (_, kept) in points
             .iter()
             .enumerate()
             .filter(|(index, _)| *index != left_out)
-            .map(|(_, point)| *point)
-            .collect();
+        {
+            fits &= reduced.push(*kept).is_ok();
+        }
         let error = CalibrationCurve::new(&reduced, 0)
             .ok()
-            .map(|curve| TaxelInverses::new(&curve))
-            .filter(|inverses| inverses.supports(tier))
-            .map(|inverses| {
-                let point = points[left_out];
-                inverses.pressure_kpa(tier, point.relative_change) - point.pressure_kpa
-            });
-        // Interior points are fewer than MAX_CURVE_POINTS, so this always fits.
-        let _ = errors.push(error);
+            .filter(|_| fits)
+            .and_then(|curve| pressure_through(&curve, tier, point.relative_change))
+            .map(|pressure_kpa| pressure_kpa - point.pressure_kpa);
+        if errors.push(error).is_err() {
+            break;
+        }
     }
     errors
+}
+
+/// One tier's pressure for a relative change on a curve, building only what the tier needs.
+fn pressure_through(curve: &CalibrationCurve, tier: Tier, relative_change: f32) -> Option<f32> {
+    let top_kpa = curve.top().pressure_kpa;
+    match tier {
+        Tier::Linear => Some(LinearInverse::new(curve).pressure_kpa(relative_change)),
+        Tier::PiecewiseLinear => {
+            Some(PiecewiseLinearInverse::new(curve).pressure_kpa(relative_change))
+        }
+        Tier::MonotoneCubic => Some(MonotoneCubicInverse::new(curve).pressure_kpa(relative_change)),
+        Tier::Table => {
+            let cubic = MonotoneCubicInverse::new(curve);
+            Some(TableInverse::new(&cubic, curve).pressure_kpa(relative_change))
+        }
+        Tier::Polynomial => PolynomialInverse::new(&MonotoneCubicInverse::new(curve), curve)
+            .map(|polynomial| polynomial.pressure_kpa(relative_change)),
+        Tier::Saturating => SaturatingFit::new(curve)
+            .map(|fit| SaturatingInverse::<Libm>::new(&fit, top_kpa).pressure_kpa(relative_change)),
+        Tier::SaturatingMicromath => SaturatingFit::new(curve).map(|fit| {
+            SaturatingInverse::<Micromath>::new(&fit, top_kpa).pressure_kpa(relative_change)
+        }),
+    }
 }
 
 #[cfg(test)]
@@ -48,6 +80,22 @@ mod tests {
         let expected = 0.0829 / 0.1475 * 20.0 - 10.0;
         let got = errors[0].unwrap_or(f32::NAN);
         assert!((got - expected).abs() < 1e-4, "{got} vs {expected}");
+    }
+
+    #[test]
+    fn the_most_points_a_curve_holds_do_not_overflow() {
+        let points: [CurvePoint; MAX_CURVE_POINTS] =
+            core::array::from_fn(|index| CurvePoint::new(index as f32, index as f32 * 0.01));
+        let errors = leave_one_out_errors_kpa(&points, Tier::PiecewiseLinear);
+        assert_eq!(errors.len(), MAX_CURVE_POINTS - 2);
+        for error in errors {
+            assert!(error.unwrap_or(f32::NAN).abs() < 1e-4);
+        }
+        // More points than a curve holds: no panic, the reduced curves simply do not fit.
+        let too_many: [CurvePoint; MAX_CURVE_POINTS + 4] =
+            core::array::from_fn(|index| CurvePoint::new(index as f32, index as f32 * 0.01));
+        let errors = leave_one_out_errors_kpa(&too_many, Tier::MonotoneCubic);
+        assert!(errors.len() <= MAX_CURVE_POINTS);
     }
 
     #[test]

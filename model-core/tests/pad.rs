@@ -34,6 +34,18 @@ fn one_taxel(
     capacitance_pf: f32,
     temperature_c: Option<f32>,
 ) -> model_core::TaxelOutput {
+    // The pad warms or cools to the reading's temperature in plausible steps first (a jump is
+    // flagged as implausible; tested on its own).
+    if let (Some(target_c), Some(last_c)) = (temperature_c, pad.last_valid_temperature_c()) {
+        let steps = ((target_c - last_c).abs() / 1.5).ceil() as usize;
+        let law = pad.calibration().temperature_law().clone();
+        for step in 1..steps {
+            let between_c = last_c + (target_c - last_c) * step as f32 / steps as f32;
+            let unloaded =
+                TaxelReading::CapacitancePf(SENSOR_PF * law.permittivity_ratio(between_c));
+            pad.process(&SampleInput::new([unloaded; 4], Some(between_c)));
+        }
+    }
     let reading = SampleInput::new(
         [
             TaxelReading::CapacitancePf(capacitance_pf),
@@ -380,6 +392,14 @@ proptest! {
         let unloaded = synthetic_pf(&pad, parasitic_pf, 0.0, tare_temperature_c);
         pad.start_tare(1);
         pad.process(&SampleInput::new([TaxelReading::CapacitancePf(unloaded); 4], Some(tare_temperature_c)));
+        // The pad warms or cools to T in plausible steps (a jump is flagged, see temperature.rs).
+        let steps = ((temperature_c - tare_temperature_c).abs() / 1.5).ceil() as usize;
+        for step in 1..=steps {
+            let between_c = tare_temperature_c
+                + (temperature_c - tare_temperature_c) * step as f32 / steps as f32;
+            let unloaded = synthetic_pf(&pad, parasitic_pf, 0.0, between_c);
+            pad.process(&SampleInput::new([TaxelReading::CapacitancePf(unloaded); 4], Some(between_c)));
+        }
         let loaded = synthetic_pf(&pad, parasitic_pf, pressure_kpa, temperature_c);
         let output = pad.process(&SampleInput::new([TaxelReading::CapacitancePf(loaded); 4], Some(temperature_c)));
         let pressure = output.taxels[0].pressure_kpa();
@@ -416,5 +436,62 @@ proptest! {
                 prop_assert!(capacitance.is_finite());
             }
         }
+    }
+}
+
+/// A new calibration with a different parasitic capacitance: the baselines are derived again
+/// with it (before the fix they kept C0 - Cp from the old calibration, reading 7.8 kPa here).
+#[test]
+fn a_new_calibration_re_derives_the_baselines() {
+    let parasitic_pf = 1.2;
+    let mut pad = tared_pad(SENSOR_PF + parasitic_pf, 25.0);
+    let mut spec = CalibrationSpec::default();
+    for taxel in spec.taxels.iter_mut() {
+        taxel.parasitic_pf = parasitic_pf;
+    }
+    pad.set_calibration(Calibration::new(&spec).unwrap());
+    // 10 kPa by hand: the sensor's own 4.5 pF grows by Table 1's 0.0829; the parasitic does not.
+    let loaded = one_taxel(&mut pad, SENSOR_PF * 1.0829 + parasitic_pf, Some(25.0));
+    let pressure = loaded.pressure_kpa().unwrap();
+    assert!((pressure - 10.0).abs() < 0.01, "{pressure}");
+    // A calibration under which the tared capacitance is no sensor at all (parasitic above it)
+    // leaves the taxels untared instead of keeping a baseline computed otherwise.
+    for taxel in spec.taxels.iter_mut() {
+        taxel.parasitic_pf = SENSOR_PF + parasitic_pf;
+    }
+    pad.set_calibration(Calibration::new(&spec).unwrap());
+    assert!(pad.baselines().iter().all(Option::is_none));
+    let output = one_taxel(&mut pad, SENSOR_PF * 1.0829 + parasitic_pf, Some(25.0));
+    assert_eq!(output.pressure_kpa(), None, "{output:?}");
+}
+
+/// A one-set temperature glitch on an unloaded taxel: before the fix it read about 3.9 kPa with
+/// no flag; now it is flagged and the pressure barely moves.
+#[test]
+fn a_temperature_glitch_is_flagged_not_applied() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    let unloaded = [TaxelReading::CapacitancePf(SENSOR_PF); 4];
+    let glitch = pad.process(&SampleInput::new(unloaded, Some(55.0))).taxels[0];
+    assert!(glitch.flags().contains(TaxelFlags::TEMPERATURE_IMPLAUSIBLE));
+    let pressure = glitch.pressure_kpa().unwrap();
+    // 0.05 °C of slew: 0.05 x 0.108 %/°C = 5.4e-5 of dC/C0, under 0.01 kPa at 120 /kPa.
+    assert!(pressure < 0.01, "{pressure}");
+    let after = one_taxel(&mut pad, SENSOR_PF, Some(25.0));
+    assert_eq!(after.flags(), TaxelFlags::empty());
+    assert_eq!(after.pressure_kpa(), Some(0.0));
+}
+
+/// A capacitance no converter can produce is invalid input, a fault: before the fix 1e30 pF
+/// read as 50 kPa `over_range`.
+#[test]
+fn an_impossible_capacitance_is_invalid_input() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    for impossible_pf in [1e30, 1000.0, -1e30] {
+        let output = one_taxel(&mut pad, impossible_pf, Some(25.0));
+        assert!(
+            output.flags().contains(TaxelFlags::INVALID_INPUT),
+            "{output:?}"
+        );
+        assert_eq!(output.pressure_kpa(), None);
     }
 }

@@ -27,13 +27,16 @@ pub const INVALID_INPUT: u16 = 1 << 10;
 pub const BASELINE_TRACKING_LIMIT: u16 = 1 << 11;
 /// The temperature came from the fallback sensor (MCU die), offset-corrected: less accurate.
 pub const TEMPERATURE_FALLBACK: u16 = 1 << 12;
+/// The measured temperature jumped further than the pad can change between two sample sets; it
+/// was not applied as measured (the temperature in use follows it at a bounded rate).
+pub const TEMPERATURE_IMPLAUSIBLE: u16 = 1 << 13;
 
 /// The flags that make the pressure unusable; a taxel with any of them has no pressure.
 pub const FAULT_MASK: u16 =
     SHORTED | OPEN | SATURATED | NOT_TARED | CONVERTER_ERROR | STUCK | INVALID_INPUT;
 
 /// Every bit defined in protocol version 1; the others are reserved and sent as zero.
-pub const DEFINED_MASK: u16 = (1 << 13) - 1;
+pub const DEFINED_MASK: u16 = (1 << 14) - 1;
 
 /// Whether `flags` contains a fault.
 pub const fn is_fault(flags: u16) -> bool {
@@ -49,6 +52,6 @@ mod tests {
         assert_eq!(FAULT_MASK, 0b0111_1001_1100);
         assert!(is_fault(SHORTED));
         assert!(!is_fault(BELOW_BASELINE | OVER_RANGE | TEMPERATURE_MISSING));
-        assert_eq!(DEFINED_MASK, 0x1FFF);
+        assert_eq!(DEFINED_MASK, 0x3FFF);
     }
 }

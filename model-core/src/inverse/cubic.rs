@@ -1,43 +1,86 @@
-//! Monotone cubic tier: the exact inverse of the Fritsch–Carlson cubic dC/C0 = f(P) through the
-//! calibration points, which is the model's reference curve.
+//! Monotone cubic tier: the inverse of the Fritsch–Carlson cubic dC/C0 = f(P) through the
+//! calibration points, which is the model's reference curve, for every valid calibration.
 //!
-//! The forward cubic is the natural model (the calibration controls P and measures dC/C0); its
-//! inverse is found per interval by Newton's method from the secant guess. Two steps bring the
-//! f32 result to its rounding floor on the article's curve (see the tests).
+//! # Method
+//!
+//! On the interval holding the reading, the forward cubic `f(s)` (local coordinate `s` in
+//! `0 ..= w`) is non-decreasing (Fritsch–Carlson). The root of `f(s) = y` is found in two stages.
+//!
+//! 1. **Fast path: inverse-Hermite start, one Newton step, a proven error bound.** The start
+//!    `s0` is the cubic Hermite interpolant of the inverse through the interval's ends, with the
+//!    inverse's end slopes `1 / f'` limited to three times its secant (so a flat end cannot throw
+//!    it far), clamped into `0 ..= w`. One Newton step `s1 = s0 - r / f'(s0)` (with
+//!    `r = f(s0) - y`) follows. With `m = min f'`, `M = max f'` and `K = max |f''|` over the
+//!    interval (computed once, in f64, when the calibration is loaded), Taylor's theorem gives
+//!    `|s1 - s*| <= K / (2 m) * (s0 - s*)^2` and the mean-value theorem
+//!    `|s0 - s*| <= |r / f'(s0)| * M / m`; so `|s1 - s*| <= B * step^2` with
+//!    `B = K M^2 / (2 m^3)`. The step is accepted when `B * step^2 <= ACCEPTED_ERROR_KPA`, a
+//!    bound that holds in exact arithmetic whatever the start. On ordinary calibrations (the
+//!    article's, anything with neighbouring secants of similar size) this is the path taken.
+//! 2. **Safeguarded Newton in a bracket.** Otherwise (a nearly flat spot makes `m` tiny or zero,
+//!    or the start was poor) the root is kept in a bracket `[low, high]` (`f(low) <= y <=
+//!    f(high)`, initially the whole interval) that every evaluation narrows. A Newton step is
+//!    taken only when it lands strictly inside the bracket and the previous Newton step halved
+//!    the bracket; otherwise the bracket is bisected. So the bracket at least halves every two
+//!    iterations: after `2 n` iterations it is at most `w / 2^n` wide, and the loop stops when it
+//!    is `w / 2^20` wide (or at f32 resolution), within [`MAX_BRACKETED_ITERATIONS`] iterations
+//!    whatever the calibration. A Newton step that meets the bound of stage 1 ends it earlier.
+//!
+//! The result is the root of the f32 cubic to within the bound above, plus what the f32
+//! evaluation of `f` near the root cannot resolve: a few ulps of `y` times the local slope of the
+//! inverse `1 / f'`. Where `f'` is tiny (nearly equal neighbouring calibration points) that is
+//! large, and it is a property of the calibration, not of the method: see
+//! [`crate::conditioning`].
 
 use super::{clamp_pressure, InverseCurve};
 use crate::bounds::clamp_f32;
 use crate::calibration::{CalibrationCurve, MAX_CURVE_POINTS};
-use crate::monotone_cubic::MonotoneCubic;
+use crate::monotone_cubic::{CubicSegment, MonotoneCubic};
 
-/// Newton steps per inversion.
-pub const NEWTON_STEPS: usize = 2;
+/// Largest error (kPa, exact arithmetic) accepted from the fast path's Newton step.
+pub const ACCEPTED_ERROR_KPA: f32 = 1.0e-3;
+
+/// The bracket stops narrowing at this fraction of the interval width (2^-20).
+const BRACKET_RELATIVE_WIDTH: f32 = 1.0 / 1_048_576.0;
+
+/// Most iterations of the bracketed stage: the bracket halves at least every two iterations, so
+/// 2 x 20 reach [`BRACKET_RELATIVE_WIDTH`]; two spare.
+pub const MAX_BRACKETED_ITERATIONS: usize = 42;
+
+/// Per interval: the inverse-Hermite start and the fast path's error bound factor.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct InverseSegment {
+    /// `s0(t) = t (g1 + t (g2 + t g3))`, `t = y - y_k`.
+    start: [f32; 3],
+    /// `B = max|f''| max(f')^2 / (2 min(f')^3)`, per kPa; infinite when `f'` reaches 0.
+    error_bound_per_kpa: f32,
+}
 
 /// Inverse of the monotone cubic through the calibration points.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MonotoneCubicInverse {
     forward: MonotoneCubic,
     relative_change_starts: [f32; MAX_CURVE_POINTS],
-    kpa_per_relative_change: [f32; MAX_CURVE_POINTS],
+    inverse_segments: [InverseSegment; MAX_CURVE_POINTS - 1],
     top_pressure_kpa: f32,
 }
 
 impl MonotoneCubicInverse {
-    /// Builds the forward cubic and the per-interval secants used as Newton's first guess.
+    /// Builds the forward cubic and, per interval, the inverse-Hermite start and error bound.
     pub fn new(curve: &CalibrationCurve) -> Self {
         let forward = MonotoneCubic::new(&curve.pressures_kpa(), &curve.relative_changes());
         let mut relative_change_starts = [0.0; MAX_CURVE_POINTS];
-        let mut kpa_per_relative_change = [0.0; MAX_CURVE_POINTS];
-        for (index, pair) in curve.points().windows(2).enumerate() {
-            relative_change_starts[index] = pair[0].relative_change;
-            kpa_per_relative_change[index] = ((pair[1].pressure_kpa - pair[0].pressure_kpa) as f64
-                / (pair[1].relative_change - pair[0].relative_change) as f64)
-                as f32;
+        let mut inverse_segments = [InverseSegment::default(); MAX_CURVE_POINTS - 1];
+        for (index, point) in curve.points().iter().enumerate().take(MAX_CURVE_POINTS) {
+            relative_change_starts[index] = point.relative_change;
+        }
+        for (slot, segment) in inverse_segments.iter_mut().zip(forward.segments()) {
+            *slot = InverseSegment::new(segment);
         }
         Self {
             forward,
             relative_change_starts,
-            kpa_per_relative_change,
+            inverse_segments,
             top_pressure_kpa: curve.top().pressure_kpa,
         }
     }
@@ -46,6 +89,95 @@ impl MonotoneCubicInverse {
     pub fn forward(&self) -> &MonotoneCubic {
         &self.forward
     }
+}
+
+impl InverseSegment {
+    /// From the interval's forward cubic (its f32 coefficients, widened to f64).
+    fn new(segment: &CubicSegment) -> Self {
+        let width_kpa = f64::from(segment.width);
+        let rise = f64::from(segment.value_at(segment.width)) - f64::from(segment.coefficients[0]);
+        let (slope_min, slope_max) = segment.slope_range(0.0, width_kpa);
+        if !(width_kpa > 0.0 && rise > 0.0) {
+            return Self {
+                start: [0.0; 3],
+                error_bound_per_kpa: f32::INFINITY,
+            };
+        }
+        let secant = width_kpa / rise;
+        let limit = 3.0 * secant;
+        let inverse_slope = |tangent: f64| {
+            if tangent > 1.0 / limit {
+                1.0 / tangent
+            } else {
+                limit
+            }
+        };
+        let (g0, g1) = (
+            inverse_slope(segment.slope_range(0.0, 0.0).0),
+            inverse_slope(segment.slope_range(width_kpa, width_kpa).0),
+        );
+        let start = [
+            g0 as f32,
+            ((3.0 * secant - 2.0 * g0 - g1) / rise) as f32,
+            ((g0 + g1 - 2.0 * secant) / (rise * rise)) as f32,
+        ];
+        let bound = segment.curvature_max() * slope_max * slope_max
+            / (2.0 * slope_min * slope_min * slope_min);
+        let error_bound_per_kpa = if slope_min > 0.0 && bound.is_finite() && bound < 1.0e30 {
+            bound as f32
+        } else {
+            f32::INFINITY
+        };
+        Self {
+            start,
+            error_bound_per_kpa,
+        }
+    }
+
+    #[inline(always)]
+    fn start(&self, rise: f32) -> f32 {
+        let [g1, g2, g3] = self.start;
+        rise * (g1 + rise * (g2 + rise * g3))
+    }
+}
+
+/// Stage 2 of the module doc: the bracketed, safeguarded Newton iteration from `s`.
+#[inline(never)]
+fn solve_bracketed(segment: &CubicSegment, error_bound_per_kpa: f32, y: f32, mut s: f32) -> f32 {
+    let tolerance = segment.width * BRACKET_RELATIVE_WIDTH;
+    let (mut low, mut high) = (0.0f32, segment.width);
+    // Bracket width when the last Newton step was taken (infinite after a bisection).
+    let mut width_at_newton = f32::INFINITY;
+    for _ in 0..MAX_BRACKETED_ITERATIONS {
+        let residual = segment.value_at(s) - y;
+        if residual > 0.0 {
+            high = s;
+        } else if residual < 0.0 {
+            low = s;
+        } else {
+            return s;
+        }
+        let width = high - low;
+        if !(width > tolerance) {
+            break;
+        }
+        let step = residual / segment.slope_at(s);
+        let newton = s - step;
+        if width <= 0.5 * width_at_newton && newton > low && newton < high {
+            if error_bound_per_kpa * step * step <= ACCEPTED_ERROR_KPA {
+                return newton;
+            }
+            width_at_newton = width;
+            s = newton;
+        } else {
+            width_at_newton = f32::INFINITY;
+            s = 0.5 * (low + high);
+            if !(s > low && s < high) {
+                break;
+            }
+        }
+    }
+    0.5 * (low + high)
 }
 
 impl InverseCurve for MonotoneCubicInverse {
@@ -58,21 +190,22 @@ impl InverseCurve for MonotoneCubicInverse {
         {
             index += 1;
         }
-        let Some(segment) = segments.get(index) else {
+        let (Some(segment), Some(inverse)) =
+            (segments.get(index), self.inverse_segments.get(index))
+        else {
             return 0.0;
         };
-        let target = relative_change - segment.coefficients[0];
-        let mut s = target * self.kpa_per_relative_change[index];
-        for _ in 0..NEWTON_STEPS {
-            let residual = segment.value_at(s) - relative_change;
-            let slope = segment.slope_at(s);
-            // A flat spot (only possible at an interval end) ends the iteration rather than
-            // dividing by zero.
-            if !(slope > 0.0) {
-                break;
-            }
-            s = clamp_f32(s - residual / slope, 0.0, segment.width);
-        }
+        let start = clamp_f32(
+            inverse.start(relative_change - segment.coefficients[0]),
+            0.0,
+            segment.width,
+        );
+        let step = (segment.value_at(start) - relative_change) / segment.slope_at(start);
+        let s = if inverse.error_bound_per_kpa * step * step <= ACCEPTED_ERROR_KPA {
+            clamp_f32(start - step, 0.0, segment.width)
+        } else {
+            solve_bracketed(segment, inverse.error_bound_per_kpa, relative_change, start)
+        };
         clamp_pressure(segment.x_start + s, self.top_pressure_kpa)
     }
 }

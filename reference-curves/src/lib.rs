@@ -1,0 +1,16 @@
+//! Independent references for model-core's tests, written without model-core:
+//!
+//! - [`ForwardCubic`]: the Fritsch–Carlson monotone cubic through calibration points, in f64
+//!   Hermite form, and its inverse by bisection;
+//! - [`hard_calibration`]: a deterministic generator of valid but ill-conditioned calibration
+//!   curves (2 to 16 points, unequal spacing, nearly equal neighbours, a nearly flat top, a steep
+//!   start), as f32 points the way a calibration file or flash record holds them.
+//!
+//! Used by model-core's property tests, by the on-target test's golden vectors and by the fuzz
+//! target, so all three check the same things against the same reference.
+
+mod cubic;
+mod hard;
+
+pub use cubic::ForwardCubic;
+pub use hard::{hard_calibration, CurveShape, HARD_CALIBRATION_POINTS_MAX};
