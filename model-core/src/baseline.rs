@@ -43,7 +43,18 @@ pub enum BaselineError {
     ImplausiblySmall,
     /// Too few valid sample sets were seen during the tare.
     TooFewSamples,
+    /// The pad was not still during the tare (pressed, moving, or the lead disturbed): the
+    /// readings spread by more than converter noise explains ([`TARE_STILL_SPREAD_PF`]).
+    NotStill {
+        /// Standard deviation of the taxel's readings during the tare, fF.
+        spread_ff: u32,
+    },
 }
+
+/// Largest standard deviation of a taxel's readings over a tare, pF: ten times the converter's
+/// 0.5 fF rms noise. A press of 0.1 kPa on the article's curve moves 4.5 pF by about 4 fF, so a
+/// tare taken while the pad is touched or moving spreads well beyond it.
+pub const TARE_STILL_SPREAD_PF: f64 = 0.005;
 
 impl Baseline {
     /// A baseline from an unloaded capacitance measured at `temperature_c`.
@@ -178,6 +189,10 @@ pub struct TareAccumulator {
     seen: u16,
     offset_sums_pf: [f64; TAXEL_COUNT],
     fine_sums_pf: [f64; TAXEL_COUNT],
+    // Deviations from each taxel's first reading (so the spread has no cancellation).
+    first_pf: [Option<f64>; TAXEL_COUNT],
+    deviation_sums_pf: [f64; TAXEL_COUNT],
+    deviation_squares_pf2: [f64; TAXEL_COUNT],
     counts: [u16; TAXEL_COUNT],
     temperature_sum_c: f64,
 }
@@ -190,6 +205,9 @@ impl TareAccumulator {
             seen: 0,
             offset_sums_pf: [0.0; TAXEL_COUNT],
             fine_sums_pf: [0.0; TAXEL_COUNT],
+            first_pf: [None; TAXEL_COUNT],
+            deviation_sums_pf: [0.0; TAXEL_COUNT],
+            deviation_squares_pf2: [0.0; TAXEL_COUNT],
             counts: [0; TAXEL_COUNT],
             temperature_sum_c: 0.0,
         }
@@ -211,6 +229,11 @@ impl TareAccumulator {
             if let Some(capacitance) = capacitance {
                 self.offset_sums_pf[taxel] += capacitance.offset_pf as f64;
                 self.fine_sums_pf[taxel] += capacitance.fine_pf as f64;
+                let total_pf = capacitance.offset_pf as f64 + capacitance.fine_pf as f64;
+                let first_pf = *self.first_pf[taxel].get_or_insert(total_pf);
+                let deviation_pf = total_pf - first_pf;
+                self.deviation_sums_pf[taxel] += deviation_pf;
+                self.deviation_squares_pf2[taxel] += deviation_pf * deviation_pf;
                 self.counts[taxel] += 1;
             }
         }
@@ -219,7 +242,8 @@ impl TareAccumulator {
         self.seen >= self.requested
     }
 
-    /// The baselines, per taxel; a taxel needs valid readings in at least half of the sets.
+    /// The baselines, per taxel; a taxel needs valid readings in at least half of the sets, and
+    /// readings that stayed still (spread within [`TARE_STILL_SPREAD_PF`]).
     pub fn finish(
         &self,
         parasitic_pf: &[f32; TAXEL_COUNT],
@@ -232,6 +256,15 @@ impl TareAccumulator {
             let count = self.counts[taxel];
             if count < needed {
                 return Err(BaselineError::TooFewSamples);
+            }
+            let mean_deviation_pf = self.deviation_sums_pf[taxel] / count as f64;
+            let variance_pf2 = self.deviation_squares_pf2[taxel] / count as f64
+                - mean_deviation_pf * mean_deviation_pf;
+            let spread_pf = libm::sqrt(variance_pf2.max(0.0));
+            if !(spread_pf <= TARE_STILL_SPREAD_PF) {
+                return Err(BaselineError::NotStill {
+                    spread_ff: (spread_pf * 1000.0).min(u32::MAX as f64) as u32,
+                });
             }
             let mean = SplitCapacitance {
                 offset_pf: (self.offset_sums_pf[taxel] / count as f64) as f32,

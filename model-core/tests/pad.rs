@@ -495,3 +495,49 @@ fn an_impossible_capacitance_is_invalid_input() {
         assert_eq!(output.pressure_kpa(), None);
     }
 }
+
+/// A tare taken while the pad is pressed and moving is refused, with the spread as the reason;
+/// before the fix it was silently accepted and every later reading was offset by the press.
+#[test]
+fn a_tare_while_pressed_or_moving_is_refused() {
+    let mut pad = PadModel::new(Calibration::default());
+    pad.start_tare(8);
+    // A press ramping from 0 to about 2 kPa on c11 during the tare: C grows 0.5 % per step.
+    for step in 0..8 {
+        let pressed = SENSOR_PF * (1.0 + 0.005 * step as f32);
+        pad.process(&SampleInput::new(
+            [
+                TaxelReading::CapacitancePf(pressed),
+                TaxelReading::CapacitancePf(SENSOR_PF),
+                TaxelReading::CapacitancePf(SENSOR_PF),
+                TaxelReading::CapacitancePf(SENSOR_PF),
+            ],
+            Some(25.0),
+        ));
+    }
+    assert_eq!(
+        pad.tare_status(),
+        TareStatus::Finished { tared_mask: 0b1110 }
+    );
+    match pad.last_tare_errors()[0] {
+        // By hand: steps of 22.5 fF over 8 sets, standard deviation 22.5 x sqrt(21/4) = 51.6 fF.
+        Some(model_core::BaselineError::NotStill { spread_ff }) => {
+            assert!((50..=53).contains(&spread_ff), "{spread_ff}")
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(pad.baselines()[0].is_none());
+    // A still pad with converter-sized noise (+-0.5 fF) tares.
+    pad.start_tare(8);
+    for step in 0..8 {
+        let noisy = SENSOR_PF + if step % 2 == 0 { 0.0005 } else { -0.0005 };
+        pad.process(&SampleInput::new(
+            [TaxelReading::CapacitancePf(noisy); 4],
+            Some(25.0),
+        ));
+    }
+    assert_eq!(
+        pad.tare_status(),
+        TareStatus::Finished { tared_mask: 0b1111 }
+    );
+}

@@ -40,6 +40,9 @@ the averaged levels (pressure, dC/C0); it must start at 0 kPa and increase stric
 data set is refused with the taxel and level that fail.\n\n\
 Each tier's error is reported with leave-one-out cross-validation: every interior level is \
 predicted from a curve built without it.\n\n\
+Conditioning: per taxel and interval, the rms pressure noise that 0.5 fF of converter noise \
+causes there; intervals over --budget-kpa are warned about (the calibration is still written: \
+a nearly flat stretch of the curve is information, not an error).\n\n\
 Output: a calibration file (JSON, format taxel-calibration version 1). With --upload the \
 calibration is written to the device (WriteCalibration per taxel, then SaveCalibration with \
 --save). To upload an existing file, give --calibration FILE instead of a load file.";
@@ -76,6 +79,10 @@ pub struct CalibrateArgs {
     /// How long to wait for each reply from the device, ms.
     #[arg(long, value_name = "MS", default_value_t = 2000)]
     pub timeout_ms: u64,
+    /// Pressure noise budget of the use case, kPa: intervals where 0.5 fF of converter noise
+    /// moves the pressure by more are warned about (the gripper use case's 0.5 kPa by default).
+    #[arg(long, value_name = "KPA", default_value_t = model_core::UseCase::GRIPPER.error_budget_kpa)]
+    pub budget_kpa: f32,
 }
 
 /// Why a data set cannot be turned into a calibration.
@@ -571,6 +578,48 @@ pub fn levels_table(data: &ReferenceData) -> String {
     table
 }
 
+/// Per taxel and calibration interval, the rms pressure noise that the converter's 0.5 fF causes
+/// there (on the taxel's measured C0 - Cp), and one warning per interval above `budget_kpa`.
+pub fn conditioning_report(
+    calibration: &Calibration,
+    unloaded_sensor_pf: &[f64; TAXEL_COUNT],
+    budget_kpa: f32,
+) -> (String, Vec<String>) {
+    let mut table = String::new();
+    let mut warnings = Vec::new();
+    let _ = writeln!(
+        table,
+        "{:>6} {:>18} {:>14}",
+        "taxel", "interval_kpa", "noise_kpa"
+    );
+    for (taxel, (name, taxel_calibration)) in
+        TAXEL_NAMES.iter().zip(calibration.taxels()).enumerate()
+    {
+        let inverses = TaxelInverses::new(&taxel_calibration.curve);
+        let sensor_pf = unloaded_sensor_pf.get(taxel).copied().unwrap_or(f64::NAN) as f32;
+        for interval in model_core::conditioning::interval_noise(
+            inverses.monotone_cubic().forward(),
+            sensor_pf,
+            model_core::conditioning::CONVERTER_NOISE_PF,
+        ) {
+            let span = format!(
+                "{}..{}",
+                interval.pressure_low_kpa, interval.pressure_high_kpa
+            );
+            let _ = writeln!(table, "{name:>6} {span:>18} {:>14.4}", interval.noise_kpa);
+            if !(interval.noise_kpa <= budget_kpa) {
+                warnings.push(format!(
+                    "warning: taxel {name}, {span} kPa: 0.5 fF of converter noise moves the \
+                     pressure by {:.3} kPa rms, over the {budget_kpa} kPa budget (neighbouring \
+                     levels nearly equal in dC/C0: pressure is poorly determined there)",
+                    interval.noise_kpa
+                ));
+            }
+        }
+    }
+    (table, warnings)
+}
+
 /// The wire record of one taxel's calibration.
 pub fn taxel_record(
     calibration: &Calibration,
@@ -671,6 +720,16 @@ pub fn run(args: &CalibrateArgs) -> anyhow::Result<ExitCode> {
                  where the tier was available):"
             );
             print!("{}", cross_validation_table(&results));
+            let (conditioning, warnings) =
+                conditioning_report(&calibration, &data.unloaded_sensor_pf, args.budget_kpa);
+            println!(
+                "\nConditioning: rms pressure noise from 0.5 fF of converter noise, worst point \
+                 of each interval:"
+            );
+            print!("{conditioning}");
+            for warning in &warnings {
+                eprintln!("{warning}");
+            }
             calibration_file::write(output_path, &calibration)?;
             eprintln!(
                 "wrote calibration id {} to {}",
@@ -745,5 +804,33 @@ mod tests {
         let error = piecewise.leave_one_out_kpa[0].unwrap();
         assert!((error - expected).abs() < 1e-3, "{error} vs {expected}");
         assert_eq!(piecewise.fit_max_kpa.map(|error| error < 1e-3), Some(true));
+    }
+
+    #[test]
+    fn conditioning_names_the_flat_interval_and_warns_over_budget() {
+        let mut spec = CalibrationSpec::default();
+        spec.taxels[1].points = heapless::Vec::from_slice(&[
+            CurvePoint::new(0.0, 0.0),
+            CurvePoint::new(10.0, 0.1),
+            CurvePoint::new(20.0, 0.10001),
+            CurvePoint::new(30.0, 0.15),
+        ])
+        .unwrap();
+        let calibration = Calibration::new(&spec).unwrap();
+        let (table, warnings) = conditioning_report(&calibration, &[4.5; 4], 0.5);
+        // The article's curve on c11: its first interval by hand, 0.5 fF / 4.5 pF over the
+        // Fritsch-Carlson slope there (at least the 0.00738 /kPa end tangent): under 0.016 kPa.
+        let first = table.lines().nth(1).unwrap();
+        assert!(first.contains("c11") && first.contains("0..10"), "{first}");
+        let noise: f32 = first.split_whitespace().last().unwrap().parse().unwrap();
+        assert!(noise > 0.011 && noise < 0.016, "{noise}");
+        // The 10..20 kPa interval of c12 rises by 1e-5: about 1.1e-4 / 1e-6 = 111 kPa or worse.
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.contains("c12") && w.contains("10..20")),
+            "{warnings:?}"
+        );
+        assert!(warnings.iter().all(|w| w.contains("c12")), "{warnings:?}");
     }
 }
