@@ -9,7 +9,8 @@ use fdc1004::Error;
 pub struct Counters {
     /// Sample sets the consumer's queue could not take.
     pub dropped_sets: u32,
-    /// Converter initialisations, the first one included.
+    /// Converter initialisations: the first one and every one after an error (one that only
+    /// applies a requested rate change is not counted).
     pub converter_inits: u32,
     /// I2C transfers to the converter that failed.
     pub i2c_errors: u32,
@@ -39,7 +40,7 @@ impl Counters {
         *counter = counter.wrapping_add(1);
     }
 
-    /// Converter re-initialisations after the first one.
+    /// Converter re-initialisations after an error (initialisations after the first one).
     pub fn converter_reinits(&self) -> u32 {
         self.converter_inits.saturating_sub(1)
     }

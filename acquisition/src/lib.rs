@@ -8,6 +8,7 @@
 //! stops the stream.
 #![no_std]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 mod counters;
 mod sink;
@@ -102,6 +103,8 @@ pub struct Acquisition<I2C, D, T, F, K> {
     stuck: StuckDetector,
     sequence: u32,
     converter_ready: bool,
+    // The next initialisation applies a requested change, so it is no recovery to count.
+    reconfiguration_requested: bool,
     primary_failing_cycles: Option<u16>,
     fallback_offset: FallbackOffset,
     delay_after_failure: D,
@@ -161,6 +164,7 @@ where
             stuck: StuckDetector::new(config.stuck_after_cycles),
             sequence: 0,
             converter_ready: false,
+            reconfiguration_requested: false,
             primary_failing_cycles: None,
             fallback_offset: FallbackOffset {
                 offset_c: None,
@@ -194,12 +198,17 @@ where
         self.converter.config().rate
     }
 
-    /// Changes the converter's rate; takes effect through a re-initialisation on the next cycle.
+    /// Changes the converter's rate, its DONE timeout following it
+    /// ([`fdc1004::Config::with_rate`]). Takes effect through an initialisation on the next
+    /// cycle; that one is a requested reconfiguration, not a recovery, so it is not counted in
+    /// [`Counters::converter_inits`] (unless the converter was waiting for a recovery anyway).
     pub fn set_rate(&mut self, rate: Rate) {
-        let mut config = *self.converter.config();
-        config.rate = rate;
+        let config = self.converter.config().with_rate(rate);
         self.converter.set_config(config);
-        self.converter_ready = false;
+        if self.converter_ready {
+            self.reconfiguration_requested = true;
+            self.converter_ready = false;
+        }
     }
 
     /// Counts a sample set the consumer could not take.
@@ -231,19 +240,20 @@ where
             Some(codes) => {
                 let capdac = self.converter.config().capdac;
                 let stuck = self.stuck.update(&codes);
-                for (taxel, is_stuck) in stuck.iter().enumerate() {
-                    if *is_stuck {
-                        reading_flags[taxel] |= TaxelFlags::STUCK;
+                for (flags, is_stuck) in reading_flags.iter_mut().zip(stuck) {
+                    if is_stuck {
+                        *flags |= TaxelFlags::STUCK;
                     }
                 }
                 if stuck.iter().any(|is_stuck| *is_stuck) {
                     self.counters.stuck_events = self.counters.stuck_events.wrapping_add(1);
                     self.converter_ready = false;
                 }
-                core::array::from_fn(|taxel| TaxelReading::Raw {
-                    code: codes[taxel],
-                    capdac: capdac[taxel],
-                })
+                let mut readings = [TaxelReading::Unavailable; TAXEL_COUNT];
+                for ((reading, code), capdac) in readings.iter_mut().zip(codes).zip(capdac) {
+                    *reading = TaxelReading::Raw { code, capdac };
+                }
+                readings
             }
             None => {
                 reading_flags = [TaxelFlags::CONVERTER_ERROR; TAXEL_COUNT];
@@ -256,15 +266,17 @@ where
                 *flags |= TaxelFlags::TEMPERATURE_FALLBACK;
             }
         }
+        let timestamp_us = self.clock.now_us();
         let input = SampleInput {
             readings,
             reading_flags,
             temperature_c,
+            time_us: Some(timestamp_us),
         };
         let output = self.pad.process(&input);
         let sample = ProcessedSample {
             sequence: self.sequence,
-            timestamp_us: self.clock.now_us(),
+            timestamp_us,
             input,
             temperature_origin,
             output,
@@ -276,7 +288,9 @@ where
 
     async fn read_converter(&mut self) -> Option<[i32; TAXEL_COUNT]> {
         if !self.converter_ready {
-            self.counters.converter_inits = self.counters.converter_inits.wrapping_add(1);
+            if !core::mem::take(&mut self.reconfiguration_requested) {
+                self.counters.converter_inits = self.counters.converter_inits.wrapping_add(1);
+            }
             if let Err(error) = self.converter.init().await {
                 self.counters.count_converter_error(&error);
                 self.delay_after_failure

@@ -33,14 +33,15 @@ impl StuckDetector {
     /// repeats is a fault, not a quiet pad: one channel frozen while the others move, or the whole
     /// converter returning stale results.
     pub fn update(&mut self, codes: &[i32; TAXEL_COUNT]) -> [bool; TAXEL_COUNT] {
-        if let Some(previous) = self.previous_codes {
-            for taxel in 0..TAXEL_COUNT {
+        if let Some(previous_codes) = self.previous_codes {
+            let channels = self.repeats.iter_mut().zip(codes).zip(previous_codes);
+            for ((repeats, &code), previous_code) in channels {
                 // A saturation code repeats by nature and is flagged as saturated already.
-                let saturated = matches!(codes[taxel], SATURATED_HIGH_CODE | SATURATED_LOW_CODE);
-                if codes[taxel] == previous[taxel] && !saturated {
-                    self.repeats[taxel] = self.repeats[taxel].saturating_add(1);
+                let saturated = matches!(code, SATURATED_HIGH_CODE | SATURATED_LOW_CODE);
+                if code == previous_code && !saturated {
+                    *repeats = repeats.saturating_add(1);
                 } else {
-                    self.repeats[taxel] = 0;
+                    *repeats = 0;
                 }
             }
         }

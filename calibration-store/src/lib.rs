@@ -17,6 +17,7 @@
 //! [`CalibrationSpec`]: model_core::CalibrationSpec
 #![no_std]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 mod page_view;
 #[cfg(feature = "ram-flash")]

@@ -253,6 +253,16 @@ impl<const SIZE: usize, const PAGE: usize> RamFlash<SIZE, PAGE> {
         Ok(start..end)
     }
 
+    /// The bytes of a range [`Self::range`] accepted.
+    fn area(&self, range: core::ops::Range<usize>) -> Result<&[u8], RamFlashError> {
+        self.bytes.get(range).ok_or(RamFlashError::OutOfBounds)
+    }
+
+    /// The bytes of a range [`Self::range`] accepted, to change.
+    fn area_mut(&mut self, range: core::ops::Range<usize>) -> Result<&mut [u8], RamFlashError> {
+        self.bytes.get_mut(range).ok_or(RamFlashError::OutOfBounds)
+    }
+
     /// Counts a write/erase against the power-loss schedule: `Some(tear)` if this one is torn.
     fn consume_operation(&mut self) -> Option<Tear> {
         match self.power {
@@ -302,7 +312,7 @@ impl<const SIZE: usize, const PAGE: usize> ReadNorFlash for RamFlash<SIZE, PAGE>
     async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
         self.check_power()?;
         let range = self.range(offset, bytes.len())?;
-        bytes.copy_from_slice(&self.bytes[range]);
+        bytes.copy_from_slice(self.area(range)?);
         Ok(())
     }
 
@@ -328,14 +338,16 @@ impl<const SIZE: usize, const PAGE: usize> NorFlash for RamFlash<SIZE, PAGE> {
             return Ok(());
         }
         let Some(tear) = self.consume_operation() else {
-            self.bytes[range].fill(ERASED_BYTE);
+            self.area_mut(range)?.fill(ERASED_BYTE);
             self.erases += 1;
             return Ok(());
         };
         let words = range.len() / RAM_FLASH_WORD_SIZE;
         let done = self.record_power_loss(OperationKind::Erase, from, words, tear);
-        let area = &mut self.bytes[range];
-        let (erased, rest) = area.split_at_mut(done * RAM_FLASH_WORD_SIZE);
+        let (erased, rest) = self
+            .area_mut(range)?
+            .split_at_mut_checked(done * RAM_FLASH_WORD_SIZE)
+            .ok_or(RamFlashError::OutOfBounds)?;
         erased.fill(ERASED_BYTE);
         if let Some(partial) = rest.first_chunk_mut::<RAM_FLASH_WORD_SIZE>() {
             let value = u32::from_le_bytes(*partial) | tear.partial_word_mask;
@@ -355,8 +367,8 @@ impl<const SIZE: usize, const PAGE: usize> NorFlash for RamFlash<SIZE, PAGE> {
         if bytes.is_empty() {
             return Ok(());
         }
-        let area = &self.bytes[range.clone()];
-        if let Some(index) = area
+        if let Some(index) = self
+            .area(range.clone())?
             .iter()
             .zip(bytes)
             .position(|(&stored, &new)| stored & new != new)
@@ -366,7 +378,7 @@ impl<const SIZE: usize, const PAGE: usize> NorFlash for RamFlash<SIZE, PAGE> {
             });
         }
         let Some(tear) = self.consume_operation() else {
-            for (stored, new) in self.bytes[range].iter_mut().zip(bytes) {
+            for (stored, new) in self.area_mut(range)?.iter_mut().zip(bytes) {
                 *stored &= new;
             }
             self.writes += 1;
@@ -375,12 +387,16 @@ impl<const SIZE: usize, const PAGE: usize> NorFlash for RamFlash<SIZE, PAGE> {
         let words = bytes.len() / RAM_FLASH_WORD_SIZE;
         let done = self.record_power_loss(OperationKind::Write, offset, words, tear);
         let done_len = done * RAM_FLASH_WORD_SIZE;
-        let area = &mut self.bytes[range];
-        for (stored, new) in area.iter_mut().zip(&bytes[..done_len]) {
+        let area = self.area_mut(range)?;
+        for (stored, new) in area.iter_mut().zip(bytes).take(done_len) {
             *stored &= new;
         }
-        let partial_source = bytes[done_len..].first_chunk::<RAM_FLASH_WORD_SIZE>();
-        let partial_target = area[done_len..].first_chunk_mut::<RAM_FLASH_WORD_SIZE>();
+        let partial_source = bytes
+            .get(done_len..)
+            .and_then(<[u8]>::first_chunk::<RAM_FLASH_WORD_SIZE>);
+        let partial_target = area
+            .get_mut(done_len..)
+            .and_then(<[u8]>::first_chunk_mut::<RAM_FLASH_WORD_SIZE>);
         if let (Some(source), Some(target)) = (partial_source, partial_target) {
             let new = u32::from_le_bytes(*source);
             let value = u32::from_le_bytes(*target) & (new | !tear.partial_word_mask);

@@ -138,12 +138,13 @@ pub fn encode_record(
             other => RecordError::Postcard(other),
         })?
         .len();
-    let crc_start = HEADER_LEN + body_len;
-    let crc = RECORD_CRC.checksum(&out[..crc_start]);
-    out.get_mut(crc_start..crc_start + CRC_LEN)
-        .ok_or(RecordError::BufferTooSmall)?
-        .copy_from_slice(&crc.to_le_bytes());
-    Ok(crc_start + CRC_LEN)
+    let record_len = HEADER_LEN + body_len + CRC_LEN;
+    let (checked, crc) = out
+        .get_mut(..record_len)
+        .and_then(<[u8]>::split_last_chunk_mut::<CRC_LEN>)
+        .ok_or(RecordError::BufferTooSmall)?;
+    *crc = RECORD_CRC.checksum(checked).to_le_bytes();
+    Ok(record_len)
 }
 
 /// Reads a record that fills `bytes` exactly and returns its calibration, validated.

@@ -422,7 +422,9 @@ impl<F: NorFlash> CalibrationStore<F> {
         let save_counter = newest.map_or(0, |counter| counter.saturating_add(1));
         let record_len =
             encode_record(spec, save_counter, &mut record).map_err(StoreError::Record)?;
-        let record = &record[..record_len];
+        let record = record
+            .get(..record_len)
+            .ok_or(StoreError::Record(RecordError::BufferTooSmall))?;
         let pruned = self.prune(newest).await?;
         if pruned.clean && self.append(record, save_counter).await {
             return Ok(());
@@ -537,11 +539,11 @@ impl<F: NorFlash> CalibrationStore<F> {
     /// valid record, every written page is erased.
     async fn prune(&mut self, newest: Option<u32>) -> Result<Pruned, StoreError<F::Error>> {
         let mut erased = [false; PAGE_COUNT as usize];
-        for page in 0..PAGE_COUNT {
-            erased[page as usize] = self.page_is_erased(page).await.map_err(StoreError::Flash)?;
+        for (page, page_erased) in (0..PAGE_COUNT).zip(erased.iter_mut()) {
+            *page_erased = self.page_is_erased(page).await.map_err(StoreError::Flash)?;
         }
-        for page in 0..PAGE_COUNT {
-            if erased[page as usize] {
+        for (page, page_erased) in (0..PAGE_COUNT).zip(erased.iter_mut()) {
+            if *page_erased {
                 continue;
             }
             let other_keeps_newest = match newest {
@@ -554,7 +556,7 @@ impl<F: NorFlash> CalibrationStore<F> {
             };
             if other_keeps_newest {
                 self.erase_page(page).await?;
-                erased[page as usize] = true;
+                *page_erased = true;
             }
         }
         let clean = match erased {
@@ -570,7 +572,9 @@ impl<F: NorFlash> CalibrationStore<F> {
             [false, false] => false,
         };
         Ok(Pruned {
-            erased_page: (0..PAGE_COUNT).find(|&page| erased[page as usize]),
+            erased_page: (0..PAGE_COUNT)
+                .zip(erased)
+                .find_map(|(page, page_erased)| page_erased.then_some(page)),
             clean,
         })
     }
@@ -674,7 +678,11 @@ impl<F: NorFlash> CalibrationStore<F> {
         let mut address = range.start;
         while address < range.end {
             let length = chunk_len.min((range.end - address) as usize);
-            let chunk = &mut self.item_buffer.0[..length];
+            // `length` is at most `chunk_len`, which fits the buffer; were it not, the page would
+            // count as written, which costs only an erase.
+            let Some(chunk) = self.item_buffer.0.get_mut(..length) else {
+                return Ok(false);
+            };
             self.map.flash().flash.read(address, chunk).await?;
             if chunk.iter().any(|&byte| byte != 0xFF) {
                 return Ok(false);

@@ -4,9 +4,11 @@
 use acquisition::{Acquisition, Clock, Counters, ProcessedSample};
 use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;
-use fdc1004::Rate;
 use model_core::PadModel;
 use tmp117::TemperatureSource;
+use wire::SampleRate;
+
+use crate::convert::{converter_rate, wire_sample_rate};
 
 /// The acquisition loop as the device application sees it.
 #[allow(async_fn_in_trait)]
@@ -17,10 +19,10 @@ pub trait DeviceControl {
     fn pad(&self) -> &PadModel;
     /// The model, to change tier, calibration or tare.
     fn pad_mut(&mut self) -> &mut PadModel;
-    /// The converter rate, conversions per second.
-    fn rate_sps(&self) -> u16;
-    /// Sets the converter rate; false if the rate is not 100, 200 or 400.
-    fn set_rate_sps(&mut self, rate_sps: u16) -> bool;
+    /// The converter rate.
+    fn sample_rate(&self) -> SampleRate;
+    /// Sets the converter rate (its DONE timeout follows it); takes effect on the next cycle.
+    fn set_sample_rate(&mut self, rate: SampleRate);
     /// The loop's counters.
     fn counters(&self) -> Counters;
 }
@@ -45,19 +47,12 @@ where
         Acquisition::pad_mut(self)
     }
 
-    fn rate_sps(&self) -> u16 {
-        self.rate().samples_per_second() as u16
+    fn sample_rate(&self) -> SampleRate {
+        wire_sample_rate(self.rate())
     }
 
-    fn set_rate_sps(&mut self, rate_sps: u16) -> bool {
-        let rate = match rate_sps {
-            100 => Rate::Hz100,
-            200 => Rate::Hz200,
-            400 => Rate::Hz400,
-            _ => return false,
-        };
-        self.set_rate(rate);
-        true
+    fn set_sample_rate(&mut self, rate: SampleRate) {
+        self.set_rate(converter_rate(rate));
     }
 
     fn counters(&self) -> Counters {

@@ -1,14 +1,34 @@
 //! Between model/acquisition types and wire types.
 
 use acquisition::{Counters, ProcessedSample, TemperatureOrigin};
+use fdc1004::Rate;
 use heapless::Vec;
 use model_core::{Calibration, CurvePoint, PadModel, TaxelCalibrationSpec};
 use wire::{
-    CountersFrame, SampleFrame, TaxelCalibrationRecord, TaxelCalibrationWire, TaxelSample,
-    TemperatureSource,
+    CountersFrame, SampleFrame, SampleRate, TaxelCalibrationRecord, TaxelCalibrationWire,
+    TaxelSample, TemperatureSource,
 };
 
 use crate::HostCounters;
+
+/// The converter rate a wire sample rate selects. The numbers stay with their owners
+/// ([`SampleRate::sps`], [`Rate::samples_per_second`]); this only pairs the variants.
+pub const fn converter_rate(rate: SampleRate) -> Rate {
+    match rate {
+        SampleRate::Sps100 => Rate::Hz100,
+        SampleRate::Sps200 => Rate::Hz200,
+        SampleRate::Sps400 => Rate::Hz400,
+    }
+}
+
+/// The wire sample rate of a converter rate (the inverse of [`converter_rate`]).
+pub const fn wire_sample_rate(rate: Rate) -> SampleRate {
+    match rate {
+        Rate::Hz100 => SampleRate::Sps100,
+        Rate::Hz200 => SampleRate::Sps200,
+        Rate::Hz400 => SampleRate::Sps400,
+    }
+}
 
 /// The wire's name for where a sample's temperature came from.
 pub fn wire_temperature_source(sample: &ProcessedSample, pad: &PadModel) -> TemperatureSource {
@@ -55,35 +75,53 @@ pub fn counters_frame(counters: &Counters, host: &HostCounters) -> CountersFrame
     }
 }
 
-/// One taxel's calibration as a wire record; `None` for a taxel index out of range.
+/// Why a taxel calibration could not be carried between the model and the wire.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CalibrationConversionError {
+    /// The calibration has no taxel of this index.
+    NoSuchTaxel,
+    /// The curve has more points than the destination holds.
+    TooManyPoints,
+}
+
+/// One taxel's calibration as a wire record.
 pub fn calibration_record(
     calibration: &Calibration,
     taxel_index: u8,
-) -> Option<TaxelCalibrationRecord> {
-    let taxel = calibration.taxels().get(usize::from(taxel_index))?;
-    Some(TaxelCalibrationRecord {
+) -> Result<TaxelCalibrationRecord, CalibrationConversionError> {
+    let taxel = calibration
+        .taxels()
+        .get(usize::from(taxel_index))
+        .ok_or(CalibrationConversionError::NoSuchTaxel)?;
+    let mut points = Vec::new();
+    for point in taxel.curve.points() {
+        points
+            .push((point.pressure_kpa, point.relative_change))
+            .map_err(|_| CalibrationConversionError::TooManyPoints)?;
+    }
+    Ok(TaxelCalibrationRecord {
         taxel_index,
         calibration_id: calibration.id(),
         calibration: TaxelCalibrationWire {
-            points: taxel
-                .curve
-                .points()
-                .iter()
-                .map(|point| (point.pressure_kpa, point.relative_change))
-                .collect(),
+            points,
             parasitic_pf: taxel.parasitic_pf,
         },
     })
 }
 
 /// A wire calibration as model-core plain data (validated later by the model).
-pub fn taxel_calibration_spec(wire: &TaxelCalibrationWire) -> TaxelCalibrationSpec {
-    TaxelCalibrationSpec {
-        points: wire
-            .points
-            .iter()
-            .map(|(pressure_kpa, relative_change)| CurvePoint::new(*pressure_kpa, *relative_change))
-            .collect::<Vec<_, { model_core::calibration::MAX_CURVE_POINTS }>>(),
-        parasitic_pf: wire.parasitic_pf,
+pub fn taxel_calibration_spec(
+    wire: &TaxelCalibrationWire,
+) -> Result<TaxelCalibrationSpec, CalibrationConversionError> {
+    let mut points = Vec::new();
+    for &(pressure_kpa, relative_change) in &wire.points {
+        points
+            .push(CurvePoint::new(pressure_kpa, relative_change))
+            .map_err(|_| CalibrationConversionError::TooManyPoints)?;
     }
+    Ok(TaxelCalibrationSpec {
+        points,
+        parasitic_pf: wire.parasitic_pf,
+    })
 }

@@ -9,6 +9,7 @@
 //! - [`encode_outgoing`] turns them into bytes for the port.
 #![no_std]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 mod control;
 mod convert;
@@ -18,8 +19,8 @@ mod retained;
 
 pub use control::DeviceControl;
 pub use convert::{
-    calibration_record, counters_frame, sample_frame, taxel_calibration_spec,
-    wire_temperature_source,
+    calibration_record, converter_rate, counters_frame, sample_frame, taxel_calibration_spec,
+    wire_sample_rate, wire_temperature_source, CalibrationConversionError,
 };
 pub use host_input::{HostInput, HostInputEvent};
 pub use persistence::{CalibrationPersistence, PersistenceFailed};
@@ -29,7 +30,7 @@ use acquisition::{ProcessedSample, TemperatureOrigin};
 use model_core::{Calibration, TareStatus, Tier, UseCase};
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
-    InfoFrame, ReplyFrame, ReplyPayload, Request, SampleFrame, PROTOCOL_VERSION,
+    InfoFrame, ReplyFrame, ReplyPayload, Request, SampleFrame, SampleRate, PROTOCOL_VERSION,
 };
 
 /// Largest encoded output: a CSV line (283 bytes) or the largest frame (150 bytes).
@@ -201,7 +202,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             board_serial: self.identity.board_serial,
             calibration_id: self.control.pad().calibration().id(),
             calibration_source: self.calibration_source,
-            rate_sps: self.control.rate_sps(),
+            rate_sps: self.control.sample_rate().sps(),
             model_tier: self.control.pad().tier() as u8,
             streaming: self.streaming,
             text_mode: self.text_mode,
@@ -364,9 +365,12 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 self.streaming = false;
                 Ok(ReplyPayload::Ack)
             }
-            Command::SetRate { rate_sps } => match self.control.set_rate_sps(rate_sps) {
-                true => Ok(ReplyPayload::Ack),
-                false => Err(ErrorCode::InvalidArgument),
+            Command::SetRate { rate_sps } => match SampleRate::from_sps(rate_sps) {
+                Some(rate) => {
+                    self.control.set_sample_rate(rate);
+                    Ok(ReplyPayload::Ack)
+                }
+                None => Err(ErrorCode::InvalidArgument),
             },
             Command::Tare { sample_sets } => {
                 if self.pending_tare.is_some() {
@@ -398,24 +402,27 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             Command::ReadCalibration { taxel_index } => {
                 let calibration = self.control.pad().calibration();
                 match calibration_record(calibration, taxel_index) {
-                    Some(record) => Ok(ReplyPayload::Calibration(record)),
-                    None => Err(ErrorCode::InvalidArgument),
+                    Ok(record) => Ok(ReplyPayload::Calibration(record)),
+                    Err(_) => Err(ErrorCode::InvalidArgument),
                 }
             }
             Command::WriteCalibration(record) => {
-                let spec = taxel_calibration_spec(&record.calibration);
-                let updated = self.control.pad().calibration().clone().with_taxel(
-                    usize::from(record.taxel_index),
-                    &spec,
-                    record.calibration_id,
-                );
+                let updated = taxel_calibration_spec(&record.calibration)
+                    .ok()
+                    .and_then(|spec| {
+                        let calibration = self.control.pad().calibration().clone();
+                        let taxel = usize::from(record.taxel_index);
+                        calibration
+                            .with_taxel(taxel, &spec, record.calibration_id)
+                            .ok()
+                    });
                 match updated {
-                    Ok(calibration) => {
+                    Some(calibration) => {
                         self.control.pad_mut().set_calibration(calibration);
                         self.calibration_source = CalibrationSource::Host;
                         Ok(ReplyPayload::Ack)
                     }
-                    Err(_) => Err(ErrorCode::InvalidArgument),
+                    None => Err(ErrorCode::InvalidArgument),
                 }
             }
             Command::SaveCalibration => {
@@ -450,10 +457,11 @@ pub fn encode_outgoing(outgoing: &Outgoing, buffer: &mut [u8]) -> Option<usize> 
     match outgoing {
         Outgoing::Frame(frame) => wire::encode_frame(frame, buffer).ok(),
         Outgoing::CsvHeader => {
-            let length = wire::CSV_HEADER.len() + 2;
-            let destination = buffer.get_mut(..length)?;
-            destination[..length - 2].copy_from_slice(wire::CSV_HEADER.as_bytes());
-            destination[length - 2..].copy_from_slice(b"\r\n");
+            let header = wire::CSV_HEADER.as_bytes();
+            let length = header.len() + 2;
+            let (line, line_end) = buffer.get_mut(..length)?.split_last_chunk_mut::<2>()?;
+            line.copy_from_slice(header);
+            *line_end = *b"\r\n";
             Some(length)
         }
         Outgoing::CsvLine(sample) => {

@@ -15,11 +15,20 @@ use crc::{Crc, CRC_32_ISO_HDLC};
 use model_core::{BaselineRecord, PadModel, SplitCapacitance, Tier, TAXEL_COUNT};
 
 /// Bytes of the record.
-pub const RETAINED_LEN: usize = 4 + 1 + TAXEL_COUNT * 13 + 1 + 4;
+pub const RETAINED_LEN: usize = CRC_AT + 4;
 
 const MAGIC: [u8; 4] = *b"TXRS";
 const FORMAT_VERSION: u8 = 1;
 const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+
+// Where each part of the record starts. The record is an array of constant length, so every
+// index below is a constant the compiler checks against it.
+const VERSION_AT: usize = MAGIC.len();
+const SLOTS_AT: usize = VERSION_AT + 1;
+/// Bytes of one taxel's slot: presence, offset pF, fine pF, temperature °C.
+const SLOT_LEN: usize = 13;
+const TIER_AT: usize = SLOTS_AT + TAXEL_COUNT * SLOT_LEN;
+const CRC_AT: usize = TIER_AT + 1;
 
 /// What survives an MCU-only reset.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,65 +43,68 @@ impl RetainedState {
     /// The record's bytes.
     pub fn encode(&self) -> [u8; RETAINED_LEN] {
         let mut bytes = [0u8; RETAINED_LEN];
-        bytes[..4].copy_from_slice(&MAGIC);
-        bytes[4] = FORMAT_VERSION;
-        for (taxel, baseline) in self.baselines.iter().enumerate() {
-            let start = 5 + taxel * 13;
-            let slot = &mut bytes[start..start + 13];
+        bytes[..VERSION_AT].copy_from_slice(&MAGIC);
+        bytes[VERSION_AT] = FORMAT_VERSION;
+        let (slots, _) = bytes[SLOTS_AT..TIER_AT].as_chunks_mut::<SLOT_LEN>();
+        for (slot, baseline) in slots.iter_mut().zip(&self.baselines) {
             if let Some(record) = baseline {
-                slot[0] = 1;
-                slot[1..5].copy_from_slice(&record.capacitance.offset_pf.to_le_bytes());
-                slot[5..9].copy_from_slice(&record.capacitance.fine_pf.to_le_bytes());
-                slot[9..13].copy_from_slice(&record.temperature_c.to_le_bytes());
+                *slot = encode_slot(record);
             }
         }
-        let tier_at = 5 + TAXEL_COUNT * 13;
-        bytes[tier_at] = self.tier as u8;
-        let checksum = CRC.checksum(&bytes[..tier_at + 1]);
-        bytes[tier_at + 1..].copy_from_slice(&checksum.to_le_bytes());
+        bytes[TIER_AT] = self.tier as u8;
+        let checksum = CRC.checksum(&bytes[..CRC_AT]);
+        bytes[CRC_AT..].copy_from_slice(&checksum.to_le_bytes());
         bytes
     }
 
     /// The state in a record, or `None` when the bytes are not an intact record (RAM after a
     /// power-on holds noise; a torn write fails the CRC).
     pub fn decode(bytes: &[u8; RETAINED_LEN]) -> Option<Self> {
-        let tier_at = 5 + TAXEL_COUNT * 13;
         let stored = u32::from_le_bytes([
-            bytes[tier_at + 1],
-            bytes[tier_at + 2],
-            bytes[tier_at + 3],
-            bytes[tier_at + 4],
+            bytes[CRC_AT],
+            bytes[CRC_AT + 1],
+            bytes[CRC_AT + 2],
+            bytes[CRC_AT + 3],
         ]);
-        if bytes[..4] != MAGIC
-            || bytes[4] != FORMAT_VERSION
-            || CRC.checksum(&bytes[..tier_at + 1]) != stored
+        if bytes[..VERSION_AT] != MAGIC
+            || bytes[VERSION_AT] != FORMAT_VERSION
+            || CRC.checksum(&bytes[..CRC_AT]) != stored
         {
             return None;
         }
-        let float = |at: usize| {
-            f32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]])
-        };
         let mut baselines = [None; TAXEL_COUNT];
-        for (taxel, baseline) in baselines.iter_mut().enumerate() {
-            let start = 5 + taxel * 13;
-            match bytes[start] {
-                0 => {}
-                1 => {
-                    *baseline = Some(BaselineRecord {
-                        capacitance: SplitCapacitance {
-                            offset_pf: float(start + 1),
-                            fine_pf: float(start + 5),
-                        },
-                        temperature_c: float(start + 9),
-                    });
-                }
-                _ => return None,
-            }
+        let (slots, _) = bytes[SLOTS_AT..TIER_AT].as_chunks::<SLOT_LEN>();
+        for (baseline, slot) in baselines.iter_mut().zip(slots) {
+            *baseline = decode_slot(slot)?;
         }
         Some(Self {
             baselines,
-            tier: Tier::from_id(bytes[tier_at])?,
+            tier: Tier::from_id(bytes[TIER_AT])?,
         })
+    }
+}
+
+/// One taxel's slot holding `record`: presence 1, then the three values as f32 LE.
+fn encode_slot(record: &BaselineRecord) -> [u8; SLOT_LEN] {
+    let [o0, o1, o2, o3] = record.capacitance.offset_pf.to_le_bytes();
+    let [f0, f1, f2, f3] = record.capacitance.fine_pf.to_le_bytes();
+    let [t0, t1, t2, t3] = record.temperature_c.to_le_bytes();
+    [1, o0, o1, o2, o3, f0, f1, f2, f3, t0, t1, t2, t3]
+}
+
+/// The baseline in a slot (`Some(None)` for an empty one), `None` for a bad presence byte.
+fn decode_slot(slot: &[u8; SLOT_LEN]) -> Option<Option<BaselineRecord>> {
+    let [present, o0, o1, o2, o3, f0, f1, f2, f3, t0, t1, t2, t3] = *slot;
+    match present {
+        0 => Some(None),
+        1 => Some(Some(BaselineRecord {
+            capacitance: SplitCapacitance {
+                offset_pf: f32::from_le_bytes([o0, o1, o2, o3]),
+                fine_pf: f32::from_le_bytes([f0, f1, f2, f3]),
+            },
+            temperature_c: f32::from_le_bytes([t0, t1, t2, t3]),
+        })),
+        _ => None,
     }
 }
 

@@ -16,7 +16,7 @@
 //! # where I2C: embedded_hal_async::i2c::I2c, D: embedded_hal_async::delay::DelayNs {
 //! use fdc1004::{Config, Fdc1004, Rate};
 //!
-//! let config = Config { rate: Rate::Hz400, capdac: [0; 4], ..Config::default() };
+//! let config = Config::new(Rate::Hz400, [0; 4]);
 //! let mut converter = Fdc1004::new(i2c, delay, config);
 //! converter.init().await?;
 //! let measurements = converter.read_measurements().await?;
@@ -27,6 +27,7 @@
 //! ```
 #![no_std]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;
@@ -51,6 +52,18 @@ pub const CODES_PER_PF: f32 = 524_288.0;
 
 /// Interval between two reads of FDC_CONF while waiting for the DONE bits, in microseconds.
 pub const DONE_POLL_INTERVAL_US: u32 = 500;
+
+/// Measurements in one converter cycle: one per taxel, CIN1..CIN4.
+pub const MEASUREMENTS_PER_CYCLE: u32 = 4;
+
+/// The DONE timeout as a percentage of one cycle's conversion time ([`Rate::cycle_time_us`]):
+/// 250 % leaves 150 % for the tolerance of the converter's internal oscillator, the I2C traffic
+/// and the scheduling between two polls, which the wait does not count.
+pub const DONE_TIMEOUT_PERCENT_OF_CYCLE: u32 = 250;
+
+/// Wait before the first bus access in [`Fdc1004::init`] unless configured otherwise, in
+/// microseconds: the device needs about 5 ms after power-up before it answers.
+pub const POWER_UP_DELAY_US: u32 = 5_000;
 
 /// How many times FDC_CONF is read after a software reset before giving up.
 pub const RESET_POLL_ATTEMPTS: u32 = 10;
@@ -160,6 +173,9 @@ pub enum Rate {
 }
 
 impl Rate {
+    /// Every rate, slowest first.
+    pub const ALL: [Rate; 3] = [Rate::Hz100, Rate::Hz200, Rate::Hz400];
+
     /// The RATE field value (FDC_CONF bits 11:10).
     pub const fn field_value(self) -> u16 {
         match self {
@@ -176,6 +192,24 @@ impl Rate {
             Rate::Hz200 => 200,
             Rate::Hz400 => 400,
         }
+    }
+
+    /// Duration of one conversion at this rate, in microseconds (1 / rate).
+    pub const fn conversion_time_us(self) -> u32 {
+        1_000_000 / self.samples_per_second()
+    }
+
+    /// Duration of one cycle of the four measurements in repeat mode, in microseconds
+    /// ([`MEASUREMENTS_PER_CYCLE`] conversions: 40 ms at 100 S/s, 10 ms at 400 S/s).
+    pub const fn cycle_time_us(self) -> u32 {
+        MEASUREMENTS_PER_CYCLE * self.conversion_time_us()
+    }
+
+    /// How long to wait for all four DONE flags at this rate, in microseconds:
+    /// [`DONE_TIMEOUT_PERCENT_OF_CYCLE`] of [`Rate::cycle_time_us`] (100 ms at 100 S/s, 50 ms
+    /// at 200 S/s, 25 ms at 400 S/s). The one place the timeout is derived from the rate.
+    pub const fn done_timeout_us(self) -> u32 {
+        self.cycle_time_us() / 100 * DONE_TIMEOUT_PERCENT_OF_CYCLE
     }
 }
 
@@ -218,6 +252,8 @@ pub struct Config {
     /// Keep it fixed between calibration and use: changing it shifts every reading.
     pub capdac: [u8; 4],
     /// How long [`Fdc1004::read_measurements`] waits for all four DONE flags, in microseconds.
+    /// It must follow the rate: [`Config::new`] and [`Config::with_rate`] set it to
+    /// [`Rate::done_timeout_us`]; set it by hand only to test the timeout itself.
     pub done_timeout_us: u32,
     /// Wait before the first bus access in [`Fdc1004::init`], in microseconds
     /// (the device needs about 5 ms after power-up before it answers).
@@ -225,19 +261,35 @@ pub struct Config {
 }
 
 impl Default for Config {
-    /// 100 S/s, CAPDAC 0 on every channel, 100 ms DONE timeout (2.5 times the 40 ms it takes
-    /// to complete four measurements at 100 S/s), 5 ms power-up delay.
+    /// 100 S/s and CAPDAC 0 on every channel, as [`Config::new`] makes them.
     fn default() -> Self {
-        Self {
-            rate: Rate::Hz100,
-            capdac: [0; 4],
-            done_timeout_us: 100_000,
-            power_up_delay_us: 5_000,
-        }
+        Self::new(Rate::Hz100, [0; 4])
     }
 }
 
 impl Config {
+    /// Settings for `rate` and `capdac`, with the DONE timeout derived from the rate
+    /// ([`Rate::done_timeout_us`]) and the [`POWER_UP_DELAY_US`] power-up delay.
+    pub const fn new(rate: Rate, capdac: [u8; 4]) -> Self {
+        Self {
+            rate,
+            capdac,
+            done_timeout_us: rate.done_timeout_us(),
+            power_up_delay_us: POWER_UP_DELAY_US,
+        }
+    }
+
+    /// The same settings at another rate, the DONE timeout following it
+    /// ([`Rate::done_timeout_us`]). Change the rate only this way: a timeout shorter than a
+    /// cycle turns every read into [`Error::DoneTimeout`].
+    pub const fn with_rate(self, rate: Rate) -> Self {
+        Self {
+            rate,
+            done_timeout_us: rate.done_timeout_us(),
+            ..self
+        }
+    }
+
     /// Checks the settings: every CAPDAC must be at most [`CAPDAC_MAX`].
     pub fn validate(&self) -> Result<(), InvalidConfig> {
         if self.capdac.iter().all(|&capdac| capdac <= CAPDAC_MAX) {
@@ -416,9 +468,12 @@ where
             });
         }
 
-        for (index, channel) in Channel::ALL.into_iter().enumerate() {
-            let address = register::CONF_MEAS[index];
-            let value = conf_meas_value(channel, self.config.capdac[index]);
+        let measurements = Channel::ALL
+            .into_iter()
+            .zip(register::CONF_MEAS)
+            .zip(self.config.capdac);
+        for ((channel, address), capdac) in measurements {
+            let value = conf_meas_value(channel, capdac);
             self.write_register(address, value).await?;
             let read = self.read_register(address).await?;
             if read != value {
@@ -457,9 +512,10 @@ where
     pub async fn read_measurements(&mut self) -> Result<Measurements, Error<I2C::Error>> {
         self.wait_for_done().await?;
         let mut measurements = Measurements::default();
-        for (index, code) in measurements.codes.iter_mut().enumerate() {
-            let msb = self.read_register(register::MEAS_MSB[index]).await?;
-            let lsb = self.read_register(register::MEAS_LSB[index]).await?;
+        let registers = register::MEAS_MSB.into_iter().zip(register::MEAS_LSB);
+        for (code, (msb_register, lsb_register)) in measurements.codes.iter_mut().zip(registers) {
+            let msb = self.read_register(msb_register).await?;
+            let lsb = self.read_register(lsb_register).await?;
             *code = decode_result(msb, lsb);
         }
         Ok(measurements)

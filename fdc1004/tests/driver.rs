@@ -323,6 +323,74 @@ fn default_config_matches_the_documented_values() {
     assert!(config.done_timeout_us > 40_000);
 }
 
+/// Samples per second of each rate and the time four measurements take at it in repeat mode
+/// (datasheet: each conversion takes 1/rate), re-declared here.
+const RATES_AND_FOUR_CONVERSIONS_US: [(Rate, u32); 3] = [
+    (Rate::Hz100, 4 * 1_000_000 / 100),
+    (Rate::Hz200, 4 * 1_000_000 / 200),
+    (Rate::Hz400, 4 * 1_000_000 / 400),
+];
+
+#[test]
+fn every_rate_has_a_done_timeout_longer_than_four_conversions() {
+    assert_eq!(
+        Rate::ALL.to_vec(),
+        RATES_AND_FOUR_CONVERSIONS_US.map(|(rate, _)| rate).to_vec()
+    );
+    for (rate, four_conversions_us) in RATES_AND_FOUR_CONVERSIONS_US {
+        assert_eq!(rate.cycle_time_us(), four_conversions_us, "{rate:?}");
+        let timeout_us = rate.done_timeout_us();
+        // At least a quarter more than the cycle, for the converter's oscillator tolerance and
+        // the bus traffic between polls; at most four cycles, so a lock-up is seen quickly.
+        assert!(
+            timeout_us >= four_conversions_us * 5 / 4,
+            "{rate:?}: {timeout_us} us"
+        );
+        assert!(
+            timeout_us <= four_conversions_us * 4,
+            "{rate:?}: {timeout_us} us"
+        );
+    }
+}
+
+#[test]
+fn the_done_timeout_follows_the_rate_however_the_config_is_made() {
+    for rate in Rate::ALL {
+        assert_eq!(
+            Config::new(rate, [3; 4]).done_timeout_us,
+            rate.done_timeout_us()
+        );
+        for from in Rate::ALL {
+            let config = Config::new(from, [0, 5, 17, 31]).with_rate(rate);
+            assert_eq!(config.rate, rate);
+            assert_eq!(config.done_timeout_us, rate.done_timeout_us());
+            assert_eq!(config.capdac, [0, 5, 17, 31]);
+            assert_eq!(config.power_up_delay_us, POWER_UP_DELAY_US);
+        }
+    }
+    assert_eq!(Config::default(), Config::new(Rate::Hz100, [0; 4]));
+}
+
+#[test]
+fn reading_waits_for_done_up_to_the_timeout_of_the_rate() {
+    // DONE_1..3 set, DONE_4 never: reads every 500 us until the rate's whole timeout has passed.
+    for rate in Rate::ALL {
+        let config = Config::new(rate, [0; 4]);
+        let polls = (config.done_timeout_us / DONE_POLL_INTERVAL_US) as usize;
+        let fdc_conf = fdc_conf_value(rate) | 0b1110;
+        let result = read_measurements_with(
+            config,
+            &vec![read(FDC_CONF, fdc_conf); polls + 1],
+            &vec![DelayTransaction::async_delay_us(DONE_POLL_INTERVAL_US); polls],
+        );
+        assert_eq!(
+            result,
+            Err(Error::DoneTimeout { done_bits: 0b1110 }),
+            "{rate:?}"
+        );
+    }
+}
+
 /// Runs `read_measurements` against the given expectations and checks every mock is consumed.
 fn read_measurements_with(
     config: Config,

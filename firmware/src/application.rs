@@ -29,13 +29,10 @@ use crate::watchdog;
 const CAPDAC_PER_CHANNEL: [u8; 4] = [0; 4];
 
 /// The fastest rate: four conversions (one per taxel) take about 10 ms, so about 100 sets/s.
+/// The DONE timeout follows from the rate (`fdc1004::Rate::done_timeout_us`), here and after a
+/// SetRate, and the power-up wait is the driver's (the FDC1004 answers about 5 ms after
+/// power-up).
 const CONVERTER_RATE: Rate = Rate::Hz400;
-
-/// 2.5 times the 10 ms four conversions take at 400 S/s.
-const CONVERTER_DONE_TIMEOUT_US: u32 = 25_000;
-
-/// The FDC1004 answers about 5 ms after power-up.
-const CONVERTER_POWER_UP_DELAY_US: u32 = 5_000;
 
 /// Sample sets averaged by the tare a power-on takes (the pad is taken to be unloaded then).
 const TARE_SETS_AT_POWER_ON: u16 = 16;
@@ -90,12 +87,7 @@ pub async fn acquisition_task(
     let converter = Fdc1004::new(
         I2cDevice::new(i2c_bus),
         Delay,
-        fdc1004::Config {
-            rate: CONVERTER_RATE,
-            capdac: CAPDAC_PER_CHANNEL,
-            done_timeout_us: CONVERTER_DONE_TIMEOUT_US,
-            power_up_delay_us: CONVERTER_POWER_UP_DELAY_US,
-        },
+        fdc1004::Config::new(CONVERTER_RATE, CAPDAC_PER_CHANNEL),
     );
     let (calibration, calibration_source) = persistence.load_at_boot().await;
     // Built outside the async body so the model exists once in the task's state, not twice.

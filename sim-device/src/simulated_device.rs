@@ -32,6 +32,9 @@ pub type SimulatedFlash = RamFlash<FLASH_SIZE, FLASH_PAGE>;
 /// the loaded input (up to about 7 pF) well inside the converter's +-16 pF.
 const CAPDAC: [u8; 4] = [1; 4];
 
+/// The converter's rate at boot, as the firmware's; the DONE timeout follows from it.
+const CONVERTER_RATE: Rate = Rate::Hz400;
+
 /// Sample sets averaged by the tare at power-on, as the firmware's.
 const TARE_SETS_AT_START: u16 = 16;
 
@@ -302,12 +305,7 @@ fn boot(
         let converter = Fdc1004::new(
             simulation.i2c(),
             simulation.delay(),
-            Config {
-                rate: Rate::Hz400,
-                capdac: CAPDAC,
-                done_timeout_us: 30_000,
-                power_up_delay_us: 5_000,
-            },
+            Config::new(CONVERTER_RATE, CAPDAC),
         );
         let mut pad = PadModel::new(calibration);
         plan.apply_to(&mut pad);

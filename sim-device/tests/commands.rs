@@ -6,8 +6,8 @@
 
 use sim_device::{MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 use wire::{
-    CalibrationSource, Command, DeviceFrame, DeviceFrameDecoder, ErrorCode, InfoFrame,
-    ReplyPayload, Request, SampleFrame, TaxelCalibrationRecord, UseCase,
+    CalibrationSource, Command, DeviceEvent, DeviceFrame, DeviceFrameDecoder, ErrorCode,
+    EventFrame, InfoFrame, ReplyPayload, Request, SampleFrame, TaxelCalibrationRecord, UseCase,
 };
 
 struct Host {
@@ -143,6 +143,79 @@ fn the_rate_changes_and_a_bad_rate_is_refused() {
     );
 }
 
+/// Sample sets streamed at each rate after the change.
+const SETS_PER_RATE: usize = 60;
+
+/// Largest relative difference between the mean sample-set period in simulated time and the
+/// period of four conversions at the rate set (the loop polls DONE every 500 us, so single
+/// periods jitter by that much, but over 60 sets the mean follows the converter).
+const SET_PERIOD_TOLERANCE: f64 = 0.02;
+
+#[test]
+fn every_supported_rate_streams_clean_sample_sets_at_that_rate() {
+    let mut host = Host::new();
+    // 400 S/s at boot, so every request below is a change.
+    for rate_sps in [100u16, 200, 400] {
+        let reinits_before = match host.request(Command::ReadCounters) {
+            Ok(ReplyPayload::Counters(counters)) => counters.converter_reinits,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(
+            host.request(Command::SetRate { rate_sps }),
+            Ok(ReplyPayload::Ack),
+            "{rate_sps} S/s"
+        );
+        assert_eq!(host.info().rate_sps, rate_sps);
+
+        host.samples.clear();
+        let frames = host.steps(SETS_PER_RATE);
+        let reinit_events = frames
+            .iter()
+            .filter(|frame| {
+                matches!(
+                    frame,
+                    DeviceFrame::Event(EventFrame {
+                        event: DeviceEvent::ConverterReinitialised { .. },
+                        ..
+                    })
+                )
+            })
+            .count();
+        assert_eq!(reinit_events, 0, "{rate_sps} S/s");
+        assert_eq!(host.samples.len(), SETS_PER_RATE, "{rate_sps} S/s");
+        for pair in host.samples.windows(2) {
+            assert_eq!(pair[1].sequence, pair[0].sequence + 1, "{rate_sps} S/s");
+        }
+        for sample in &host.samples {
+            for taxel in &sample.taxels {
+                assert_eq!(
+                    taxel.flags & wire::flags::CONVERTER_ERROR,
+                    0,
+                    "{rate_sps} S/s, sequence {}",
+                    sample.sequence
+                );
+            }
+        }
+
+        let first = host.samples.first().unwrap().timestamp_us;
+        let last = host.samples.last().unwrap().timestamp_us;
+        let mean_period_us = (last - first) as f64 / (SETS_PER_RATE - 1) as f64;
+        // Four conversions, one per taxel, make one sample set.
+        let expected_period_us = 4.0 * 1e6 / f64::from(rate_sps);
+        let relative_error = (mean_period_us / expected_period_us - 1.0).abs();
+        assert!(
+            relative_error <= SET_PERIOD_TOLERANCE,
+            "{rate_sps} S/s: a set every {mean_period_us:.0} us, expected {expected_period_us:.0} us"
+        );
+
+        let reinits_after = match host.request(Command::ReadCounters) {
+            Ok(ReplyPayload::Counters(counters)) => counters.converter_reinits,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(reinits_after, reinits_before, "{rate_sps} S/s");
+    }
+}
+
 #[test]
 fn a_tare_replies_when_done_and_refuses_overlap_and_zero() {
     let mut host = Host::new();
@@ -227,13 +300,22 @@ fn a_calibration_is_read_written_saved_kept_across_a_reboot_and_restored() {
         Ok(ReplyPayload::Calibration(record)) => record,
         other => panic!("{other:?}"),
     };
-    assert_eq!(record.calibration.points.len(), 6);
+    // The simulated pad's factory calibration, as the device reports it.
+    let factory = host
+        .device
+        .simulation()
+        .physics()
+        .matching_calibration()
+        .unwrap();
+    let point_count = factory.taxels()[1].curve.points().len();
+    assert_eq!(record.calibration.points.len(), point_count);
     assert_eq!(
         host.request(Command::ReadCalibration { taxel_index: 9 }),
         Err(ErrorCode::InvalidArgument)
     );
     record.calibration_id = 77;
-    record.calibration.points[5].1 = 0.27;
+    let top_relative_change = record.calibration.points[point_count - 1].1 + 0.01;
+    record.calibration.points[point_count - 1].1 = top_relative_change;
     assert_eq!(
         host.request(Command::WriteCalibration(record.clone())),
         Ok(ReplyPayload::Ack)
@@ -244,7 +326,7 @@ fn a_calibration_is_read_written_saved_kept_across_a_reboot_and_restored() {
         (77, CalibrationSource::Host)
     );
     let mut backwards: TaxelCalibrationRecord = record.clone();
-    backwards.calibration.points[2].1 = 0.01;
+    backwards.calibration.points[2].1 = backwards.calibration.points[1].1;
     assert_eq!(
         host.request(Command::WriteCalibration(backwards)),
         Err(ErrorCode::InvalidArgument)
@@ -262,7 +344,10 @@ fn a_calibration_is_read_written_saved_kept_across_a_reboot_and_restored() {
     );
     match host.request(Command::ReadCalibration { taxel_index: 1 }) {
         Ok(ReplyPayload::Calibration(read_back)) => {
-            assert_eq!(read_back.calibration.points[5].1, 0.27)
+            assert_eq!(
+                read_back.calibration.points[point_count - 1].1,
+                top_relative_change
+            )
         }
         other => panic!("{other:?}"),
     }

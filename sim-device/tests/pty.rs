@@ -103,7 +103,13 @@ fn a_client_on_the_terminal_end_gets_info_samples_and_replies() {
     match reply.result {
         Ok(ReplyPayload::Calibration(record)) => {
             assert_eq!(record.taxel_index, 2);
-            assert_eq!(record.calibration.points.len(), 6);
+            let factory = device
+                .simulation()
+                .physics()
+                .matching_calibration()
+                .unwrap();
+            let point_count = factory.taxels()[2].curve.points().len();
+            assert_eq!(record.calibration.points.len(), point_count);
         }
         other => panic!("unexpected {other:?}"),
     }

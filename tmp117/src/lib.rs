@@ -20,6 +20,7 @@
 //! ```
 #![no_std]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 use embedded_hal_async::i2c::I2c;
 

@@ -117,8 +117,9 @@ impl TaxelCalibrationRecord {
         let points = &self.calibration.points;
         let parasitic_pf = self.calibration.parasitic_pf;
         let strictly_increasing = points
-            .windows(2)
-            .all(|pair| pair[1].0 > pair[0].0 && pair[1].1 > pair[0].1);
+            .iter()
+            .zip(points.iter().skip(1))
+            .all(|(previous, next)| next.0 > previous.0 && next.1 > previous.1);
         let finite = points.iter().all(|(pressure_kpa, relative_change)| {
             pressure_kpa.is_finite() && relative_change.is_finite()
         });

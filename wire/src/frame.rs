@@ -155,17 +155,28 @@ impl WireMessage for Frame {
 /// Encodes `message` as one complete frame (COBS bytes and the 0x00 delimiter) into `out` and
 /// returns the number of bytes written. `out` of [`MAX_FRAME_ENCODED_LEN`] bytes always suffices.
 pub fn encode_frame<M: WireMessage>(message: &M, out: &mut [u8]) -> Result<usize, EncodeError> {
+    // MAX_PAYLOAD_LEN holds the header, the largest body and the CRC, so none of the lookups
+    // into the payload below can fail; they are checked rather than indexed all the same.
     let mut payload = [0u8; MAX_PAYLOAD_LEN];
-    payload[0] = PROTOCOL_VERSION;
-    payload[1] = message.kind();
-    let body_len = message
-        .write_body(&mut payload[HEADER_LEN..MAX_PAYLOAD_LEN - CRC_LEN])
-        .map_err(EncodeError::Postcard)?;
-    let crc_start = HEADER_LEN + body_len;
-    let crc = crc16(&payload[..crc_start]);
-    payload[crc_start..crc_start + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
-    let encoded_len = cobs::try_encode(&payload[..crc_start + CRC_LEN], out)
-        .map_err(|_| EncodeError::BufferTooSmall)?;
+    let (header, after_header) = payload
+        .split_first_chunk_mut::<HEADER_LEN>()
+        .ok_or(EncodeError::BufferTooSmall)?;
+    *header = [PROTOCOL_VERSION, message.kind()];
+    let body_capacity = after_header.len().saturating_sub(CRC_LEN);
+    let body = after_header
+        .get_mut(..body_capacity)
+        .ok_or(EncodeError::BufferTooSmall)?;
+    let body_len = message.write_body(body).map_err(EncodeError::Postcard)?;
+    let payload_len = HEADER_LEN + body_len + CRC_LEN;
+    let (checked, crc) = payload
+        .get_mut(..payload_len)
+        .and_then(<[u8]>::split_last_chunk_mut::<CRC_LEN>)
+        .ok_or(EncodeError::BufferTooSmall)?;
+    *crc = crc16(checked).to_le_bytes();
+    let framed = payload
+        .get(..payload_len)
+        .ok_or(EncodeError::BufferTooSmall)?;
+    let encoded_len = cobs::try_encode(framed, out).map_err(|_| EncodeError::BufferTooSmall)?;
     let delimiter = out
         .get_mut(encoded_len)
         .ok_or(EncodeError::BufferTooSmall)?;
@@ -178,7 +189,8 @@ pub fn encode_frame<M: WireMessage>(message: &M, out: &mut [u8]) -> Result<usize
 pub fn encode_frame_to_vec<M: WireMessage>(message: &M) -> Result<std::vec::Vec<u8>, EncodeError> {
     let mut out = [0u8; MAX_FRAME_ENCODED_LEN];
     let len = encode_frame(message, &mut out)?;
-    Ok(out[..len].to_vec())
+    let encoded = out.get(..len).ok_or(EncodeError::BufferTooSmall)?;
+    Ok(encoded.to_vec())
 }
 
 /// Decodes one frame in place: `encoded` holds the COBS bytes of one frame, with or without its
@@ -198,21 +210,22 @@ pub fn decode_frame<M: WireMessage>(encoded: &mut [u8]) -> Result<M, DecodeError
     let payload = encoded
         .get(..report.frame_size())
         .ok_or(DecodeError::Cobs)?;
-    if payload.len() < HEADER_LEN + CRC_LEN {
+    let Some((checked, crc_bytes)) = payload.split_last_chunk::<CRC_LEN>() else {
         return Err(DecodeError::TooShort);
-    }
-    let (checked, crc_bytes) = payload.split_at(payload.len() - CRC_LEN);
-    if crc16(checked).to_le_bytes() != crc_bytes {
+    };
+    let Some((&[version, kind], body)) = checked.split_first_chunk::<HEADER_LEN>() else {
+        return Err(DecodeError::TooShort);
+    };
+    if crc16(checked).to_le_bytes() != *crc_bytes {
         return Err(DecodeError::Crc);
     }
-    let version = checked[0];
     if version != PROTOCOL_VERSION {
         return Err(DecodeError::UnsupportedVersion {
             found: version,
             supported: PROTOCOL_VERSION,
         });
     }
-    M::from_body(checked[1], &checked[HEADER_LEN..])
+    M::from_body(kind, body)
 }
 
 /// A streaming frame decoder holding up to `N` encoded bytes of one frame.

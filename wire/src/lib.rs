@@ -11,6 +11,7 @@
 //! - USB CDC-ACM packet rule: [`needs_zero_length_packet`].
 #![no_std]
 #![deny(missing_docs)]
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 #[cfg(feature = "std")]
 extern crate std;
