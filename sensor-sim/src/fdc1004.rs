@@ -516,6 +516,6 @@ fn input_capacitance_pf(
         }
         None => environment
             .physics
-            .capacitance_pf(input, pressure_kpa, temperature_c),
+            .convert(input, pressure_kpa, temperature_c),
     }
 }

@@ -41,7 +41,7 @@ pub use bus::{SimI2c, SimI2cError, FDC1004_ADDRESS, TMP117_ADDRESS};
 pub use clock::{InvalidPacing, Pacing, PacingCallback, SimDelay};
 pub use fault::{Device, Fault, FaultId, Window};
 pub use fdc1004::Fdc1004Config;
-pub use physics::{PadPhysics, TaxelPhysics};
+pub use physics::{Dielectric, PadEffects, PadPhysics, TaxelPhysics};
 pub use scene::{Keyframe, Scene, SceneError, ScenePoint, ScriptedScene};
 pub use simulation::{ConfigError, Counters, Simulation, SimulationConfig};
 pub use tmp117::Tmp117Config;

@@ -10,7 +10,7 @@ use crate::bus::{transaction_bits, SimI2c, SimI2cError, FDC1004_ADDRESS, TMP117_
 use crate::clock::{InvalidPacing, Pacer, Pacing, PacingAction, SimDelay};
 use crate::fault::{Device, Fault, FaultBook, FaultId, Window};
 use crate::fdc1004::{Fdc1004Config, Fdc1004Model};
-use crate::physics::{PadPhysics, PhysicsModel};
+use crate::physics::{PadEffects, PadPhysics, PhysicsModel};
 use crate::scene::{Scene, ScenePoint, ScriptedScene};
 use crate::tmp117::{Tmp117Config, Tmp117Model};
 
@@ -48,11 +48,15 @@ impl Default for SimulationConfig {
 /// Why a configuration was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ConfigError {
-    /// A taxel's C0 is not finite and positive, or its Cp not finite and non-negative.
+    /// A taxel's C0 or modulus is not finite and positive, or its Cp not finite and
+    /// non-negative.
     Taxel {
         /// Index of the taxel.
         taxel: usize,
     },
+    /// The dielectric's densification or the history effects are out of their ranges (see
+    /// [`crate::physics`]).
+    Pad,
     /// A noise level is negative or not finite.
     Noise,
     /// The bus frequency is zero.
@@ -64,7 +68,10 @@ impl fmt::Display for ConfigError {
         match self {
             ConfigError::Taxel { taxel } => write!(
                 formatter,
-                "taxel {taxel}: C0 must be finite and positive, Cp finite and non-negative"
+                "taxel {taxel}: C0 and the modulus must be finite and positive, Cp finite and non-negative"
+            ),
+            ConfigError::Pad => formatter.write_str(
+                "the dielectric's densification or the pad's history effects are out of range",
             ),
             ConfigError::Noise => formatter.write_str("noise levels must be finite and >= 0"),
             ConfigError::BusFrequency => formatter.write_str("the bus frequency must not be 0"),
@@ -120,7 +127,7 @@ pub struct Counters {
 /// What a device model needs from the rest of the simulation while it works.
 pub(crate) struct Environment<'a> {
     pub(crate) scene: &'a mut dyn Scene,
-    pub(crate) physics: &'a PhysicsModel,
+    pub(crate) physics: &'a mut PhysicsModel,
     pub(crate) faults: &'a mut FaultBook,
     pub(crate) counters: &'a mut Counters,
 }
@@ -149,7 +156,7 @@ impl State {
         (
             Environment {
                 scene: self.scene.as_mut(),
-                physics: &self.physics,
+                physics: &mut self.physics,
                 faults: &mut self.faults,
                 counters: &mut self.counters,
             },
@@ -299,6 +306,9 @@ impl Simulation {
         if let Some(taxel) = config.physics.first_invalid_taxel() {
             return Err(ConfigError::Taxel { taxel });
         }
+        if !config.physics.pad_is_valid() {
+            return Err(ConfigError::Pad);
+        }
         let noise_ok = |value: f64| value.is_finite() && value >= 0.0;
         if !noise_ok(config.fdc1004.noise_rms_pf_at_100_sps) || !noise_ok(config.tmp117.noise_rms_c)
         {
@@ -440,13 +450,31 @@ impl Simulation {
         self.state().counters = Counters::default();
     }
 
-    /// The simulated pad's physics.
+    /// The simulated pad's physics (with the history effects in force).
     pub fn physics(&self) -> PadPhysics {
         self.state().physics.physics().clone()
     }
 
+    /// Turns the pad's history effects (hysteresis, baseline loss with cycling) on or off from
+    /// now on; the history so far (peaks, cycles counted) is kept. Refused, changing nothing,
+    /// when a value is out of range.
+    pub fn set_pad_effects(&self, effects: PadEffects) -> Result<(), ConfigError> {
+        if !effects.is_valid() {
+            return Err(ConfigError::Pad);
+        }
+        self.state().physics.set_effects(effects);
+        Ok(())
+    }
+
+    /// Load cycles each taxel has felt so far (see [`PadEffects::cycle_threshold_kpa`]); they
+    /// are counted whether or not the baseline loss is on.
+    pub fn load_cycles(&self) -> [u64; 4] {
+        self.state().physics.cycles()
+    }
+
     /// The capacitance of a taxel's input under the current scene point, without noise or
-    /// faults, pF (`None` for a taxel outside 0..4): the ground truth the converter measures.
+    /// faults, pF (`None` for a taxel outside 0..4): the ground truth the converter measures,
+    /// history effects included (evaluating it does not move the history on).
     pub fn true_capacitance_pf(&self, taxel: usize) -> Option<f64> {
         let mut state = self.state();
         if taxel >= 4 {
@@ -457,7 +485,7 @@ impl Simulation {
         Some(
             state
                 .physics
-                .capacitance_pf(taxel, point.pressure_kpa[taxel], point.temperature_c),
+                .peek(taxel, point.pressure_kpa[taxel], point.temperature_c),
         )
     }
 

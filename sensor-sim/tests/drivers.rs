@@ -102,8 +102,12 @@ fn scripted_pressures_come_back_through_driver_and_model() {
         Keyframe::new(1.0, [0.0; 4], 25.0),
         Keyframe::new(2.0, [10.0, 20.0, 35.0, 48.0], 25.0),
         Keyframe::new(4.0, [10.0, 20.0, 35.0, 48.0], 25.0),
-        Keyframe::new(5.0, [5.0, 15.0, 25.0, 45.0], 40.0),
-        Keyframe::new(8.0, [5.0, 15.0, 25.0, 45.0], 40.0),
+        Keyframe::new(5.0, [5.0, 15.0, 25.0, 45.0], 25.0),
+        // Warming at 1 °C/s: the model applies steps of up to 2 °C between sets as measured
+        // (larger ones it treats as implausible and follows slowly), and the TMP117 reports one
+        // step a second.
+        Keyframe::new(20.0, [5.0, 15.0, 25.0, 45.0], 40.0),
+        Keyframe::new(23.0, [5.0, 15.0, 25.0, 45.0], 40.0),
     ])
     .unwrap();
     let holds = [
@@ -117,10 +121,10 @@ fn scripted_pressures_come_back_through_driver_and_model() {
             to_s: 4.0,
             pressure_kpa: [10.0, 20.0, 35.0, 48.0],
         },
-        // The TMP117 converts once a second: from 6.0155 s it reports 40 °C.
+        // The TMP117 converts once a second: from 20.0155 s it reports 40 °C.
         Hold {
-            from_s: 6.1,
-            to_s: 8.0,
+            from_s: 20.1,
+            to_s: 23.0,
             pressure_kpa: [5.0, 15.0, 25.0, 45.0],
         },
     ];
@@ -133,7 +137,7 @@ fn scripted_pressures_come_back_through_driver_and_model() {
     let mut sums_kpa = [[0.0f64; 4]; 3];
     let mut counts = [0usize; 3];
     let mut worst_error_kpa = [0.0f32; 3];
-    while simulation.now_us() < 8_000_000 {
+    while simulation.now_us() < 23_000_000 {
         let measurements = block_on(converter.read_measurements()).unwrap();
         let temperature_c = block_on(sensor.read_temperature_c()).ok();
         let output = process(&mut pad, &measurements, temperature_c);
@@ -173,8 +177,11 @@ fn scripted_pressures_come_back_through_driver_and_model() {
         assert!(counts[hold] > 35);
         for (taxel, (mean_kpa, expected_kpa)) in means.iter().zip(expected.pressure_kpa).enumerate()
         {
+            // The scene is the simulator's own truth; the model's factory calibration samples it
+            // every 5 kPa, and its monotone cubic between those points is up to 0.065 kPa off the
+            // true curve (near 48 kPa, measured). Noise averages out over a hold.
             assert!(
-                (mean_kpa - expected_kpa as f64).abs() < 0.05,
+                (mean_kpa - expected_kpa as f64).abs() < 0.1,
                 "hold {hold} taxel {taxel}: mean {mean_kpa} kPa"
             );
         }

@@ -317,6 +317,23 @@ fn invalid_configurations_are_refused_and_handles_cross_threads() {
         ConfigError::Taxel { taxel: 1 }
     );
     let mut config = SimulationConfig::default();
+    config.physics.taxels[3].modulus_kpa = -5.0;
+    assert_eq!(
+        Simulation::new(config).unwrap_err(),
+        ConfigError::Taxel { taxel: 3 }
+    );
+    let changes: [fn(&mut SimulationConfig); 4] = [
+        |config: &mut SimulationConfig| config.physics.dielectric.densification_strain = 1.0,
+        |config: &mut SimulationConfig| config.physics.dielectric.densification_exponent = 0.0,
+        |config: &mut SimulationConfig| config.physics.effects.hysteresis = 0.6,
+        |config: &mut SimulationConfig| config.physics.effects.cycle_threshold_kpa = f32::NAN,
+    ];
+    for change in changes {
+        let mut config = SimulationConfig::default();
+        change(&mut config);
+        assert_eq!(Simulation::new(config).unwrap_err(), ConfigError::Pad);
+    }
+    let mut config = SimulationConfig::default();
     config.fdc1004.noise_rms_pf_at_100_sps = -1.0;
     assert_eq!(Simulation::new(config).unwrap_err(), ConfigError::Noise);
     let config = SimulationConfig {

@@ -14,12 +14,15 @@ use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 use taxel::device_link::{open_serial, DeviceLink};
 use taxel::record::{record_header, record_link};
 
-/// Largest difference between a recorded pressure and the scene, kPa: converter noise (1 fF rms
-/// at 400 S/s, 0.09 kPa at the flat top of the curve), the TMP117's one-second conversion lag
+/// Largest difference between a recorded pressure and the scene, kPa. The scene is the
+/// simulator's own truth: its physics does not use the pressure model, and the device converts
+/// with the simulated pad's factory calibration (the true curve every 5 kPa), whose monotone
+/// cubic is up to 0.065 kPa off the true curve between points. On top: converter noise (1 fF rms
+/// at 400 S/s, 0.1 kPa at the flat top of the curve), the TMP117's one-second conversion lag
 /// while the scene warms at 0.67 °C/s (about 0.1 kPa), and the 10 ms a sample set takes while
 /// pressures ramp at up to 15 kPa/s (0.15 kPa).
 const SAMPLE_TOLERANCE_KPA: f64 = 0.5;
-/// Largest RMS difference over the whole recording, kPa.
+/// Largest RMS difference over the whole recording, kPa (measured: 0.076 kPa with seed 3).
 const RMS_TOLERANCE_KPA: f64 = 0.1;
 
 #[test]
