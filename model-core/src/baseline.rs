@@ -54,7 +54,7 @@ pub enum BaselineError {
 /// Largest standard deviation of a taxel's readings over a tare, pF: ten times the converter's
 /// 0.5 fF rms noise. A press of 0.1 kPa on the article's curve moves 4.5 pF by about 4 fF, so a
 /// tare taken while the pad is touched or moving spreads well beyond it.
-pub const TARE_STILL_SPREAD_PF: f64 = 0.005;
+pub const TARE_STILL_SPREAD_PF: f32 = 0.005;
 
 impl Baseline {
     /// A baseline from an unloaded capacitance measured at `temperature_c`.
@@ -189,10 +189,11 @@ pub struct TareAccumulator {
     seen: u16,
     offset_sums_pf: [f64; TAXEL_COUNT],
     fine_sums_pf: [f64; TAXEL_COUNT],
-    // Deviations from each taxel's first reading (so the spread has no cancellation).
-    first_pf: [Option<f64>; TAXEL_COUNT],
-    deviation_sums_pf: [f64; TAXEL_COUNT],
-    deviation_squares_pf2: [f64; TAXEL_COUNT],
+    // Deviations from each taxel's first reading (so the spread has no cancellation, and f32
+    // holds them exactly enough: fF-sized values, relative 1e-7).
+    first_reading: [Option<SplitCapacitance>; TAXEL_COUNT],
+    deviation_sums_pf: [f32; TAXEL_COUNT],
+    deviation_squares_pf2: [f32; TAXEL_COUNT],
     counts: [u16; TAXEL_COUNT],
     temperature_sum_c: f64,
 }
@@ -205,7 +206,7 @@ impl TareAccumulator {
             seen: 0,
             offset_sums_pf: [0.0; TAXEL_COUNT],
             fine_sums_pf: [0.0; TAXEL_COUNT],
-            first_pf: [None; TAXEL_COUNT],
+            first_reading: [None; TAXEL_COUNT],
             deviation_sums_pf: [0.0; TAXEL_COUNT],
             deviation_squares_pf2: [0.0; TAXEL_COUNT],
             counts: [0; TAXEL_COUNT],
@@ -229,9 +230,8 @@ impl TareAccumulator {
             if let Some(capacitance) = capacitance {
                 self.offset_sums_pf[taxel] += capacitance.offset_pf as f64;
                 self.fine_sums_pf[taxel] += capacitance.fine_pf as f64;
-                let total_pf = capacitance.offset_pf as f64 + capacitance.fine_pf as f64;
-                let first_pf = *self.first_pf[taxel].get_or_insert(total_pf);
-                let deviation_pf = total_pf - first_pf;
+                let first = *self.first_reading[taxel].get_or_insert(*capacitance);
+                let deviation_pf = capacitance.minus(first);
                 self.deviation_sums_pf[taxel] += deviation_pf;
                 self.deviation_squares_pf2[taxel] += deviation_pf * deviation_pf;
                 self.counts[taxel] += 1;
@@ -257,13 +257,14 @@ impl TareAccumulator {
             if count < needed {
                 return Err(BaselineError::TooFewSamples);
             }
-            let mean_deviation_pf = self.deviation_sums_pf[taxel] / count as f64;
-            let variance_pf2 = self.deviation_squares_pf2[taxel] / count as f64
+            let mean_deviation_pf = self.deviation_sums_pf[taxel] / count as f32;
+            let variance_pf2 = self.deviation_squares_pf2[taxel] / count as f32
                 - mean_deviation_pf * mean_deviation_pf;
-            let spread_pf = libm::sqrt(variance_pf2.max(0.0));
+            let spread_pf = libm::sqrtf(clamp_f32(variance_pf2, 0.0, f32::MAX));
             if !(spread_pf <= TARE_STILL_SPREAD_PF) {
+                // Saturating conversion: NaN gives 0, beyond u32 gives u32::MAX.
                 return Err(BaselineError::NotStill {
-                    spread_ff: (spread_pf * 1000.0).min(u32::MAX as f64) as u32,
+                    spread_ff: (spread_pf * 1000.0) as u32,
                 });
             }
             let mean = SplitCapacitance {

@@ -21,6 +21,10 @@ pub struct SampleInput {
     pub reading_flags: [TaxelFlags; TAXEL_COUNT],
     /// Pad temperature in °C, if one was read.
     pub temperature_c: Option<f32>,
+    /// When the set was measured, µs on a clock that only moves forward, if known: lets the
+    /// temperature plausibility rule allow for the time between sets (see
+    /// [`crate::temperature`]).
+    pub time_us: Option<u64>,
 }
 
 impl SampleInput {
@@ -30,7 +34,14 @@ impl SampleInput {
             readings,
             reading_flags: [TaxelFlags::empty(); TAXEL_COUNT],
             temperature_c,
+            time_us: None,
         }
+    }
+
+    /// The same input measured at `time_us`.
+    pub fn at_time_us(mut self, time_us: u64) -> Self {
+        self.time_us = Some(time_us);
+        self
     }
 }
 
@@ -254,10 +265,11 @@ impl PadModel {
             .flatten()
             .next()
             .map(Baseline::temperature_c);
-        let temperature = self.temperature.resolve(
+        let temperature = self.temperature.resolve_at(
             sample.temperature_c,
             tare_temperature_c,
             self.calibration.temperature_law(),
+            sample.time_us,
         );
         let inverse_permittivity_ratio = 1.0 / temperature.permittivity_ratio;
         let thresholds = *self.calibration.thresholds();

@@ -240,7 +240,14 @@ fn parse_sample(
             *reading = TaxelReading::CapacitancePf(capacitance_pf as f32);
         }
     }
-    Ok(SampleInput::new(readings, temperature_c))
+    let input = SampleInput::new(readings, temperature_c);
+    // A time the plausibility rule can use: finite, not negative, within u64 microseconds.
+    Ok(match time_s {
+        Some(time_s) if time_s >= 0.0 && time_s < 1.8e13 => {
+            input.at_time_us((time_s * 1.0e6) as u64)
+        }
+        _ => input,
+    })
 }
 
 /// Converts a CSV input. Bad rows are written as empty cells and listed in the summary;
@@ -355,7 +362,8 @@ pub fn convert_raw<R: Read, W: Write>(
             let mut input = SampleInput::new(
                 [TaxelReading::Unavailable; TAXEL_COUNT],
                 sample.temperature_c.filter(|value| !value.is_nan()),
-            );
+            )
+            .at_time_us(sample.timestamp_us);
             for (taxel, recorded) in sample.taxels.iter().enumerate() {
                 let acquisition_flags =
                     TaxelFlags::from_bits_retain(recorded.flags).intersection(ACQUISITION_FLAGS);

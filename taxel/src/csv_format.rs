@@ -180,10 +180,15 @@ mod tests {
             wire_flag_names(0x1001),
             "below_baseline|temperature_fallback"
         );
-        assert_eq!(wire_flag_names(0x2001), "below_baseline|bit13");
         assert_eq!(
-            parse_flag_names("below_baseline|bit13").map(|flags| flags.bits()),
-            Ok(0x2001)
+            wire_flag_names(0x2001),
+            "below_baseline|temperature_implausible"
+        );
+        // A bit no model defines (yet) is shown by position and read back.
+        assert_eq!(wire_flag_names(0x4001), "below_baseline|bit14");
+        assert_eq!(
+            parse_flag_names("below_baseline|bit14").map(|flags| flags.bits()),
+            Ok(0x4001)
         );
         assert_eq!(parse_flag_names("open|bogus"), Err("bogus".to_owned()));
         assert_eq!(flag_words(flags), "below baseline, not tared");

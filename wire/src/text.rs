@@ -40,9 +40,11 @@ fn write_three_decimals<W: Write>(line: &mut W, value: f32) -> core::fmt::Result
     if magnitude.is_infinite() {
         return write!(line, "{sign}inf");
     }
-    // Above 2^23 an f32 has no fraction; its integer value fits a u128 (f32::MAX < 2^128).
+    // Above 2^23 an f32 has no fraction.
     if magnitude >= 8_388_608.0 {
-        return write!(line, "{sign}{}.000", magnitude as u128);
+        line.write_str(sign)?;
+        write_large_integer(line, magnitude)?;
+        return line.write_str(".000");
     }
     // f32 (24-bit mantissa) times 1000 (10 bits) is exact in f64's 53 bits.
     let thousandths = f64::from(magnitude) * 1000.0;
@@ -54,6 +56,40 @@ fn write_three_decimals<W: Write>(line: &mut W, value: f32) -> core::fmt::Result
         whole
     };
     write!(line, "{sign}{}.{:03}", rounded / 1000, rounded % 1000)
+}
+
+/// Writes an f32 that is an integer of at least 2^23, exactly, by doubling its mantissa in base
+/// 10^9 limbs: core's u128 `Display` would do it too, for 1.4 KB of firmware flash.
+fn write_large_integer<W: Write>(line: &mut W, magnitude: f32) -> core::fmt::Result {
+    const LIMB: u64 = 1_000_000_000;
+    let bits = magnitude.to_bits();
+    // value = mantissa x 2^doublings, with the implicit leading bit; >= 2^23 means doublings >= 0.
+    let doublings = ((bits >> 23) & 0xFF).saturating_sub(127 + 23);
+    let mantissa = (bits & 0x7F_FFFF) | 0x80_0000;
+    // Least significant first; f32::MAX < 10^39 needs five limbs.
+    let mut limbs = [mantissa, 0, 0, 0, 0];
+    for _ in 0..doublings {
+        let mut carry = 0u64;
+        for limb in limbs.iter_mut() {
+            let doubled = u64::from(*limb) * 2 + carry;
+            *limb = (doubled % LIMB) as u32;
+            carry = doubled / LIMB;
+        }
+    }
+    let mut started = false;
+    for limb in limbs.iter().rev() {
+        if started {
+            write!(line, "{limb:09}")?;
+        } else if *limb != 0 {
+            write!(line, "{limb}")?;
+            started = true;
+        }
+    }
+    if started {
+        Ok(())
+    } else {
+        line.write_char('0')
+    }
 }
 
 fn write_optional<W: Write>(line: &mut W, value: Option<f32>) -> core::fmt::Result {

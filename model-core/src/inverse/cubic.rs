@@ -92,11 +92,11 @@ impl MonotoneCubicInverse {
 }
 
 impl InverseSegment {
-    /// From the interval's forward cubic (its f32 coefficients, widened to f64).
+    /// From the interval's forward cubic. The start only has to be near the root, so it is
+    /// formed in f32; the error bound carries the guarantee, so it is formed in f64.
     fn new(segment: &CubicSegment) -> Self {
-        let width_kpa = f64::from(segment.width);
-        let rise = f64::from(segment.value_at(segment.width)) - f64::from(segment.coefficients[0]);
-        let (slope_min, slope_max) = segment.slope_range(0.0, width_kpa);
+        let width_kpa = segment.width;
+        let rise = segment.value_at(width_kpa) - segment.coefficients[0];
         if !(width_kpa > 0.0 && rise > 0.0) {
             return Self {
                 start: [0.0; 3],
@@ -105,22 +105,21 @@ impl InverseSegment {
         }
         let secant = width_kpa / rise;
         let limit = 3.0 * secant;
-        let inverse_slope = |tangent: f64| {
-            if tangent > 1.0 / limit {
+        let inverse_slope = |tangent: f32| {
+            if tangent * limit > 1.0 {
                 1.0 / tangent
             } else {
                 limit
             }
         };
-        let (g0, g1) = (
-            inverse_slope(segment.slope_range(0.0, 0.0).0),
-            inverse_slope(segment.slope_range(width_kpa, width_kpa).0),
-        );
+        let g0 = inverse_slope(segment.coefficients[1]);
+        let g1 = inverse_slope(segment.slope_at(width_kpa));
         let start = [
-            g0 as f32,
-            ((3.0 * secant - 2.0 * g0 - g1) / rise) as f32,
-            ((g0 + g1 - 2.0 * secant) / (rise * rise)) as f32,
+            g0,
+            (3.0 * secant - 2.0 * g0 - g1) / rise,
+            (g0 + g1 - 2.0 * secant) / (rise * rise),
         ];
+        let (slope_min, slope_max) = segment.slope_range(0.0, f64::from(width_kpa));
         let bound = segment.curvature_max() * slope_max * slope_max
             / (2.0 * slope_min * slope_min * slope_min);
         let error_bound_per_kpa = if slope_min > 0.0 && bound.is_finite() && bound < 1.0e30 {
