@@ -27,7 +27,7 @@ pub use persistence::{CalibrationPersistence, PersistenceFailed};
 pub use retained::{boot_plan, BootPlan, ResetKind, RetainedState, RETAINED_LEN};
 
 use acquisition::{ProcessedSample, TemperatureOrigin};
-use model_core::{Calibration, TareStatus, Tier, UseCase};
+use model_core::{BaselineError, Calibration, TareStatus, Tier, UseCase};
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
     InfoFrame, ReplyFrame, ReplyPayload, Request, SampleFrame, SampleRate, PROTOCOL_VERSION,
@@ -282,8 +282,16 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             (self.pending_tare, self.control.pad().tare_status())
         {
             self.pending_tare = None;
+            let not_still = self
+                .control
+                .pad()
+                .last_tare_errors()
+                .iter()
+                .any(|error| matches!(error, Some(BaselineError::NotStill { .. })));
             let result = if tared_mask == 0b1111 {
                 Ok(ReplyPayload::Ack)
+            } else if not_still {
+                Err(ErrorCode::TareNotStill)
             } else {
                 Err(ErrorCode::TareFailed)
             };

@@ -251,6 +251,25 @@ fn a_tare_replies_when_done_and_refuses_overlap_and_zero() {
     assert_eq!(reply, Some(Ok(ReplyPayload::Ack)));
 }
 
+/// A tare asked for while the demo scene presses c11 (0 -> 3 kPa over 3..4 s) is refused with
+/// the reason; the same tare on the still pad a moment later succeeds.
+#[test]
+fn a_tare_while_the_pad_is_pressed_is_refused_as_not_still() {
+    let mut host = Host::new();
+    // Host::new ran 20 sets of 10 ms; run to 3.2 s, into the press.
+    host.steps(300);
+    assert_eq!(
+        host.request(Command::Tare { sample_sets: 32 }),
+        Err(ErrorCode::TareNotStill)
+    );
+    // Held at 3 kPa from 4 s: still, so it tares (a deliberate tare under a static load).
+    host.steps(100);
+    assert_eq!(
+        host.request(Command::Tare { sample_sets: 32 }),
+        Ok(ReplyPayload::Ack)
+    );
+}
+
 #[test]
 fn tiers_and_use_cases_are_chosen_or_refused() {
     let mut host = Host::new();

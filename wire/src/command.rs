@@ -33,6 +33,10 @@ pub enum ErrorCode {
     /// A tare finished without a baseline for every taxel (the pad was loaded, or a taxel is
     /// open or shorted); the sample flags say which taxels stay untared.
     TareFailed,
+    /// A tare was refused for at least one taxel because the pad was not still (pressed or
+    /// moving: its readings spread more than converter noise explains); those taxels keep the
+    /// baseline they had, if any. Tare again with the pad unloaded and at rest.
+    TareNotStill,
 }
 
 /// The converter conversion rates the device supports (each of the four taxels, and so each

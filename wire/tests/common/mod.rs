@@ -182,6 +182,7 @@ pub fn error_code() -> impl Strategy<Value = ErrorCode> {
         ErrorCode::FlashError,
         ErrorCode::NotSupported,
         ErrorCode::TareFailed,
+        ErrorCode::TareNotStill,
     ])
 }
 
