@@ -6,7 +6,7 @@ use heapless::Vec;
 use crate::calibration::{CalibrationCurve, CurvePoint, MAX_CURVE_POINTS};
 use crate::inverse::{
     InverseCurve, Libm, LinearInverse, Micromath, MonotoneCubicInverse, PiecewiseLinearInverse,
-    PolynomialInverse, SaturatingFit, SaturatingInverse, TableInverse, Tier,
+    PolynomialInverse, SaturatingFit, SaturatingInverse, Tier,
 };
 
 /// Per interior point (index 1 ..= n - 2, in order), the tier's predicted pressure minus the
@@ -53,10 +53,11 @@ fn pressure_through(curve: &CalibrationCurve, tier: Tier, relative_change: f32) 
             Some(PiecewiseLinearInverse::new(curve).pressure_kpa(relative_change))
         }
         Tier::MonotoneCubic => Some(MonotoneCubicInverse::new(curve).pressure_kpa(relative_change)),
-        Tier::Table => {
-            let cubic = MonotoneCubicInverse::new(curve);
-            Some(TableInverse::new(&cubic, curve).pressure_kpa(relative_change))
-        }
+        Tier::Table => Some(
+            MonotoneCubicInverse::new(curve)
+                .table()
+                .pressure_kpa(relative_change),
+        ),
         Tier::Polynomial => PolynomialInverse::new(&MonotoneCubicInverse::new(curve), curve)
             .map(|polynomial| polynomial.pressure_kpa(relative_change)),
         Tier::Saturating => SaturatingFit::new(curve)

@@ -6,10 +6,12 @@
 //! On the interval holding the reading, the forward cubic `f(s)` (local coordinate `s` in
 //! `0 ..= w`) is non-decreasing (Fritsch–Carlson). The root of `f(s) = y` is found in two stages.
 //!
-//! 1. **Fast path: inverse-Hermite start, one Newton step, a proven error bound.** The start
-//!    `s0` is the cubic Hermite interpolant of the inverse through the interval's ends, with the
-//!    inverse's end slopes `1 / f'` limited to three times its secant (so a flat end cannot throw
-//!    it far), clamped into `0 ..= w`. One Newton step `s1 = s0 - r / f'(s0)` (with
+//! 1. **Fast path: a table start, one Newton step, a proven error bound.** The start `s0` is
+//!    the inverse sampled on a uniform grid of dC/C0 (the table tier's grid, whose nodes are
+//!    solved by stage 2 when the calibration is loaded), linearly interpolated and clamped into
+//!    the interval that holds the reading; each grid cell also stores the first interval it
+//!    touches, so finding the interval is a step or two, not a search from the start. One
+//!    Newton step `s1 = s0 - r / f'(s0)` (with
 //!    `r = f(s0) - y`) follows. With `m = min f'`, `M = max f'` and `K = max |f''|` over the
 //!    interval (computed once, in f64, when the calibration is loaded), Taylor's theorem gives
 //!    `|s1 - s*| <= K / (2 m) * (s0 - s*)^2` and the mean-value theorem
@@ -32,7 +34,7 @@
 //! large, and it is a property of the calibration, not of the method: see
 //! [`crate::conditioning`].
 
-use super::{clamp_pressure, InverseCurve};
+use super::{clamp_pressure, InverseCurve, TableInverse, TABLE_INTERVALS};
 use crate::bounds::clamp_f32;
 use crate::calibration::{CalibrationCurve, MAX_CURVE_POINTS};
 use crate::monotone_cubic::{CubicSegment, MonotoneCubic};
@@ -47,96 +49,107 @@ const BRACKET_RELATIVE_WIDTH: f32 = 1.0 / 1_048_576.0;
 /// 2 x 20 reach [`BRACKET_RELATIVE_WIDTH`]; two spare.
 pub const MAX_BRACKETED_ITERATIONS: usize = 42;
 
-/// Per interval: the inverse-Hermite start and the fast path's error bound factor.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-struct InverseSegment {
-    /// `s0(t) = t (g1 + t (g2 + t g3))`, `t = y - y_k`.
-    start: [f32; 3],
-    /// `B = max|f''| max(f')^2 / (2 min(f')^3)`, per kPa; infinite when `f'` reaches 0.
-    error_bound_per_kpa: f32,
-}
-
 /// Inverse of the monotone cubic through the calibration points.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MonotoneCubicInverse {
     forward: MonotoneCubic,
     relative_change_starts: [f32; MAX_CURVE_POINTS],
-    inverse_segments: [InverseSegment; MAX_CURVE_POINTS - 1],
+    /// Per interval, `B = max|f''| max(f')^2 / (2 min(f')^3)` per kPa; infinite where `f'`
+    /// reaches 0.
+    error_bounds_per_kpa: [f32; MAX_CURVE_POINTS - 1],
+    /// The start: the inverse on a uniform grid (also the table tier).
+    table: TableInverse,
+    /// Per grid node, the interval holding its dC/C0.
+    first_segments: [u8; TABLE_INTERVALS + 1],
     top_pressure_kpa: f32,
 }
 
 impl MonotoneCubicInverse {
-    /// Builds the forward cubic and, per interval, the inverse-Hermite start and error bound.
+    /// Builds the forward cubic, each interval's error bound, and the start grid (solved with
+    /// the bracketed stage, so it is as good as the inverse itself).
     pub fn new(curve: &CalibrationCurve) -> Self {
         let forward = MonotoneCubic::new(&curve.pressures_kpa(), &curve.relative_changes());
+        let top = curve.top();
         let mut relative_change_starts = [0.0; MAX_CURVE_POINTS];
-        let mut inverse_segments = [InverseSegment::default(); MAX_CURVE_POINTS - 1];
-        for (index, point) in curve.points().iter().enumerate().take(MAX_CURVE_POINTS) {
-            relative_change_starts[index] = point.relative_change;
+        for (slot, point) in relative_change_starts.iter_mut().zip(curve.points()) {
+            *slot = point.relative_change;
         }
-        for (slot, segment) in inverse_segments.iter_mut().zip(forward.segments()) {
-            *slot = InverseSegment::new(segment);
+        let mut error_bounds_per_kpa = [f32::INFINITY; MAX_CURVE_POINTS - 1];
+        for (slot, segment) in error_bounds_per_kpa.iter_mut().zip(forward.segments()) {
+            *slot = error_bound_per_kpa(segment);
         }
-        Self {
+        let mut inverse = Self {
             forward,
             relative_change_starts,
-            inverse_segments,
-            top_pressure_kpa: curve.top().pressure_kpa,
+            error_bounds_per_kpa,
+            table: TableInverse::sampled(|_| 0.0, top.relative_change, top.pressure_kpa),
+            first_segments: [0; TABLE_INTERVALS + 1],
+            top_pressure_kpa: top.pressure_kpa,
+        };
+        let mut first_segments = [0u8; TABLE_INTERVALS + 1];
+        for (node, slot) in first_segments.iter_mut().enumerate() {
+            let relative_change = TableInverse::node_relative_change(node, top.relative_change);
+            *slot = inverse.segment_from(0, relative_change) as u8;
         }
+        inverse.first_segments = first_segments;
+        inverse.table = TableInverse::sampled(
+            |relative_change| {
+                let index = inverse.segment_from(0, relative_change);
+                match (
+                    inverse.forward.segments().get(index),
+                    inverse.error_bounds_per_kpa.get(index),
+                ) {
+                    (Some(segment), Some(bound)) => {
+                        let s =
+                            solve_bracketed(segment, *bound, relative_change, 0.5 * segment.width);
+                        clamp_pressure(segment.x_start + s, inverse.top_pressure_kpa)
+                    }
+                    _ => 0.0,
+                }
+            },
+            top.relative_change,
+            top.pressure_kpa,
+        );
+        inverse
     }
 
     /// The forward curve (pressure to relative change).
     pub fn forward(&self) -> &MonotoneCubic {
         &self.forward
     }
-}
 
-impl InverseSegment {
-    /// From the interval's forward cubic. The start only has to be near the root, so it is
-    /// formed in f32; the error bound carries the guarantee, so it is formed in f64.
-    fn new(segment: &CubicSegment) -> Self {
-        let width_kpa = segment.width;
-        let rise = segment.value_at(width_kpa) - segment.coefficients[0];
-        if !(width_kpa > 0.0 && rise > 0.0) {
-            return Self {
-                start: [0.0; 3],
-                error_bound_per_kpa: f32::INFINITY,
-            };
-        }
-        let secant = width_kpa / rise;
-        let limit = 3.0 * secant;
-        let inverse_slope = |tangent: f32| {
-            if tangent * limit > 1.0 {
-                1.0 / tangent
-            } else {
-                limit
-            }
-        };
-        let g0 = inverse_slope(segment.coefficients[1]);
-        let g1 = inverse_slope(segment.slope_at(width_kpa));
-        let start = [
-            g0,
-            (3.0 * secant - 2.0 * g0 - g1) / rise,
-            (g0 + g1 - 2.0 * secant) / (rise * rise),
-        ];
-        let (slope_min, slope_max) = segment.slope_range(0.0, f64::from(width_kpa));
-        let bound = segment.curvature_max() * slope_max * slope_max
-            / (2.0 * slope_min * slope_min * slope_min);
-        let error_bound_per_kpa = if slope_min > 0.0 && bound.is_finite() && bound < 1.0e30 {
-            bound as f32
-        } else {
-            f32::INFINITY
-        };
-        Self {
-            start,
-            error_bound_per_kpa,
-        }
+    /// The start grid, which is also the table tier.
+    pub fn table(&self) -> &TableInverse {
+        &self.table
     }
 
+    /// The interval holding `relative_change`, searching forward from interval `first`.
     #[inline(always)]
-    fn start(&self, rise: f32) -> f32 {
-        let [g1, g2, g3] = self.start;
-        rise * (g1 + rise * (g2 + rise * g3))
+    fn segment_from(&self, first: usize, relative_change: f32) -> usize {
+        let count = self.forward.segments().len();
+        let mut index = first;
+        while index + 1 < count
+            && self
+                .relative_change_starts
+                .get(index + 1)
+                .is_some_and(|start| relative_change >= *start)
+        {
+            index += 1;
+        }
+        index
+    }
+}
+
+/// The fast path's error bound factor of an interval (module doc), from its f32 coefficients in
+/// f64; infinite where the slope reaches 0.
+fn error_bound_per_kpa(segment: &CubicSegment) -> f32 {
+    let (slope_min, slope_max) = segment.slope_range(0.0, f64::from(segment.width));
+    let bound =
+        segment.curvature_max() * slope_max * slope_max / (2.0 * slope_min * slope_min * slope_min);
+    if slope_min > 0.0 && bound.is_finite() && bound < 1.0e30 {
+        bound as f32
+    } else {
+        f32::INFINITY
     }
 }
 
@@ -182,28 +195,22 @@ fn solve_bracketed(segment: &CubicSegment, error_bound_per_kpa: f32, y: f32, mut
 impl InverseCurve for MonotoneCubicInverse {
     #[inline]
     fn pressure_kpa(&self, relative_change: f32) -> f32 {
-        let segments = self.forward.segments();
-        let mut index = 0;
-        while index + 1 < segments.len()
-            && relative_change >= self.relative_change_starts[index + 1]
-        {
-            index += 1;
-        }
-        let (Some(segment), Some(inverse)) =
-            (segments.get(index), self.inverse_segments.get(index))
-        else {
+        let cell = self.table.cell(relative_change);
+        let start_kpa = self.table.interpolate(cell);
+        let first = self.first_segments.get(cell.0).copied().unwrap_or(0);
+        let index = self.segment_from(usize::from(first), relative_change);
+        let (Some(segment), Some(bound)) = (
+            self.forward.segments().get(index),
+            self.error_bounds_per_kpa.get(index),
+        ) else {
             return 0.0;
         };
-        let start = clamp_f32(
-            inverse.start(relative_change - segment.coefficients[0]),
-            0.0,
-            segment.width,
-        );
+        let start = clamp_f32(start_kpa - segment.x_start, 0.0, segment.width);
         let step = (segment.value_at(start) - relative_change) / segment.slope_at(start);
-        let s = if inverse.error_bound_per_kpa * step * step <= ACCEPTED_ERROR_KPA {
+        let s = if bound * step * step <= ACCEPTED_ERROR_KPA {
             clamp_f32(start - step, 0.0, segment.width)
         } else {
-            solve_bracketed(segment, inverse.error_bound_per_kpa, relative_change, start)
+            solve_bracketed(segment, *bound, relative_change, start)
         };
         clamp_pressure(segment.x_start + s, self.top_pressure_kpa)
     }

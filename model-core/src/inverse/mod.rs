@@ -104,7 +104,6 @@ pub struct TaxelInverses {
     piecewise_linear: PiecewiseLinearInverse,
     monotone_cubic: MonotoneCubicInverse,
     saturating: Option<SaturatingFit>,
-    table: TableInverse,
     polynomial: Option<PolynomialInverse>,
     top_pressure_kpa: f32,
 }
@@ -116,7 +115,6 @@ impl TaxelInverses {
         Self {
             linear: LinearInverse::new(curve),
             piecewise_linear: PiecewiseLinearInverse::new(curve),
-            table: TableInverse::new(&monotone_cubic, curve),
             polynomial: PolynomialInverse::new(&monotone_cubic, curve),
             saturating: SaturatingFit::new(curve),
             monotone_cubic,
@@ -141,7 +139,7 @@ impl TaxelInverses {
         match tier {
             Tier::Linear => self.linear.pressure_kpa(relative_change),
             Tier::PiecewiseLinear => self.piecewise_linear.pressure_kpa(relative_change),
-            Tier::Table => self.table.pressure_kpa(relative_change),
+            Tier::Table => self.monotone_cubic.table().pressure_kpa(relative_change),
             Tier::Polynomial => match &self.polynomial {
                 Some(polynomial) => polynomial.pressure_kpa(relative_change),
                 None => self.monotone_cubic.pressure_kpa(relative_change),
@@ -187,7 +185,7 @@ impl TaxelInverses {
 
     /// The table tier.
     pub fn table(&self) -> &TableInverse {
-        &self.table
+        self.monotone_cubic.table()
     }
 
     /// The polynomial tier, if the fit is monotone.
