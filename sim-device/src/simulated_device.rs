@@ -288,8 +288,9 @@ fn boot(
     plan: BootPlan,
 ) -> Result<Device<SimulatedAcquisition, SimulatedPersistence>, SimulatedDeviceError> {
     {
-        // The simulated pad's factory calibration: the article's curve with this pad's
-        // parasitic capacitance, as the firmware's defaults would be for a real pad.
+        // The simulated pad's factory calibration: its true curve sampled every 5 kPa with its
+        // parasitic capacitance (sensor-sim's `matching_calibration`), as a careful calibration
+        // of a real pad would give; the model then only knows what a calibration could tell it.
         let defaults = simulation
             .physics()
             .matching_calibration()
