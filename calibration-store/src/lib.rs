@@ -3,9 +3,11 @@
 //!
 //! Two layers:
 //! - [`encode_record`] / [`decode_saved_record`]: a [`CalibrationSpec`] and its save counter as
-//!   `[format version = 2][save counter u32 LE][postcard body][CRC-32/ISO-HDLC little-endian]`, at
-//!   most [`MAX_RECORD_LEN`] bytes. Decoding refuses anything that is not an intact record of a
-//!   calibration that validates, with a typed [`RecordError`], and never panics.
+//!   `[format version = 3][save counter u32 LE][postcard body][CRC-32/ISO-HDLC little-endian]`, at
+//!   most [`MAX_RECORD_LEN`] bytes. Decoding also reads version 2 (written by earlier firmware:
+//!   the body without the taxels' calibrated C0, which loads as none), refuses anything that is
+//!   not an intact record of a calibration that validates, with a typed [`RecordError`], and
+//!   never panics.
 //! - [`CalibrationStore`]: that record as the value of one key of a `sequential-storage` map over
 //!   a flash range of two erase pages. Loading returns the valid record with the highest save
 //!   counter, wherever it is; saving keeps the previous record readable until the new one reads

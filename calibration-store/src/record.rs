@@ -2,10 +2,22 @@
 //! CalibrationSpec][CRC-32 LE]`.
 //!
 //! The CRC covers the version byte, the save counter and the body. A record is accepted only if it
-//! is intact (length, CRC), of the current version, parses completely, and validates with
-//! [`Calibration::new`]: a record that parses into a calibration the model would refuse is as
-//! corrupt as one with a bad CRC. Version 1 (the same without the save counter) was never shipped
-//! and is refused like any other unknown version.
+//! is intact (length, CRC), of a version this firmware reads, parses completely, and validates
+//! with [`Calibration::new`]: a record that parses into a calibration the model would refuse is
+//! as corrupt as one with a bad CRC.
+//!
+//! Versions:
+//! - 3 (written): the body is today's [`CalibrationSpec`], whose taxels carry
+//!   `unloaded_sensor_pf` (postcard `Option<f32>`: `00`, or `01` and the f32) after
+//!   `parasitic_pf`.
+//! - 2 (read, never written): the same record with the body as it was before that field existed,
+//!   which is the version-3 body of the same calibration without the four `None` tags. It is read
+//!   by putting them back and decoding as version 3, so it loads with `unloaded_sensor_pf: None`
+//!   on every taxel and a calibration saved by an older firmware survives the update; the next
+//!   save writes version 3. (Rewriting the bytes, rather than deserializing a mirror of the old
+//!   type, keeps a single `CalibrationSpec` deserializer in the firmware's flash.)
+//! - 1 (the same without the save counter) was never shipped and is refused like any other
+//!   unknown version.
 //!
 //! The save counter orders records independently of where the flash layer put them: the store
 //! gives every save the highest counter it can read plus one, and loads the valid record with the
@@ -20,7 +32,10 @@ use model_core::calibration::{
 };
 
 /// The format version written in the first byte of every record.
-pub const RECORD_FORMAT_VERSION: u8 = 2;
+pub const RECORD_FORMAT_VERSION: u8 = 3;
+
+/// The previous format version, still read: its body has no `unloaded_sensor_pf`.
+const VERSION_2: u8 = 2;
 
 /// The record CRC: CRC-32/ISO-HDLC (poly 0x04C11DB7, init and xorout 0xFFFFFFFF, reflected,
 /// check value 0xCBF43926), appended little-endian.
@@ -37,8 +52,11 @@ const F32_LEN: usize = 4;
 const VARINT_U32_MAX_LEN: usize = 5;
 /// postcard prefixes a sequence with its length as a varint; lengths up to 127 take one byte.
 const SEQUENCE_LENGTH_LEN: usize = 1;
+/// postcard writes an `Option<f32>` as a tag byte, then the f32 when it is Some.
+const OPTION_F32_MAX_LEN: usize = 1 + F32_LEN;
 const POINT_LEN: usize = 2 * F32_LEN;
-const TAXEL_MAX_LEN: usize = SEQUENCE_LENGTH_LEN + MAX_CURVE_POINTS * POINT_LEN + F32_LEN;
+const TAXEL_MAX_LEN: usize =
+    SEQUENCE_LENGTH_LEN + MAX_CURVE_POINTS * POINT_LEN + F32_LEN + OPTION_F32_MAX_LEN;
 const TEMPERATURE_LAW_MAX_LEN: usize =
     SEQUENCE_LENGTH_LEN + MAX_TEMPERATURE_POINTS * POINT_LEN + 2 * F32_LEN;
 const THRESHOLDS_LEN: usize = 3 * F32_LEN;
@@ -47,12 +65,13 @@ const THRESHOLDS_LEN: usize = 3 * F32_LEN;
 const _: () = assert!(MAX_CURVE_POINTS < 128 && MAX_TEMPERATURE_POINTS < 128);
 
 /// The longest postcard body of a [`CalibrationSpec`]: id (varint, 5), four taxels of 16 points
-/// (4 x (1 + 16 x 8 + 4) = 532), the temperature law (1 + 8 x 8 + 2 x 4 = 73) and the thresholds
-/// (12): 622 bytes.
+/// with a calibrated C0 (4 x (1 + 16 x 8 + 4 + 1 + 4) = 552), the temperature law
+/// (1 + 8 x 8 + 2 x 4 = 73) and the thresholds (12): 642 bytes. A version-2 body is 20 bytes
+/// shorter at most.
 pub const MAX_BODY_LEN: usize =
     VARINT_U32_MAX_LEN + TAXEL_COUNT * TAXEL_MAX_LEN + TEMPERATURE_LAW_MAX_LEN + THRESHOLDS_LEN;
 
-/// The longest record: version + save counter + [`MAX_BODY_LEN`] + CRC = 631 bytes.
+/// The longest record: version + save counter + [`MAX_BODY_LEN`] + CRC = 651 bytes.
 pub const MAX_RECORD_LEN: usize = HEADER_LEN + MAX_BODY_LEN + CRC_LEN;
 
 /// A decoded record: the calibration and the save counter it was written with.
@@ -91,7 +110,8 @@ pub enum RecordError {
         /// The version byte found.
         found: u8,
     },
-    /// Decoding: the body is intact but is not a postcard `CalibrationSpec`.
+    /// Decoding: the body is intact but is not a postcard `CalibrationSpec` (in the layout of the
+    /// record's version).
     Postcard(postcard::Error),
     /// Decoding: the body parsed but bytes were left over before the CRC.
     TrailingBytes,
@@ -165,19 +185,78 @@ pub fn decode_saved_record(bytes: &[u8]) -> Result<SavedRecord, RecordError> {
         return Err(RecordError::BadCrc);
     }
     let [version, counter @ ..] = *header;
-    if version != RECORD_FORMAT_VERSION {
-        return Err(RecordError::UnsupportedVersion { found: version });
-    }
-    let (spec, rest) =
-        postcard::take_from_bytes::<CalibrationSpec>(body).map_err(RecordError::Postcard)?;
-    if !rest.is_empty() {
-        return Err(RecordError::TrailingBytes);
-    }
+    let mut upgraded = [0u8; MAX_BODY_LEN];
+    let body = match version {
+        RECORD_FORMAT_VERSION => body,
+        VERSION_2 => version_3_body(body, &mut upgraded)?,
+        found => return Err(RecordError::UnsupportedVersion { found }),
+    };
+    let spec = take_body(body)?;
     Calibration::new(&spec).map_err(RecordError::Invalid)?;
     Ok(SavedRecord {
         save_counter: u32::from_le_bytes(counter),
         spec,
     })
+}
+
+/// The whole body as one calibration.
+fn take_body(body: &[u8]) -> Result<CalibrationSpec, RecordError> {
+    match postcard::take_from_bytes::<CalibrationSpec>(body) {
+        Ok((spec, [])) => Ok(spec),
+        Ok(_) => Err(RecordError::TrailingBytes),
+        Err(error) => Err(RecordError::Postcard(error)),
+    }
+}
+
+/// Writes into `out` the version-3 body of the calibration in the version-2 `body` and returns
+/// it. Version 2 lacked only each taxel's `unloaded_sensor_pf`, so this is `body` with a `00`
+/// (None) after each taxel's parasitic capacitance; postcard itself reads the id and the point
+/// counts that locate them. What follows the taxels is copied unchecked: the version-3 decoder
+/// checks it, as it does for a version-3 record.
+fn version_3_body<'out>(
+    body: &[u8],
+    out: &'out mut [u8; MAX_BODY_LEN],
+) -> Result<&'out [u8], RecordError> {
+    const TRUNCATED: RecordError = RecordError::Postcard(postcard::Error::DeserializeUnexpectedEnd);
+    // A valid version-2 body is 20 bytes shorter than MAX_BODY_LEN at most, so a body that does
+    // not fit once the tags are added can only have bytes after the calibration.
+    const TOO_LONG: RecordError = RecordError::TrailingBytes;
+    let (_id, mut rest) = postcard::take_from_bytes::<u32>(body).map_err(RecordError::Postcard)?;
+    let mut taxel_ends = [0usize; TAXEL_COUNT];
+    for taxel_end in &mut taxel_ends {
+        // A sequence length is a varint usize, which on the firmware's target is a u32 (serde's
+        // usize would be read as a u64 varint, with 64-bit shifts the firmware does not need).
+        let (point_count, points) =
+            postcard::take_from_bytes::<u32>(rest).map_err(RecordError::Postcard)?;
+        let point_count = point_count as usize;
+        if point_count > MAX_CURVE_POINTS {
+            // What the version-3 decoder reports for a curve longer than its capacity.
+            return Err(RecordError::Postcard(postcard::Error::SerdeDeCustom));
+        }
+        rest = points
+            .get(point_count * POINT_LEN + F32_LEN..)
+            .ok_or(TRUNCATED)?;
+        *taxel_end = body.len() - rest.len();
+    }
+    let mut written = 0;
+    let mut start = 0;
+    for end in taxel_ends {
+        let taxel = body.get(start..end).ok_or(TRUNCATED)?;
+        let (none_tag, destination) = out
+            .get_mut(written..=written + taxel.len())
+            .and_then(<[u8]>::split_last_mut)
+            .ok_or(TOO_LONG)?;
+        destination.copy_from_slice(taxel);
+        *none_tag = 0;
+        written += taxel.len() + 1;
+        start = end;
+    }
+    let tail = body.get(start..).ok_or(TRUNCATED)?;
+    let length = written + tail.len();
+    out.get_mut(written..length)
+        .ok_or(TOO_LONG)?
+        .copy_from_slice(tail);
+    out.get(..length).ok_or(TOO_LONG)
 }
 
 #[cfg(test)]
@@ -186,8 +265,8 @@ mod tests {
 
     #[test]
     fn maximum_lengths_add_up() {
-        assert_eq!(MAX_BODY_LEN, 622);
-        assert_eq!(MAX_RECORD_LEN, 631);
+        assert_eq!(MAX_BODY_LEN, 642);
+        assert_eq!(MAX_RECORD_LEN, 651);
     }
 
     #[test]

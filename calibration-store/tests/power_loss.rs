@@ -17,8 +17,9 @@ mod common;
 
 use calibration_store::{LoadOutcome, OperationKind, RamFlashError, Tear};
 use common::{
-    block_on, config, describe, mixed_spec, reboot_and_load, small_flash, small_store, SmallFlash,
-    OUTSIDE_RANGE, SMALL_RANGE,
+    block_on, config, describe, mixed_spec, reboot_and_load, small_flash, small_store,
+    version_2_flash, version_2_flash_newest, worst_case_spec, SmallFlash, OUTSIDE_RANGE,
+    SMALL_RANGE,
 };
 use model_core::calibration::CalibrationSpec;
 use proptest::prelude::*;
@@ -223,6 +224,50 @@ fn power_loss_at_every_operation_of_a_save_leaves_the_old_or_the_new_spec() {
     assert_eq!(
         tally.flagged_defaults_after_a_save, 0,
         "a saved calibration was lost"
+    );
+}
+
+/// The first save after the update to record format version 3, over the flash the previous
+/// firmware wrote (version-2 records): torn at every operation and word, the calibration saved
+/// with version 2 or the new one loads, never the defaults.
+#[test]
+fn power_loss_during_the_first_save_over_version_2_records_leaves_the_old_or_the_new_spec() {
+    let base = version_2_flash();
+    let old = Some(version_2_flash_newest());
+    let new = worst_case_spec(3000);
+    let mut tally = Tally::default();
+    let mut operations = 0;
+    while let Some(probe) = torn_save(&base, operations, Tear::NOTHING, &new) {
+        let report = probe.last_power_loss().unwrap();
+        for whole_words in 0..report.words {
+            let edges = [0, 1, 2, report.words / 2, report.words - 1];
+            let partial_masks = if edges.contains(&whole_words) {
+                &PARTIAL_MASKS[..]
+            } else {
+                &[]
+            };
+            for &partial_word_mask in [0].iter().chain(partial_masks) {
+                let tear = Tear {
+                    whole_words,
+                    partial_word_mask,
+                };
+                let mut flash = torn_save(&base, operations, tear, &new).unwrap();
+                let context = format!(
+                    "over version 2, operation {operations} ({:?} of {} words), {tear:?}",
+                    report.kind, report.words
+                );
+                let (verdict, _) = check_after_reboot(&mut flash, &old, &new, &context);
+                tally.count(verdict);
+                check_next_save(flash, &context);
+            }
+        }
+        operations += 1;
+    }
+    println!("over version-2 records: {tally}");
+    assert!(tally.old > 0 && tally.new > 0, "{tally}");
+    assert_eq!(
+        tally.flagged_defaults_after_a_save, 0,
+        "a calibration saved with version 2 was lost"
     );
 }
 

@@ -50,8 +50,8 @@ fn layout_is_version_save_counter_postcard_body_and_little_endian_crc32() {
     let spec = spec(7);
     let record = encode_with_counter(&spec, 0xA1B2_C3D4);
     let body = postcard_body(&spec);
-    assert_eq!(record[0], 2);
-    assert_eq!(RECORD_FORMAT_VERSION, 2);
+    assert_eq!(record[0], 3);
+    assert_eq!(RECORD_FORMAT_VERSION, 3);
     assert_eq!(&record[1..5], &[0xD4, 0xC3, 0xB2, 0xA1]);
     assert_eq!(&record[5..record.len() - 4], body.as_slice());
     let crc = INDEPENDENT_CRC.checksum(&record[..record.len() - 4]);
@@ -64,6 +64,63 @@ fn layout_is_version_save_counter_postcard_body_and_little_endian_crc32() {
             spec
         })
     );
+}
+
+/// Version 3: each taxel's `unloaded_sensor_pf` follows its `parasitic_pf` as a postcard
+/// `Option<f32>` (`00`, or `01` and the f32 little-endian).
+#[test]
+fn a_calibrated_c0_round_trips_and_is_an_option_after_the_parasitic_capacitance() {
+    let mut with_c0 = spec(7);
+    let unloaded_pf = [4.5f32, 4.25, 4.75, 0.5];
+    for (taxel, pf) in with_c0.taxels.iter_mut().zip(unloaded_pf) {
+        taxel.unloaded_sensor_pf = Some(pf);
+    }
+    with_c0.taxels[2].unloaded_sensor_pf = None;
+    let record = encode_with_counter(&with_c0, 5);
+    assert_eq!(
+        decode_saved_record(&record),
+        Ok(SavedRecord {
+            save_counter: 5,
+            spec: with_c0.clone()
+        })
+    );
+    // 3 x 5 bytes for Some and 1 for None, where the spec without any has 4 x 1.
+    assert_eq!(record.len(), encode(&spec(7)).len() + 12);
+    for taxel in [0, 1, 3] {
+        let parasitic_then_c0: Vec<u8> = with_c0.taxels[taxel]
+            .parasitic_pf
+            .to_le_bytes()
+            .into_iter()
+            .chain([1])
+            .chain(unloaded_pf[taxel].to_le_bytes())
+            .collect();
+        assert!(
+            record
+                .windows(parasitic_then_c0.len())
+                .any(|window| window == parasitic_then_c0),
+            "taxel {taxel}"
+        );
+    }
+    let mut out_of_range = with_c0;
+    for refused in [0.0, -1.0, f32::NAN, f32::INFINITY, 1.0e6] {
+        out_of_range.taxels[1].unloaded_sensor_pf = Some(refused);
+        let mut buffer = [0u8; MAX_RECORD_LEN];
+        assert_eq!(
+            encode_record(&out_of_range, COUNTER, &mut buffer),
+            Err(RecordError::Invalid(CalibrationError::UnloadedOutOfRange {
+                taxel: 1
+            })),
+            "{refused}"
+        );
+        let body = postcard_body(&out_of_range);
+        assert_eq!(
+            decode_record(&record_with_body(RECORD_FORMAT_VERSION, &body)),
+            Err(RecordError::Invalid(CalibrationError::UnloadedOutOfRange {
+                taxel: 1
+            })),
+            "{refused}"
+        );
+    }
 }
 
 #[test]
@@ -100,13 +157,18 @@ fn worst_case_spec_fills_max_record_len_exactly() {
     let worst = worst_case_spec(u32::MAX);
     let record = encode(&worst);
     assert_eq!(record.len(), MAX_RECORD_LEN);
-    assert_eq!(MAX_RECORD_LEN, 631);
+    assert_eq!(MAX_RECORD_LEN, 651);
+    assert!(worst
+        .taxels
+        .iter()
+        .all(|taxel| taxel.unloaded_sensor_pf.is_some()));
     assert_eq!(decode_record(&record), Ok(worst));
 }
 
 #[test]
 fn default_record_length_is_measured() {
-    assert_eq!(encode(&CalibrationSpec::default()).len(), 259);
+    // One `None` tag per taxel more than the 259 bytes of version 2.
+    assert_eq!(encode(&CalibrationSpec::default()).len(), 263);
 }
 
 #[test]
@@ -140,7 +202,7 @@ fn an_invalid_spec_is_refused_before_anything_is_written() {
 fn short_inputs_are_too_short() {
     for length in 0..=8 {
         assert_eq!(
-            decode_record(&[2, 0, 0, 0, 0, 0, 0, 0, 0][..length]),
+            decode_record(&[3, 0, 0, 0, 0, 0, 0, 0, 0][..length]),
             Err(RecordError::TooShort),
             "{length} bytes"
         );
@@ -158,21 +220,23 @@ fn a_changed_byte_is_a_crc_error() {
 #[test]
 fn an_intact_record_of_another_version_is_refused_by_version() {
     let record = encode(&spec(3));
-    let other_version = record_with_body(3, &record[5..record.len() - 4]);
-    assert_eq!(
-        decode_record(&other_version),
-        Err(RecordError::UnsupportedVersion { found: 3 })
-    );
+    for version in [0, 1, 4, 0xFF] {
+        let other_version = record_with_body(version, &record[5..record.len() - 4]);
+        assert_eq!(
+            decode_record(&other_version),
+            Err(RecordError::UnsupportedVersion { found: version })
+        );
+    }
 }
 
 #[test]
 fn an_intact_record_with_a_garbage_body_is_a_postcard_error() {
     assert!(matches!(
-        decode_record(&record_with_body(2, &[])),
+        decode_record(&record_with_body(RECORD_FORMAT_VERSION, &[])),
         Err(RecordError::Postcard(_))
     ));
     assert!(matches!(
-        decode_record(&record_with_body(2, &[0xFF; 40])),
+        decode_record(&record_with_body(RECORD_FORMAT_VERSION, &[0xFF; 40])),
         Err(RecordError::Postcard(_))
     ));
 }
@@ -183,7 +247,7 @@ fn an_intact_record_with_bytes_after_the_body_is_refused() {
     let mut body = record[5..record.len() - 4].to_vec();
     body.push(0);
     assert_eq!(
-        decode_record(&record_with_body(2, &body)),
+        decode_record(&record_with_body(RECORD_FORMAT_VERSION, &body)),
         Err(RecordError::TrailingBytes)
     );
 }
@@ -194,7 +258,7 @@ fn an_intact_record_that_does_not_validate_is_refused() {
     invalid.taxels[1].points[2] = CurvePoint::new(5.0, 0.01);
     let body = postcard_body(&invalid);
     assert_eq!(
-        decode_record(&record_with_body(2, &body)),
+        decode_record(&record_with_body(RECORD_FORMAT_VERSION, &body)),
         Err(RecordError::Invalid(
             CalibrationError::NotStrictlyIncreasing { taxel: 1, point: 2 }
         ))
@@ -203,7 +267,7 @@ fn an_intact_record_that_does_not_validate_is_refused() {
     invalid.thresholds.dead_band_relative = f32::NAN;
     let body = postcard_body(&invalid);
     assert_eq!(
-        decode_record(&record_with_body(2, &body)),
+        decode_record(&record_with_body(RECORD_FORMAT_VERSION, &body)),
         Err(RecordError::Invalid(CalibrationError::InvalidThresholds))
     );
 }
@@ -251,7 +315,7 @@ proptest! {
     }
 
     /// CRC-32 has a Hamming distance of at least 4 up to 91607 bits, so up to three flipped bits
-    /// in a record of at most 5048 bits are always detected.
+    /// in a record of at most 5208 bits are always detected.
     #[test]
     fn up_to_three_bit_flips_never_decode(
         spec in valid_spec(),
@@ -286,7 +350,7 @@ proptest! {
     fn random_bodies_with_a_correct_crc_never_panic(
         body in proptest::collection::vec(any::<u8>(), 0..=MAX_RECORD_LEN),
     ) {
-        let record = record_with_body(2, &body);
+        let record = record_with_body(RECORD_FORMAT_VERSION, &body);
         if let Ok(spec) = decode_record(&record) {
             prop_assert!(Calibration::new(&spec).is_ok());
         }
@@ -304,7 +368,7 @@ proptest! {
         let mut body = record[5..record.len() - 4].to_vec();
         let position = position % body.len();
         body[position] = value;
-        let edited = record_with_body(2, &body);
+        let edited = record_with_body(RECORD_FORMAT_VERSION, &body);
         if let Ok(decoded) = decode_record(&edited) {
             prop_assert!(Calibration::new(&decoded).is_ok());
         }

@@ -125,17 +125,17 @@ fn unusable_ranges_are_refused() {
     );
 }
 
-/// A page must hold the two page markers (2 x 4 bytes) and two items of 8-byte header + key +
-/// longest record (1 + 631, already a multiple of 4): 8 + 2 x 640 = 1288 bytes.
+/// A page must hold the two page markers (2 x 4 bytes) and two items of 8-byte header + key (no
+/// bytes) + longest record (651, rounded up to the 4-byte word: 652): 8 + 2 x 660 = 1328 bytes.
 #[test]
 fn pages_must_hold_two_records_and_that_is_enough() {
-    let mut too_small = Box::new(RamFlash::<{ 2 * 1284 }, 1284>::new());
+    let mut too_small = Box::new(RamFlash::<{ 2 * 1324 }, 1324>::new());
     assert_eq!(
-        CalibrationStore::new(&mut *too_small, 0..2 * 1284).err(),
+        CalibrationStore::new(&mut *too_small, 0..2 * 1324).err(),
         Some(RegionError::PagesTooSmall)
     );
-    let mut just_enough = Box::new(RamFlash::<{ 2 * 1288 }, 1288>::new());
-    let mut store = CalibrationStore::new(&mut *just_enough, 0..2 * 1288).unwrap();
+    let mut just_enough = Box::new(RamFlash::<{ 2 * 1328 }, 1328>::new());
+    let mut store = CalibrationStore::new(&mut *just_enough, 0..2 * 1328).unwrap();
     for id in 0..20 {
         let saved = worst_case_spec(id);
         block_on(store.save(&saved)).unwrap();
@@ -236,7 +236,7 @@ fn with_version(record: &[u8], version: u8) -> Vec<u8> {
 #[test]
 fn an_intact_item_with_an_unacceptable_record_is_corrupt_and_a_save_replaces_it() {
     let valid = record(&spec(5), 9);
-    let other_version = with_version(&valid, 3);
+    let other_version = with_version(&valid, 4);
     // Version 1 had no save counter: the bytes after the version are a version 1 body here, and
     // the version alone refuses it.
     let version_1 = with_version(&valid, 1);
@@ -245,7 +245,7 @@ fn an_intact_item_with_an_unacceptable_record_is_corrupt_and_a_save_replaces_it(
     let cases: [(&[u8], CorruptReason<RamFlashError>); 4] = [
         (
             &other_version,
-            CorruptReason::Record(RecordError::UnsupportedVersion { found: 3 }),
+            CorruptReason::Record(RecordError::UnsupportedVersion { found: 4 }),
         ),
         (
             &version_1,

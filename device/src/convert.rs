@@ -106,11 +106,13 @@ pub fn calibration_record(
         calibration: TaxelCalibrationWire {
             points,
             parasitic_pf: taxel.parasitic_pf,
+            unloaded_sensor_pf: taxel.unloaded_sensor_pf,
         },
     })
 }
 
-/// A wire calibration as model-core plain data (validated later by the model).
+/// A wire calibration as model-core plain data, its calibrated C0 included (validated later by
+/// the model).
 pub fn taxel_calibration_spec(
     wire: &TaxelCalibrationWire,
 ) -> Result<TaxelCalibrationSpec, CalibrationConversionError> {
@@ -123,5 +125,6 @@ pub fn taxel_calibration_spec(
     Ok(TaxelCalibrationSpec {
         points,
         parasitic_pf: wire.parasitic_pf,
+        unloaded_sensor_pf: wire.unloaded_sensor_pf,
     })
 }

@@ -33,8 +33,10 @@ use wire::{
     InfoFrame, ReplyFrame, ReplyPayload, Request, SampleFrame, SampleRate, PROTOCOL_VERSION,
 };
 
-/// Largest encoded output: a CSV line (283 bytes) or the largest frame (150 bytes).
+/// Largest encoded output: a CSV line (283 bytes) or the largest frame (155 bytes).
 pub const MAX_OUTGOING_LEN: usize = 288;
+
+const _: () = assert!(wire::MAX_FRAME_ENCODED_LEN <= MAX_OUTGOING_LEN);
 
 /// Who the device is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -187,15 +187,55 @@ impl BaselineTracking {
 pub struct TareAccumulator {
     requested: u16,
     seen: u16,
-    offset_sums_pf: [f64; TAXEL_COUNT],
-    fine_sums_pf: [f64; TAXEL_COUNT],
-    // Deviations from each taxel's first reading (so the spread has no cancellation, and f32
-    // holds them exactly enough: fF-sized values, relative 1e-7).
-    first_reading: [Option<SplitCapacitance>; TAXEL_COUNT],
-    deviation_sums_pf: [f32; TAXEL_COUNT],
-    deviation_squares_pf2: [f32; TAXEL_COUNT],
-    counts: [u16; TAXEL_COUNT],
+    taxels: [TaxelSums; TAXEL_COUNT],
     temperature_sum_c: f64,
+}
+
+/// One taxel's sums over a tare.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct TaxelSums {
+    offset_sum_pf: f64,
+    fine_sum_pf: f64,
+    // Deviations from the first reading (so the spread has no cancellation, and f32 holds them
+    // exactly enough: fF-sized values, relative 1e-7).
+    first_reading: Option<SplitCapacitance>,
+    deviation_sum_pf: f32,
+    deviation_square_sum_pf2: f32,
+    count: u16,
+}
+
+impl TaxelSums {
+    fn add(&mut self, capacitance: SplitCapacitance) {
+        self.offset_sum_pf += capacitance.offset_pf as f64;
+        self.fine_sum_pf += capacitance.fine_pf as f64;
+        let first = *self.first_reading.get_or_insert(capacitance);
+        let deviation_pf = capacitance.minus(first);
+        self.deviation_sum_pf += deviation_pf;
+        self.deviation_square_sum_pf2 += deviation_pf * deviation_pf;
+        self.count = self.count.saturating_add(1);
+    }
+
+    /// The mean capacitance, or why there is none: too few readings, or not still.
+    fn mean(&self, needed: u16) -> Result<SplitCapacitance, BaselineError> {
+        let count = self.count;
+        if count < needed || count == 0 {
+            return Err(BaselineError::TooFewSamples);
+        }
+        let mean_deviation_pf = self.deviation_sum_pf / count as f32;
+        let variance_pf2 =
+            self.deviation_square_sum_pf2 / count as f32 - mean_deviation_pf * mean_deviation_pf;
+        let spread_pf = libm::sqrtf(clamp_f32(variance_pf2, 0.0, f32::MAX));
+        if !(spread_pf <= TARE_STILL_SPREAD_PF) {
+            // Saturating conversion: NaN gives 0, beyond u32 gives u32::MAX.
+            return Err(BaselineError::NotStill {
+                spread_ff: (spread_pf * 1000.0) as u32,
+            });
+        }
+        Ok(SplitCapacitance {
+            offset_pf: (self.offset_sum_pf / count as f64) as f32,
+            fine_pf: (self.fine_sum_pf / count as f64) as f32,
+        })
+    }
 }
 
 impl TareAccumulator {
@@ -204,12 +244,7 @@ impl TareAccumulator {
         Self {
             requested: sample_sets.max(1),
             seen: 0,
-            offset_sums_pf: [0.0; TAXEL_COUNT],
-            fine_sums_pf: [0.0; TAXEL_COUNT],
-            first_reading: [None; TAXEL_COUNT],
-            deviation_sums_pf: [0.0; TAXEL_COUNT],
-            deviation_squares_pf2: [0.0; TAXEL_COUNT],
-            counts: [0; TAXEL_COUNT],
+            taxels: [TaxelSums::default(); TAXEL_COUNT],
             temperature_sum_c: 0.0,
         }
     }
@@ -226,15 +261,9 @@ impl TareAccumulator {
         capacitances: &[Option<SplitCapacitance>; TAXEL_COUNT],
         temperature_c: f32,
     ) -> bool {
-        for (taxel, capacitance) in capacitances.iter().enumerate() {
+        for (sums, capacitance) in self.taxels.iter_mut().zip(capacitances) {
             if let Some(capacitance) = capacitance {
-                self.offset_sums_pf[taxel] += capacitance.offset_pf as f64;
-                self.fine_sums_pf[taxel] += capacitance.fine_pf as f64;
-                let first = *self.first_reading[taxel].get_or_insert(*capacitance);
-                let deviation_pf = capacitance.minus(first);
-                self.deviation_sums_pf[taxel] += deviation_pf;
-                self.deviation_squares_pf2[taxel] += deviation_pf * deviation_pf;
-                self.counts[taxel] += 1;
+                sums.add(*capacitance);
             }
         }
         self.temperature_sum_c += temperature_c as f64;
@@ -252,26 +281,13 @@ impl TareAccumulator {
     ) -> [Result<Baseline, BaselineError>; TAXEL_COUNT] {
         let temperature_c = (self.temperature_sum_c / self.seen.max(1) as f64) as f32;
         let needed = self.requested.div_ceil(2).max(1);
-        core::array::from_fn(|taxel| {
-            let count = self.counts[taxel];
-            if count < needed {
-                return Err(BaselineError::TooFewSamples);
-            }
-            let mean_deviation_pf = self.deviation_sums_pf[taxel] / count as f32;
-            let variance_pf2 = self.deviation_squares_pf2[taxel] / count as f32
-                - mean_deviation_pf * mean_deviation_pf;
-            let spread_pf = libm::sqrtf(clamp_f32(variance_pf2, 0.0, f32::MAX));
-            if !(spread_pf <= TARE_STILL_SPREAD_PF) {
-                // Saturating conversion: NaN gives 0, beyond u32 gives u32::MAX.
-                return Err(BaselineError::NotStill {
-                    spread_ff: (spread_pf * 1000.0) as u32,
-                });
-            }
-            let mean = SplitCapacitance {
-                offset_pf: (self.offset_sums_pf[taxel] / count as f64) as f32,
-                fine_pf: (self.fine_sums_pf[taxel] / count as f64) as f32,
-            };
-            Baseline::new(mean, parasitic_pf[taxel], temperature_c, law, thresholds)
-        })
+        let mut results = [Err(BaselineError::TooFewSamples); TAXEL_COUNT];
+        for ((result, sums), parasitic_pf) in results.iter_mut().zip(&self.taxels).zip(parasitic_pf)
+        {
+            *result = sums.mean(needed).and_then(|mean| {
+                Baseline::new(mean, *parasitic_pf, temperature_c, law, thresholds)
+            });
+        }
+        results
     }
 }

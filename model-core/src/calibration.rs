@@ -7,6 +7,8 @@
 
 use heapless::Vec;
 
+use crate::reading::MAX_MEASURABLE_PF;
+
 /// Number of taxels on the pad (C11, C12, C21, C22, in that order).
 pub const TAXEL_COUNT: usize = 4;
 
@@ -89,6 +91,11 @@ pub enum CalibrationError {
     },
     /// The parasitic capacitance is negative or above the converter's reach (100 pF).
     ParasiticOutOfRange {
+        /// Taxel index, 0..4.
+        taxel: u8,
+    },
+    /// The calibrated unloaded capacitance is not a positive capacitance the converter can read.
+    UnloadedOutOfRange {
         /// Taxel index, 0..4.
         taxel: u8,
     },
@@ -303,7 +310,9 @@ impl TemperatureLaw {
             return last.permittivity_ratio;
         }
         for pair in points.windows(2) {
-            let (low, high) = (pair[0], pair[1]);
+            let [low, high] = pair else {
+                continue;
+            };
             if temperature_c < high.temperature_c {
                 let fraction =
                     (temperature_c - low.temperature_c) / (high.temperature_c - low.temperature_c);
@@ -363,6 +372,10 @@ pub struct TaxelCalibrationSpec {
     /// Capacitance of the lead and converter input that is not part of C0 and does not follow the
     /// permittivity, pF.
     pub parasitic_pf: f32,
+    /// The taxel's unloaded sensor capacitance C0 - Cp at 25 °C when it was calibrated, pF, if
+    /// known (the built-in default has none). A tare far from it is flagged.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub unloaded_sensor_pf: Option<f32>,
 }
 
 /// A whole pad's calibration as plain data: what files, flash records and the wire carry.
@@ -396,6 +409,9 @@ pub struct TaxelCalibration {
     pub curve: CalibrationCurve,
     /// Parasitic capacitance, pF (0 ..= 100).
     pub parasitic_pf: f32,
+    /// Unloaded sensor capacitance C0 - Cp at 25 °C when calibrated, pF (finite, positive, within
+    /// the converter's reach), if known.
+    pub unloaded_sensor_pf: Option<f32>,
 }
 
 impl TaxelCalibration {
@@ -408,9 +424,15 @@ impl TaxelCalibration {
         if !(0.0..=100.0).contains(&spec.parasitic_pf) {
             return Err(CalibrationError::ParasiticOutOfRange { taxel });
         }
+        if let Some(unloaded_pf) = spec.unloaded_sensor_pf {
+            if !(unloaded_pf > 0.0 && unloaded_pf <= MAX_MEASURABLE_PF) {
+                return Err(CalibrationError::UnloadedOutOfRange { taxel });
+            }
+        }
         Ok(Self {
             curve,
             parasitic_pf: spec.parasitic_pf,
+            unloaded_sensor_pf: spec.unloaded_sensor_pf,
         })
     }
 
@@ -419,6 +441,7 @@ impl TaxelCalibration {
         TaxelCalibrationSpec {
             points: bounded_copy(self.curve.points()),
             parasitic_pf: self.parasitic_pf,
+            unloaded_sensor_pf: self.unloaded_sensor_pf,
         }
     }
 }
@@ -439,6 +462,7 @@ impl Default for Calibration {
         let taxel = TaxelCalibration {
             curve: CalibrationCurve::article_default(),
             parasitic_pf: 0.0,
+            unloaded_sensor_pf: None,
         };
         Self {
             id: 0,

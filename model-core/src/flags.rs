@@ -47,6 +47,11 @@ bitflags! {
         /// temperature in use moves towards it by at most
         /// [`crate::temperature::SLEW_C_PER_SET`] per sample set.
         const TEMPERATURE_IMPLAUSIBLE = 1 << 13;
+        /// Warning: the taxel's baseline (C0 at 25 °C) differs from the C0 recorded in its
+        /// calibration by more than [`crate::pad::TARE_FAR_FROM_CALIBRATION_RELATIVE`]: the pad
+        /// was loaded at the tare, has aged (the article loses 5.7 % in 5000 cycles) or is not
+        /// the calibrated pad. Tare again unloaded, or calibrate again.
+        const BASELINE_FAR_FROM_CALIBRATION = 1 << 14;
 
         /// Every flag that makes a reading carry no pressure.
         const FAULTS = Self::SHORTED.bits()
@@ -66,7 +71,7 @@ impl TaxelFlags {
     }
 
     /// Stable, documented names of the individual flags, in bit order (used in CSV files).
-    pub const NAMES: [(TaxelFlags, &'static str); 14] = [
+    pub const NAMES: [(TaxelFlags, &'static str); 15] = [
         (Self::BELOW_BASELINE, "below_baseline"),
         (Self::OVER_RANGE, "over_range"),
         (Self::SHORTED, "shorted"),
@@ -81,6 +86,10 @@ impl TaxelFlags {
         (Self::BASELINE_TRACKING_LIMIT, "baseline_tracking_limit"),
         (Self::TEMPERATURE_FALLBACK, "temperature_fallback"),
         (Self::TEMPERATURE_IMPLAUSIBLE, "temperature_implausible"),
+        (
+            Self::BASELINE_FAR_FROM_CALIBRATION,
+            "baseline_far_from_calibration",
+        ),
     ];
 
     /// The flag with this documented name, if any.

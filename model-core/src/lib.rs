@@ -27,6 +27,8 @@
 //! ```
 #![no_std]
 #![deny(missing_docs)]
+// No panic path: every index is checked or provably in bounds (tests may index freely).
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 pub mod baseline;
 mod bounds;

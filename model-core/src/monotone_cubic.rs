@@ -81,33 +81,42 @@ fn secant_slopes(xs: &[f64], ys: &[f64]) -> [f64; MAX_CURVE_POINTS - 1] {
 fn tangents(xs: &[f64], ys: &[f64]) -> [f64; MAX_CURVE_POINTS] {
     let count = xs.len().min(ys.len()).min(MAX_CURVE_POINTS);
     let secant_slopes = secant_slopes(xs, ys);
+    let secants = secant_slopes
+        .get(..count.saturating_sub(1))
+        .unwrap_or_default();
     let mut tangents = [0.0f64; MAX_CURVE_POINTS];
-    if count >= 2 {
-        tangents[0] = secant_slopes[0];
-        tangents[count - 1] = secant_slopes[count - 2];
-    }
-    for k in 1..count.saturating_sub(1) {
-        let (left, right) = (secant_slopes[k - 1], secant_slopes[k]);
-        tangents[k] = if left * right <= 0.0 {
-            0.0
-        } else {
-            0.5 * (left + right)
+    for (k, tangent) in tangents.iter_mut().enumerate().take(count) {
+        let left = k.checked_sub(1).and_then(|index| secants.get(index));
+        *tangent = match (left, secants.get(k)) {
+            (Some(left), Some(right)) if left * right <= 0.0 => 0.0,
+            (Some(left), Some(right)) => 0.5 * (left + right),
+            (Some(end), None) | (None, Some(end)) => *end,
+            (None, None) => 0.0,
         };
     }
-    for k in 0..count.saturating_sub(1) {
-        let secant = secant_slopes[k];
-        if secant == 0.0 {
-            tangents[k] = 0.0;
-            tangents[k + 1] = 0.0;
-            continue;
-        }
-        let alpha = tangents[k] / secant;
-        let beta = tangents[k + 1] / secant;
-        let radius_squared = alpha * alpha + beta * beta;
-        if radius_squared > 9.0 {
-            let tau = 3.0 / libm::sqrt(radius_squared);
-            tangents[k] = tau * alpha * secant;
-            tangents[k + 1] = tau * beta * secant;
+    // In interval order: an interval's limiter may lower the tangent its right neighbour then
+    // reads.
+    for (k, secant) in secants.iter().enumerate() {
+        let (Some(&start), Some(&end)) = (tangents.get(k), tangents.get(k + 1)) else {
+            break;
+        };
+        let (start, end) = if *secant == 0.0 {
+            (0.0, 0.0)
+        } else {
+            let alpha = start / secant;
+            let beta = end / secant;
+            let radius_squared = alpha * alpha + beta * beta;
+            if radius_squared > 9.0 {
+                // f32's square root is plenty for a scale factor (and the firmware links no
+                // f64 one); an overflow gives 0, flat tangents, still monotone.
+                let tau = 3.0 / f64::from(libm::sqrtf(radius_squared as f32));
+                (tau * alpha * secant, tau * beta * secant)
+            } else {
+                (start, end)
+            }
+        };
+        if let Some([first, second]) = tangents.get_mut(k..k + 2) {
+            (*first, *second) = (start, end);
         }
     }
     tangents
@@ -131,16 +140,24 @@ impl MonotoneCubic {
         let tangents = tangents(xs, ys);
         let secant_slopes = secant_slopes(xs, ys);
         let mut segments = [CubicSegment::default(); MAX_CURVE_POINTS - 1];
-        for k in 0..count.saturating_sub(1) {
-            let width = xs[k + 1] - xs[k];
-            let secant = secant_slopes[k];
-            let (start_tangent, end_tangent) = (tangents[k], tangents[k + 1]);
-            segments[k] = CubicSegment {
-                x_start: xs[k] as f32,
+        for ((((segment, x), y), secant), tangent_pair) in segments
+            .iter_mut()
+            .zip(xs.windows(2))
+            .zip(ys.windows(2))
+            .zip(secant_slopes)
+            .zip(tangents.windows(2))
+            .take(count.saturating_sub(1))
+        {
+            let ([x0, x1], [y0, _], [start_tangent, end_tangent]) = (x, y, tangent_pair) else {
+                break;
+            };
+            let width = x1 - x0;
+            *segment = CubicSegment {
+                x_start: *x0 as f32,
                 width: width as f32,
                 coefficients: [
-                    ys[k] as f32,
-                    start_tangent as f32,
+                    *y0 as f32,
+                    *start_tangent as f32,
                     ((3.0 * secant - 2.0 * start_tangent - end_tangent) / width) as f32,
                     ((start_tangent + end_tangent - 2.0 * secant) / (width * width)) as f32,
                 ],
@@ -157,14 +174,19 @@ impl MonotoneCubic {
 
     /// The interval segments in x order.
     pub fn segments(&self) -> &[CubicSegment] {
-        &self.segments[..self.segment_count]
+        self.segments.get(..self.segment_count).unwrap_or_default()
     }
 
     /// Index of the segment holding `x` (x below the start gives 0, above the end the last).
     #[inline]
     pub fn segment_index(&self, x: f32) -> usize {
         let mut index = 0;
-        while index + 1 < self.segment_count && x >= self.segments[index + 1].x_start {
+        while index + 1 < self.segment_count
+            && self
+                .segments
+                .get(index + 1)
+                .is_some_and(|next| x >= next.x_start)
+        {
             index += 1;
         }
         index
@@ -176,8 +198,10 @@ impl MonotoneCubic {
         if !(x < self.x_end) {
             return self.y_end;
         }
-        let segment = &self.segments[self.segment_index(x)];
-        segment.value_at((x - segment.x_start).max(0.0))
+        match self.segments.get(self.segment_index(x)) {
+            Some(segment) => segment.value_at((x - segment.x_start).max(0.0)),
+            None => self.y_end,
+        }
     }
 }
 

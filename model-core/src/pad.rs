@@ -11,6 +11,12 @@ use crate::taxel::{TaxelModel, TaxelOutput};
 use crate::temperature::{TemperatureTracker, TemperatureUsed};
 use crate::use_case::{select_tier_for_taxels, SelectionError, TaxelEvidence, TierChoice, UseCase};
 
+/// Largest relative difference between a taxel's tared C0 (brought to 25 °C) and the C0 in its
+/// calibration before the baseline is flagged `baseline_far_from_calibration` (0.05: about 6 kPa
+/// of static load at the tare on the article's curve, or the article's 5.7 % loss after 5000
+/// cycles).
+pub const TARE_FAR_FROM_CALIBRATION_RELATIVE: f32 = 0.05;
+
 /// One converter cycle's input.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -80,6 +86,8 @@ pub struct PadModel {
     calibration: Calibration,
     taxels: [TaxelModel; TAXEL_COUNT],
     baselines: [Option<Baseline>; TAXEL_COUNT],
+    // BASELINE_FAR_FROM_CALIBRATION per taxel, set with the baseline (`set_baseline`).
+    baseline_flags: [TaxelFlags; TAXEL_COUNT],
     tier: Tier,
     tracking: BaselineTracking,
     temperature: TemperatureTracker,
@@ -96,11 +104,12 @@ pub struct TierUnavailable(pub Tier);
 impl PadModel {
     /// A model with the default tier, no baselines and tracking off.
     pub fn new(calibration: Calibration) -> Self {
-        let taxels = core::array::from_fn(|taxel| TaxelModel::new(&calibration.taxels()[taxel]));
+        let taxels = calibration.taxels().each_ref().map(TaxelModel::new);
         Self {
             calibration,
             taxels,
             baselines: [None; TAXEL_COUNT],
+            baseline_flags: [TaxelFlags::empty(); TAXEL_COUNT],
             tier: Tier::default(),
             tracking: BaselineTracking::default(),
             temperature: TemperatureTracker::default(),
@@ -164,13 +173,21 @@ impl PadModel {
     /// The cheapest tier that fits a use case on all four taxels (see
     /// [`select_tier_for_taxels`]); each taxel's C0 is its baseline's when tared, else nominal.
     pub fn select_tier_for(&self, use_case: &UseCase) -> Result<TierChoice, SelectionError> {
-        let evidence = core::array::from_fn::<_, TAXEL_COUNT, _>(|taxel| TaxelEvidence {
-            inverses: self.taxels[taxel].inverses(),
-            curve: &self.calibration.taxels()[taxel].curve,
-            sensor_pf: self.baselines[taxel]
-                .as_ref()
-                .map_or(NOMINAL_SENSOR_PF, Baseline::sensor_pf),
+        let mut evidence = self.taxels.each_ref().map(|taxel| TaxelEvidence {
+            inverses: taxel.inverses(),
+            curve: &self.calibration.taxels()[0].curve,
+            sensor_pf: NOMINAL_SENSOR_PF,
         });
+        for ((evidence, calibration), baseline) in evidence
+            .iter_mut()
+            .zip(self.calibration.taxels())
+            .zip(&self.baselines)
+        {
+            evidence.curve = &calibration.curve;
+            evidence.sensor_pf = baseline
+                .as_ref()
+                .map_or(NOMINAL_SENSOR_PF, Baseline::sensor_pf);
+        }
         select_tier_for_taxels(&evidence, self.calibration.temperature_law(), use_case)
     }
 
@@ -221,19 +238,20 @@ impl PadModel {
     /// (bit n = taxel n).
     pub fn restore_baselines(&mut self, baselines: &[Option<BaselineRecord>; TAXEL_COUNT]) -> u8 {
         let mut restored_mask = 0u8;
-        for (taxel, record) in baselines.iter().enumerate() {
+        let parasitic_pf = self.taxels.each_ref().map(TaxelModel::parasitic_pf);
+        for ((taxel, record), parasitic_pf) in baselines.iter().enumerate().zip(parasitic_pf) {
             let Some(record) = record else {
                 continue;
             };
             let restored = Baseline::new(
                 record.capacitance,
-                self.taxels[taxel].parasitic_pf(),
+                parasitic_pf,
                 record.temperature_c,
                 self.calibration.temperature_law(),
                 self.calibration.thresholds(),
             );
             if let Ok(baseline) = restored {
-                self.baselines[taxel] = Some(baseline);
+                self.set_baseline(taxel, baseline);
                 restored_mask |= 1 << taxel;
             }
         }
@@ -251,9 +269,29 @@ impl PadModel {
     }
 
     /// Sets one taxel's baseline directly (e.g. restored from a recording).
+    /// Every path that installs a baseline goes through here, so its flag is always current.
     pub fn set_baseline(&mut self, taxel: usize, baseline: Baseline) {
-        if let Some(slot) = self.baselines.get_mut(taxel) {
+        let far_from_calibration = self
+            .calibration
+            .taxels()
+            .get(taxel)
+            .and_then(|calibration| calibration.unloaded_sensor_pf)
+            .is_some_and(|calibrated_pf| {
+                let law = self.calibration.temperature_law();
+                let tared_pf =
+                    baseline.sensor_pf() / law.permittivity_ratio(baseline.temperature_c());
+                !((tared_pf / calibrated_pf - 1.0).abs() <= TARE_FAR_FROM_CALIBRATION_RELATIVE)
+            });
+        if let (Some(slot), Some(flags)) = (
+            self.baselines.get_mut(taxel),
+            self.baseline_flags.get_mut(taxel),
+        ) {
             *slot = Some(baseline);
+            *flags = if far_from_calibration {
+                TaxelFlags::BASELINE_FAR_FROM_CALIBRATION
+            } else {
+                TaxelFlags::empty()
+            };
         }
     }
 
@@ -274,36 +312,47 @@ impl PadModel {
         let inverse_permittivity_ratio = 1.0 / temperature.permittivity_ratio;
         let thresholds = *self.calibration.thresholds();
         let mut tare_capacitances = [None; TAXEL_COUNT];
-        let taxels = core::array::from_fn(|taxel| {
-            let value = sample.readings[taxel].value();
-            let acquisition_flags = sample.reading_flags[taxel];
-            let output = self.taxels[taxel]
+        // Every slot is written below (equal-length arrays, zipped).
+        let mut taxels = [TaxelOutput::fault(TaxelFlags::NOT_TARED, None); TAXEL_COUNT];
+        let unusable_for_tare = TaxelFlags::FAULTS.difference(TaxelFlags::NOT_TARED);
+        let per_taxel = taxels
+            .iter_mut()
+            .zip(&sample.readings)
+            .zip(&sample.reading_flags)
+            .zip(&self.taxels)
+            .zip(self.baselines.iter_mut())
+            .zip(&self.baseline_flags)
+            .zip(tare_capacitances.iter_mut());
+        for ((((((slot, reading), reading_flags), model), baseline), baseline_flags), tare) in
+            per_taxel
+        {
+            let value = reading.value();
+            let output = model
                 .convert(
                     self.tier,
                     value,
-                    self.baselines[taxel].as_ref(),
+                    baseline.as_ref(),
                     inverse_permittivity_ratio,
                     &thresholds,
                 )
-                .with_flags(acquisition_flags | temperature.flags);
-            let unusable_for_tare = TaxelFlags::FAULTS.difference(TaxelFlags::NOT_TARED);
+                .with_flags(*reading_flags | temperature.flags | *baseline_flags);
             if let ReadingValue::Capacitance(capacitance) = value {
                 if !output.flags().intersects(unusable_for_tare) {
-                    tare_capacitances[taxel] = Some(capacitance);
+                    *tare = Some(capacitance);
                 }
             }
-            let tracking_hit_limit = match (output.relative_change(), &mut self.baselines[taxel]) {
+            let tracking_hit_limit = match (output.relative_change(), baseline) {
                 (Some(relative_change), Some(baseline)) if !output.flags().is_fault() => {
                     self.tracking.update(baseline, relative_change)
                 }
                 _ => false,
             };
-            if tracking_hit_limit {
+            *slot = if tracking_hit_limit {
                 output.with_flags(TaxelFlags::BASELINE_TRACKING_LIMIT)
             } else {
                 output
-            }
-        });
+            };
+        }
         self.advance_tare(&tare_capacitances, temperature.temperature_c);
         PadOutput {
             taxels,
@@ -325,7 +374,7 @@ impl PadModel {
             };
             return;
         }
-        let parasitic_pf = core::array::from_fn(|taxel| self.taxels[taxel].parasitic_pf());
+        let parasitic_pf = self.taxels.each_ref().map(TaxelModel::parasitic_pf);
         let results = accumulator.finish(
             &parasitic_pf,
             self.calibration.temperature_law(),
@@ -333,13 +382,16 @@ impl PadModel {
         );
         let mut tared_mask = 0u8;
         for (taxel, result) in results.into_iter().enumerate() {
-            match result {
+            let error = match result {
                 Ok(baseline) => {
-                    self.baselines[taxel] = Some(baseline);
-                    self.last_tare_errors[taxel] = None;
+                    self.set_baseline(taxel, baseline);
                     tared_mask |= 1 << taxel;
+                    None
                 }
-                Err(error) => self.last_tare_errors[taxel] = Some(error),
+                Err(error) => Some(error),
+            };
+            if let Some(slot) = self.last_tare_errors.get_mut(taxel) {
+                *slot = error;
             }
         }
         self.tare = None;

@@ -541,3 +541,61 @@ fn a_tare_while_pressed_or_moving_is_refused() {
         TareStatus::Finished { tared_mask: 0b1111 }
     );
 }
+
+/// The calibration records each taxel's unloaded C0; a tare far from it (a static press during
+/// the tare, which the stillness check cannot see) is flagged on every reading after it.
+#[test]
+fn a_tare_far_from_the_calibrated_c0_is_flagged() {
+    let mut spec = CalibrationSpec::default();
+    for taxel in spec.taxels.iter_mut() {
+        taxel.unloaded_sensor_pf = Some(SENSOR_PF);
+    }
+    let calibration = Calibration::new(&spec).unwrap();
+    let still = |pf: f32| SampleInput::new([TaxelReading::CapacitancePf(pf); 4], Some(25.0));
+    // Tared at 4.5 pF: as calibrated.
+    let mut pad = PadModel::new(calibration.clone());
+    pad.start_tare(4);
+    for _ in 0..4 {
+        pad.process(&still(SENSOR_PF));
+    }
+    let output = pad.process(&still(SENSOR_PF));
+    assert!(!output.taxels[0]
+        .flags()
+        .contains(TaxelFlags::BASELINE_FAR_FROM_CALIBRATION));
+    // Tared under a static 10 kPa: C0 looks 8.3 % too big, more than the 5 % allowed.
+    let mut pressed = PadModel::new(calibration.clone());
+    pressed.start_tare(4);
+    for _ in 0..4 {
+        pressed.process(&still(SENSOR_PF * 1.0829));
+    }
+    let output = pressed.process(&still(SENSOR_PF * 1.0829));
+    assert!(output.taxels[0]
+        .flags()
+        .contains(TaxelFlags::BASELINE_FAR_FROM_CALIBRATION));
+    assert!(
+        !output.taxels[0].flags().is_fault(),
+        "a warning, not a fault"
+    );
+    // Tared at 40 °C where the same unloaded pad reads 1.62 % less: brought to 25 °C, it agrees.
+    let mut warm = PadModel::new(calibration);
+    let law = TemperatureLaw::article_default();
+    let warm_pf = SENSOR_PF * law.permittivity_ratio(40.0);
+    warm.process(&SampleInput::new(
+        [TaxelReading::CapacitancePf(warm_pf); 4],
+        Some(40.0),
+    ));
+    warm.start_tare(4);
+    let at_40 = SampleInput::new([TaxelReading::CapacitancePf(warm_pf); 4], Some(40.0));
+    for _ in 0..4 {
+        warm.process(&at_40);
+    }
+    let output = warm.process(&at_40);
+    assert_eq!(output.taxels[0].flags(), TaxelFlags::empty());
+    // The spec refuses a C0 that no converter could read.
+    let mut bad = CalibrationSpec::default();
+    bad.taxels[2].unloaded_sensor_pf = Some(-1.0);
+    assert_eq!(
+        Calibration::new(&bad),
+        Err(model_core::CalibrationError::UnloadedOutOfRange { taxel: 2 })
+    );
+}

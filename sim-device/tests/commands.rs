@@ -382,6 +382,81 @@ fn a_calibration_is_read_written_saved_kept_across_a_reboot_and_restored() {
     );
 }
 
+/// The flags of taxel `taxel` in the last sample frame after `steps` more cycles.
+fn latest_flags(host: &mut Host, taxel: usize, steps: usize) -> u16 {
+    host.samples.clear();
+    host.steps(steps);
+    host.samples.last().unwrap().taxels[taxel].flags
+}
+
+/// A calibration's C0 (protocol version 2) is written and read over the wire, saved to flash and
+/// kept across a reboot; a tare more than 5 % from it is flagged, a tare at it is not.
+#[test]
+fn a_calibrated_c0_is_carried_end_to_end_and_a_tare_far_from_it_is_flagged() {
+    const FAR: u16 = wire::flags::BASELINE_FAR_FROM_CALIBRATION;
+    let mut host = Host::new();
+    let mut record = match host.request(Command::ReadCalibration { taxel_index: 1 }) {
+        Ok(ReplyPayload::Calibration(record)) => record,
+        other => panic!("{other:?}"),
+    };
+    // The simulated pad's C0 - Cp of c12 at 25 °C; its tare reads about that.
+    let true_c0_pf = host.device.simulation().physics().taxels[1].unloaded_pf;
+
+    // Calibrated on a pad whose C0 was 10 % lower: the tared C0 is 10 % above it.
+    let far_c0_pf = true_c0_pf / 1.1;
+    record.calibration.unloaded_sensor_pf = Some(far_c0_pf);
+    assert_eq!(
+        host.request(Command::WriteCalibration(record.clone())),
+        Ok(ReplyPayload::Ack)
+    );
+    assert_eq!(
+        host.request(Command::Tare { sample_sets: 8 }),
+        Ok(ReplyPayload::Ack)
+    );
+    assert_ne!(latest_flags(&mut host, 1, 5) & FAR, 0);
+    assert_eq!(latest_flags(&mut host, 0, 1) & FAR, 0, "c11 has no C0");
+    match host.request(Command::ReadCalibration { taxel_index: 1 }) {
+        Ok(ReplyPayload::Calibration(read_back)) => {
+            assert_eq!(read_back.calibration.unloaded_sensor_pf, Some(far_c0_pf));
+        }
+        other => panic!("{other:?}"),
+    }
+
+    // Saved to flash (record format version 3) and read back after a reboot.
+    record.calibration.unloaded_sensor_pf = Some(true_c0_pf);
+    assert_eq!(
+        host.request(Command::WriteCalibration(record.clone())),
+        Ok(ReplyPayload::Ack)
+    );
+    assert_eq!(
+        host.request(Command::SaveCalibration),
+        Ok(ReplyPayload::Ack)
+    );
+    host.device.restart_mcu().unwrap();
+    match host.request(Command::ReadCalibration { taxel_index: 1 }) {
+        Ok(ReplyPayload::Calibration(read_back)) => {
+            assert_eq!(read_back.calibration, record.calibration);
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(
+        host.request(Command::Tare { sample_sets: 8 }),
+        Ok(ReplyPayload::Ack)
+    );
+    assert_eq!(latest_flags(&mut host, 1, 5) & FAR, 0);
+
+    // A C0 the wire can tell is no capacitance is refused before the model sees it, and one
+    // beyond the converter's reach by the model.
+    for refused in [0.0, -1.0, f32::NAN, 1.0e6] {
+        record.calibration.unloaded_sensor_pf = Some(refused);
+        assert_eq!(
+            host.request(Command::WriteCalibration(record.clone())),
+            Err(ErrorCode::InvalidArgument),
+            "{refused}"
+        );
+    }
+}
+
 #[test]
 fn text_mode_prints_a_header_and_csv_lines_and_binary_brings_frames_back() {
     let mut host = Host::new();

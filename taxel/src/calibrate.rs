@@ -43,9 +43,10 @@ predicted from a curve built without it.\n\n\
 Conditioning: per taxel and interval, the rms pressure noise that 0.5 fF of converter noise \
 causes there; intervals over --budget-kpa are warned about (the calibration is still written: \
 a nearly flat stretch of the curve is information, not an error).\n\n\
-Output: a calibration file (JSON, format taxel-calibration version 1). With --upload the \
-calibration is written to the device (WriteCalibration per taxel, then SaveCalibration with \
---save). To upload an existing file, give --calibration FILE instead of a load file.";
+Output: a calibration file (JSON, format taxel-calibration version 1) with each taxel's curve, \
+parasitic capacitance and C0 - Cp at 25 °C; a later tare more than 5 % from that C0 is flagged \
+baseline_far_from_calibration. With --upload the calibration is written to the device \
+(WriteCalibration per taxel, then SaveCalibration with --save). To upload an existing file, give --calibration FILE instead of a load file.";
 
 /// Arguments of `taxel calibrate`.
 #[derive(Debug, Clone, clap::Args)]
@@ -408,7 +409,8 @@ pub fn curve_points(data: &ReferenceData, taxel: usize) -> Vec<CurvePoint> {
 }
 
 /// Builds and validates the calibration: the averaged levels as curve points, the parasitic
-/// capacitance, the article's temperature law and the default thresholds.
+/// capacitance, each taxel's measured C0 - Cp at 25 °C (so that the model flags a later tare far
+/// from it), the article's temperature law and the default thresholds.
 pub fn fit_calibration(
     data: &ReferenceData,
     id: u32,
@@ -421,6 +423,10 @@ pub fn fit_calibration(
     for (taxel, taxel_spec) in spec.taxels.iter_mut().enumerate() {
         taxel_spec.points = curve_points(data, taxel).into_iter().collect();
         taxel_spec.parasitic_pf = parasitic_pf;
+        taxel_spec.unloaded_sensor_pf = data
+            .unloaded_sensor_pf
+            .get(taxel)
+            .map(|&unloaded_pf| unloaded_pf as f32);
     }
     Calibration::new(&spec).map_err(|error| match error {
         CalibrationError::NotStrictlyIncreasing { taxel, point } => {
@@ -641,6 +647,7 @@ pub fn taxel_record(
         calibration: TaxelCalibrationWire {
             points,
             parasitic_pf: taxel_calibration.parasitic_pf,
+            unloaded_sensor_pf: taxel_calibration.unloaded_sensor_pf,
         },
     })
 }
@@ -787,6 +794,29 @@ mod tests {
         assert_eq!(data.levels[0].mean_relative_change, [0.0; 4]);
         assert!((data.levels[1].mean_relative_change[0] - (5.0 / 4.5 - 1.0)).abs() < 1e-12);
         assert_eq!(data.levels[1].repeats, 2);
+    }
+
+    #[test]
+    fn the_measured_c0_goes_into_the_calibration_and_its_wire_records() {
+        let rows = [
+            LoadRow {
+                capacitances_pf: [5.3, 5.1, 5.5, 5.2],
+                ..row(2, 0.0, 0.0)
+            },
+            LoadRow {
+                capacitances_pf: [5.7, 5.5, 5.9, 5.6],
+                ..row(3, 10.0, 0.0)
+            },
+        ];
+        let data = reference_data(&rows, [0.8; 4], &TemperatureLaw::article_default()).unwrap();
+        let calibration = fit_calibration(&data, 3, 0.8).unwrap();
+        for (taxel, expected_pf) in [4.5f32, 4.3, 4.7, 4.4].into_iter().enumerate() {
+            let unloaded_pf = calibration.taxels()[taxel].unloaded_sensor_pf.unwrap();
+            assert!((unloaded_pf - expected_pf).abs() < 1e-5, "{unloaded_pf}");
+            let record = taxel_record(&calibration, taxel).unwrap();
+            assert_eq!(record.calibration.unloaded_sensor_pf, Some(unloaded_pf));
+            assert_eq!(record.check(), Ok(()));
+        }
     }
 
     #[test]

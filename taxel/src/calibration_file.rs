@@ -3,9 +3,14 @@
 //!
 //! Reading checks the format name and version before anything else, then validates the data
 //! with `Calibration::new`, so a file that loads is a calibration the model accepts.
+//!
+//! Each taxel's `unloaded_sensor_pf` (C0 - Cp at 25 °C when calibrated, or `null`) was added to
+//! version 1 without changing the version: a file written before it has no such key and loads
+//! with none, and a tool that predates it ignores the key.
 
 use std::path::{Path, PathBuf};
 
+use model_core::reading::MAX_MEASURABLE_PF;
 use model_core::{Calibration, CalibrationError, CalibrationSpec, TAXEL_NAMES};
 use serde::{Deserialize, Serialize};
 
@@ -82,6 +87,10 @@ pub fn describe_calibration_error(error: &CalibrationError) -> String {
         ),
         CalibrationError::ParasiticOutOfRange { taxel } => format!(
             "{}: the parasitic capacitance must be within 0 ..= 100 pF",
+            taxel_name(taxel)
+        ),
+        CalibrationError::UnloadedOutOfRange { taxel } => format!(
+            "{}: the unloaded capacitance C0 - Cp must be above 0 and at most {MAX_MEASURABLE_PF} pF (what the converter can measure)",
             taxel_name(taxel)
         ),
         CalibrationError::InvalidTemperatureLaw => {
@@ -164,6 +173,57 @@ mod tests {
         assert!(text.contains("\"format\": \"taxel-calibration\""));
         assert!(text.contains("\"version\": 1"));
         assert_eq!(from_json(&text).unwrap(), calibration);
+    }
+
+    /// A file written before taxels carried their calibrated C0: the same JSON without the
+    /// `unloaded_sensor_pf` keys. It loads, with no C0 on any taxel.
+    #[test]
+    fn a_file_without_the_calibrated_c0_still_loads() {
+        let mut spec = Calibration::default().to_spec();
+        spec.id = 31;
+        for (taxel, taxel_spec) in spec.taxels.iter_mut().enumerate() {
+            taxel_spec.parasitic_pf = 0.25 * taxel as f32;
+        }
+        let calibration = Calibration::new(&spec).unwrap();
+        let mut value = serde_json::to_value(CalibrationFile {
+            format: FORMAT_NAME.to_owned(),
+            version: FORMAT_VERSION,
+            calibration: spec,
+        })
+        .unwrap();
+        for taxel in value["calibration"]["taxels"].as_array_mut().unwrap() {
+            let removed = taxel.as_object_mut().unwrap().remove("unloaded_sensor_pf");
+            assert_eq!(removed, Some(serde_json::Value::Null));
+        }
+        let old_file = serde_json::to_string_pretty(&value).unwrap();
+        assert!(!old_file.contains("unloaded_sensor_pf"));
+        let loaded = from_json(&old_file).unwrap();
+        assert_eq!(loaded, calibration);
+        assert!(loaded
+            .taxels()
+            .iter()
+            .all(|taxel| taxel.unloaded_sensor_pf.is_none()));
+    }
+
+    #[test]
+    fn a_calibrated_c0_round_trips_and_is_checked() {
+        let mut spec = Calibration::default().to_spec();
+        for (taxel, taxel_spec) in spec.taxels.iter_mut().enumerate() {
+            taxel_spec.unloaded_sensor_pf = Some(4.25 + 0.125 * taxel as f32);
+        }
+        let calibration = Calibration::new(&spec).unwrap();
+        let text = to_json(&calibration).unwrap();
+        assert!(text.contains("\"unloaded_sensor_pf\": 4.375"), "{text}");
+        assert_eq!(from_json(&text).unwrap(), calibration);
+        let out_of_range = text.replace(
+            "\"unloaded_sensor_pf\": 4.375",
+            "\"unloaded_sensor_pf\": 0.0",
+        );
+        let error = from_json(&out_of_range).unwrap_err().to_string();
+        assert!(
+            error.contains("taxel c12") && error.contains("unloaded capacitance"),
+            "{error}"
+        );
     }
 
     #[test]

@@ -243,7 +243,7 @@ fn parse_sample(
     let input = SampleInput::new(readings, temperature_c);
     // A time the plausibility rule can use: finite, not negative, within u64 microseconds.
     Ok(match time_s {
-        Some(time_s) if time_s >= 0.0 && time_s < 1.8e13 => {
+        Some(time_s) if (0.0..1.8e13).contains(&time_s) => {
             input.at_time_us((time_s * 1.0e6) as u64)
         }
         _ => input,

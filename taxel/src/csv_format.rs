@@ -185,10 +185,10 @@ mod tests {
             "below_baseline|temperature_implausible"
         );
         // A bit no model defines (yet) is shown by position and read back.
-        assert_eq!(wire_flag_names(0x4001), "below_baseline|bit14");
+        assert_eq!(wire_flag_names(0x8001), "below_baseline|bit15");
         assert_eq!(
-            parse_flag_names("below_baseline|bit14").map(|flags| flags.bits()),
-            Ok(0x4001)
+            parse_flag_names("below_baseline|bit15").map(|flags| flags.bits()),
+            Ok(0x8001)
         );
         assert_eq!(parse_flag_names("open|bogus"), Err("bogus".to_owned()));
         assert_eq!(flag_words(flags), "below baseline, not tared");

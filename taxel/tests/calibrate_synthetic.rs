@@ -1,5 +1,6 @@
-//! `taxel calibrate` on synthetic reference loads with a known truth: the written curve points,
-//! the leave-one-out numbers, the calibration file round trip, and refused data sets.
+//! `taxel calibrate` on synthetic reference loads with a known truth: the written curve points
+//! and C0, the leave-one-out numbers, the calibration file round trip, a tare far from the
+//! calibrated C0 flagged by `taxel convert`, and refused data sets.
 // Helpers outside #[test] functions unwrap too: a failure there is a test failure.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -8,10 +9,14 @@ mod support;
 use std::fmt::Write as _;
 use std::path::Path;
 use std::process::{Command, Output};
+use std::time::Duration;
 
 use model_core::{CalibrationCurve, TaxelInverses, TemperatureLaw};
-use support::{taxel_binary, SplitMix64};
+use support::{ack, taxel_binary, FakeDevice, SplitMix64};
+use taxel::calibrate::upload;
 use taxel::calibration_file;
+use taxel::device_link::DeviceLink;
+use wire::Command as WireCommand;
 
 const GAINS: [f64; 4] = [1.0, 0.92, 1.08, 1.15];
 const UNLOADED_SENSOR_PF: [f64; 4] = [4.5, 4.3, 4.7, 4.4];
@@ -207,6 +212,146 @@ fn calibration_converts_recordings_back_to_the_true_pressure() {
                 "taxel {taxel} at {pressure_kpa} kPa read {converted}"
             );
         }
+    }
+}
+
+/// Runs `taxel convert` on `recording` (CSV text) with the calibration in `directory`, tared on
+/// its first `tare_rows` rows; returns the output rows split into cells.
+fn convert(directory: &Path, recording: &str, tare_rows: usize) -> Vec<Vec<String>> {
+    let recording_path = directory.join("recording.csv");
+    std::fs::write(&recording_path, recording).unwrap();
+    let output = Command::new(taxel_binary())
+        .arg("convert")
+        .arg(&recording_path)
+        .arg("--calibration")
+        .arg(directory.join("calibration.json"))
+        .arg("--tare-rows")
+        .arg(tare_rows.to_string())
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    String::from_utf8(output.stdout)
+        .unwrap()
+        .lines()
+        .map(|line| line.split(',').map(str::to_owned).collect())
+        .collect()
+}
+
+/// A recording of the calibrated pad whose sensor capacitance is `scale` times the true C0: two
+/// unloaded rows (the tare) and two loaded ones, at 25 and 31 °C.
+fn recording_with_c0_scaled(scale: f64) -> String {
+    let mut recording = String::from("time_s,temp_c,c11_pf,c12_pf,c21_pf,c22_pf\n");
+    for (row, (pressure_kpa, temperature_c)) in
+        [(0.0, 25.0), (0.0, 25.0), (20.0, 25.0), (35.0, 31.0)]
+            .into_iter()
+            .enumerate()
+    {
+        let _ = write!(recording, "{},{temperature_c}", row * 60);
+        let ratio =
+            f64::from(TemperatureLaw::article_default().permittivity_ratio(temperature_c as f32));
+        for (taxel, unloaded_pf) in UNLOADED_SENSOR_PF.iter().enumerate() {
+            let sensor_pf = scale * unloaded_pf * (1.0 + true_relative_change(taxel, pressure_kpa));
+            let _ = write!(recording, ",{:.7}", PARASITIC_PF + ratio * sensor_pf);
+        }
+        recording.push('\n');
+    }
+    recording
+}
+
+/// The C0 - Cp that `taxel calibrate` measures at 25 °C goes into the file, per taxel; a
+/// recording whose tare is 10 % above it is flagged `baseline_far_from_calibration` on every
+/// tared row, one at it is not.
+#[test]
+fn the_calibrated_c0_is_written_and_a_tare_far_from_it_is_flagged() {
+    let directory = tempfile::tempdir().unwrap();
+    let output = calibrate(
+        directory.path(),
+        &synthetic_loads(5),
+        &["--parasitic-pf", "0.8"],
+    );
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let path = directory.path().join("calibration.json");
+    let value: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let calibration = calibration_file::read(&path).unwrap();
+    for (taxel, taxel_calibration) in calibration.taxels().iter().enumerate() {
+        let written = value["calibration"]["taxels"][taxel]["unloaded_sensor_pf"]
+            .as_f64()
+            .unwrap();
+        // 0.5 fF of noise on each of three unloaded rows.
+        assert!(
+            (written - UNLOADED_SENSOR_PF[taxel]).abs() < 1e-3,
+            "taxel {taxel}: {written} pF"
+        );
+        assert_eq!(taxel_calibration.unloaded_sensor_pf, Some(written as f32));
+    }
+
+    // The upload carries each taxel's C0 in its WriteCalibration (through the wire encoder and
+    // the request decoder).
+    let mut link = DeviceLink::new(FakeDevice::new(Box::new(|request| vec![ack(request)])));
+    upload(
+        &mut link,
+        &calibration,
+        false,
+        Duration::from_secs(5),
+        &mut |_| {},
+    )
+    .unwrap();
+    let requests = &link.port().requests;
+    assert_eq!(requests.len(), 4);
+    for (request, taxel_calibration) in requests.iter().zip(calibration.taxels()) {
+        let WireCommand::WriteCalibration(record) = &request.command else {
+            panic!("expected WriteCalibration, got {:?}", request.command);
+        };
+        assert!(taxel_calibration.unloaded_sensor_pf.is_some());
+        assert_eq!(
+            record.calibration.unloaded_sensor_pf,
+            taxel_calibration.unloaded_sensor_pf
+        );
+    }
+
+    let far = convert(directory.path(), &recording_with_c0_scaled(1.1), 2);
+    let at = convert(directory.path(), &recording_with_c0_scaled(1.0), 2);
+    let flag_cells = 6..10;
+    assert_eq!(
+        &far[0][flag_cells.clone()],
+        ["flags11", "flags12", "flags21", "flags22"]
+    );
+    for (far_row, at_row) in far.iter().zip(&at).skip(3) {
+        for cell in &far_row[flag_cells.clone()] {
+            assert!(
+                cell.split('|')
+                    .any(|name| name == "baseline_far_from_calibration"),
+                "{far_row:?}"
+            );
+        }
+        for cell in &at_row[flag_cells.clone()] {
+            assert!(
+                !cell.contains("baseline_far_from_calibration"),
+                "{at_row:?}"
+            );
+        }
+        // The pressures are still reported, and without the flag they are the true ones.
+        for (taxel, cell) in at_row[2..6].iter().enumerate() {
+            let truth = [20.0, 35.0][usize::from(at_row[0] == "180")];
+            let read: f64 = cell.parse().unwrap();
+            assert!(
+                (read - truth).abs() < 0.1,
+                "taxel {taxel}: {read} vs {truth}"
+            );
+        }
+        assert!(
+            far_row[2..6].iter().all(|cell| !cell.is_empty()),
+            "{far_row:?}"
+        );
     }
 }
 

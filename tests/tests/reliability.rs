@@ -81,6 +81,10 @@ fn wire_flag_bits_are_model_core_flag_bits() {
             wire::flags::TEMPERATURE_IMPLAUSIBLE,
             TaxelFlags::TEMPERATURE_IMPLAUSIBLE,
         ),
+        (
+            wire::flags::BASELINE_FAR_FROM_CALIBRATION,
+            TaxelFlags::BASELINE_FAR_FROM_CALIBRATION,
+        ),
     ];
     for (wire_bit, model_flag) in pairs {
         assert_eq!(wire_bit, model_flag.bits());

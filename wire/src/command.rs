@@ -87,7 +87,8 @@ pub struct UseCase {
     pub error_budget_kpa: f32,
 }
 
-/// The calibration of one taxel: its loading curve and its parasitic capacitance.
+/// The calibration of one taxel: its loading curve, its parasitic capacitance and, if known, its
+/// unloaded sensor capacitance when it was calibrated.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TaxelCalibrationWire {
@@ -95,6 +96,9 @@ pub struct TaxelCalibrationWire {
     pub points: Vec<(f32, f32), CALIBRATION_POINTS_MAX>,
     /// The capacitance in pF that does not belong to the sensor (cable, pads).
     pub parasitic_pf: f32,
+    /// The unloaded sensor capacitance C0 - Cp at 25 °C when the taxel was calibrated, pF, if
+    /// known; the device flags a tare far from it. Added in protocol version 2.
+    pub unloaded_sensor_pf: Option<f32>,
 }
 
 /// A taxel calibration together with the taxel it belongs to and the calibration id.
@@ -111,15 +115,20 @@ pub struct TaxelCalibrationRecord {
 
 impl TaxelCalibrationRecord {
     /// The largest encoding: taxel 1 + id 5 (varint u32) + point count 1 + 16 points x 8
-    /// + parasitic 4.
-    pub const MAX_LEN: usize = 1 + 5 + 1 + CALIBRATION_POINTS_MAX * 8 + 4;
+    /// + parasitic 4 + unloaded capacitance 5 (option tag and f32).
+    pub const MAX_LEN: usize = 1 + 5 + 1 + CALIBRATION_POINTS_MAX * 8 + 4 + 5;
 
     /// Checks what the wire can check: a taxel index below 4, at least two points, finite
-    /// values, pressure and relative change both strictly increasing, and a finite,
-    /// non-negative parasitic capacitance. The device's model may refuse more.
+    /// values, pressure and relative change both strictly increasing, a finite, non-negative
+    /// parasitic capacitance, and an unloaded capacitance, if any, finite and positive. The
+    /// device's model may refuse more.
     pub fn check(&self) -> Result<(), ErrorCode> {
         let points = &self.calibration.points;
         let parasitic_pf = self.calibration.parasitic_pf;
+        let unloaded_valid = self
+            .calibration
+            .unloaded_sensor_pf
+            .is_none_or(|unloaded_pf| unloaded_pf.is_finite() && unloaded_pf > 0.0);
         let strictly_increasing = points
             .iter()
             .zip(points.iter().skip(1))
@@ -133,6 +142,7 @@ impl TaxelCalibrationRecord {
             && strictly_increasing
             && parasitic_pf.is_finite()
             && parasitic_pf >= 0.0
+            && unloaded_valid
         {
             Ok(())
         } else {

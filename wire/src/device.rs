@@ -144,8 +144,8 @@ impl ReplyFrame {
     pub const MAX_ENCODED_LEN_WITHOUT_CALIBRATION: usize =
         crate::frame_encoded_len_bound(3 + 1 + 1 + InfoFrame::MAX_BODY_LEN);
     /// The most calibration points a calibration reply can carry and still fit one 63-byte
-    /// frame in the worst case of its other fields.
-    pub const CALIBRATION_POINTS_IN_ONE_PACKET: usize = 5;
+    /// frame in the worst case of its other fields (an unloaded capacitance included).
+    pub const CALIBRATION_POINTS_IN_ONE_PACKET: usize = 4;
 }
 
 /// An asynchronous device event.

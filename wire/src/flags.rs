@@ -30,13 +30,16 @@ pub const TEMPERATURE_FALLBACK: u16 = 1 << 12;
 /// The measured temperature jumped further than the pad can change between two sample sets; it
 /// was not applied as measured (the temperature in use follows it at a bounded rate).
 pub const TEMPERATURE_IMPLAUSIBLE: u16 = 1 << 13;
+/// The taxel's baseline differs from the C0 in its calibration by more than 5 %: loaded at the
+/// tare, aged, or not the calibrated pad.
+pub const BASELINE_FAR_FROM_CALIBRATION: u16 = 1 << 14;
 
 /// The flags that make the pressure unusable; a taxel with any of them has no pressure.
 pub const FAULT_MASK: u16 =
     SHORTED | OPEN | SATURATED | NOT_TARED | CONVERTER_ERROR | STUCK | INVALID_INPUT;
 
-/// Every bit defined in protocol version 1; the others are reserved and sent as zero.
-pub const DEFINED_MASK: u16 = (1 << 14) - 1;
+/// Every bit defined so far; the others are reserved and sent as zero.
+pub const DEFINED_MASK: u16 = (1 << 15) - 1;
 
 /// Whether `flags` contains a fault.
 pub const fn is_fault(flags: u16) -> bool {
@@ -52,6 +55,6 @@ mod tests {
         assert_eq!(FAULT_MASK, 0b0111_1001_1100);
         assert!(is_fault(SHORTED));
         assert!(!is_fault(BELOW_BASELINE | OVER_RANGE | TEMPERATURE_MISSING));
-        assert_eq!(DEFINED_MASK, 0x3FFF);
+        assert_eq!(DEFINED_MASK, 0x7FFF);
     }
 }

@@ -55,8 +55,11 @@ pub use postcard::Error as PostcardError;
 
 /// The protocol version carried in the first byte of every frame payload.
 ///
-/// A decoder that sees another value reports [`DecodeError::UnsupportedVersion`].
-pub const PROTOCOL_VERSION: u8 = 1;
+/// A decoder that sees another value reports [`DecodeError::UnsupportedVersion`]. Version 2
+/// added `unloaded_sensor_pf` to [`TaxelCalibrationWire`], which changes the body of
+/// `WriteCalibration` and of the calibration reply; postcard bodies carry no field names, so a
+/// version-1 peer could not tell, and every frame of version 2 says so instead.
+pub const PROTOCOL_VERSION: u8 = 2;
 
 /// The number of taxels on the pad: C11, C12, C21, C22 in this order (row, column).
 pub const TAXEL_COUNT: usize = 4;

@@ -83,7 +83,7 @@ const STATUS_PRESSURE_PRESENT_MASK: u8 = 0b0000_1111;
 const STATUS_TEMPERATURE_PRESENT: u8 = 1 << 4;
 /// Status byte bits 5..=6: the temperature source code.
 const STATUS_TEMPERATURE_SOURCE_SHIFT: u32 = 5;
-/// Status byte bit 7: reserved, must be zero in version 1.
+/// Status byte bit 7: reserved, must be zero (protocol versions 1 and 2).
 const STATUS_RESERVED: u8 = 1 << 7;
 
 /// Status, sequence, timestamp, temperature, then pressure, capacitance, flags per taxel.

@@ -25,6 +25,7 @@ fn record(points: &[(f32, f32)]) -> TaxelCalibrationRecord {
         calibration: TaxelCalibrationWire {
             points: points.iter().copied().collect(),
             parasitic_pf: 1.5,
+            unloaded_sensor_pf: Some(4.5),
         },
     }
 }
@@ -75,6 +76,36 @@ fn command_discriminants_are_the_documented_ones() {
             "{:?}",
             request.command
         );
+    }
+}
+
+/// The taxel calibration record as PROTOCOL.md 6.2 lays it out: taxel, id, points, parasitic,
+/// then (since version 2) the unloaded capacitance as an option: `01` and the f32, or `00`.
+#[test]
+fn the_calibration_record_ends_with_the_optional_unloaded_capacitance() {
+    for unloaded_sensor_pf in [Some(4.5f32), None] {
+        let mut written = record(&TABLE_1[..2]);
+        written.calibration.unloaded_sensor_pf = unloaded_sensor_pf;
+        let request = Request {
+            request_id: 5,
+            command: Command::WriteCalibration(written),
+        };
+        let mut payload = encode(&request);
+        let decoded: Request = decode_frame(&mut payload).unwrap();
+        assert_eq!(decoded, request);
+        let mut expected = vec![wire::PROTOCOL_VERSION, wire::kind::REQUEST, 5, 9, 3, 42, 2];
+        for value in [0.0f32, 0.0, 10.0, 0.0829, 1.5] {
+            expected.extend_from_slice(&value.to_le_bytes());
+        }
+        match unloaded_sensor_pf {
+            Some(unloaded_pf) => {
+                expected.push(1);
+                expected.extend_from_slice(&unloaded_pf.to_le_bytes());
+            }
+            None => expected.push(0),
+        }
+        expected.extend_from_slice(&wire::crc16(&expected).to_le_bytes());
+        assert_eq!(payload[..expected.len()], expected[..]);
     }
 }
 
@@ -169,6 +200,15 @@ fn calibration_writes_are_checked() {
     let mut negative_parasitic = record(&TABLE_1);
     negative_parasitic.calibration.parasitic_pf = -1.0;
     assert_eq!(negative_parasitic.check(), invalid);
+
+    for unloaded_pf in [0.0, -0.0, -4.5, f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        let mut bad_unloaded = record(&TABLE_1);
+        bad_unloaded.calibration.unloaded_sensor_pf = Some(unloaded_pf);
+        assert_eq!(bad_unloaded.check(), invalid, "{unloaded_pf}");
+    }
+    let mut no_unloaded = record(&TABLE_1);
+    no_unloaded.calibration.unloaded_sensor_pf = None;
+    assert_eq!(no_unloaded.check(), Ok(()));
 }
 
 #[test]

@@ -132,8 +132,8 @@ fn a_future_version_is_reported_then_the_next_frame_decodes() {
     assert_eq!(
         results[0],
         Err(DecodeError::UnsupportedVersion {
-            found: 2,
-            supported: 1
+            found: 3,
+            supported: 2
         })
     );
     assert_eq!(sequence_of(&results[1]), Some(50));
@@ -141,10 +141,56 @@ fn a_future_version_is_reported_then_the_next_frame_decodes() {
         results[2],
         Err(DecodeError::UnsupportedVersion {
             found: 0xFF,
-            supported: 1
+            supported: 2
         })
     );
     assert_eq!(sequence_of(&results[3]), Some(51));
+}
+
+/// Version 1 carried the taxel calibration record without `unloaded_sensor_pf`. Its frames, the
+/// calibration ones above all, are reported as version 1 rather than read in the version-2
+/// layout, in either direction.
+#[test]
+fn version_1_calibration_frames_are_refused_by_version() {
+    // WriteCalibration, request id 7, taxel 0, id 1, points (0, 0) and (10, 0.1), parasitic 0:
+    // the version-1 body, which ends where version 2 expects the option tag.
+    let mut body = vec![7, 9, 0, 1, 2];
+    for value in [0.0f32, 0.0, 10.0, 0.1, 0.0] {
+        body.extend_from_slice(&value.to_le_bytes());
+    }
+    let refused = Err(DecodeError::UnsupportedVersion {
+        found: 1,
+        supported: PROTOCOL_VERSION,
+    });
+    let mut decoder = RequestDecoder::new();
+    let results: Vec<_> = decoder.feed(&raw_frame(1, kind::REQUEST, &body)).collect();
+    assert_eq!(results, [refused]);
+    // The same body as a version-2 frame is not a request this side can read either: it never
+    // passes for a calibration without a C0.
+    let results: Vec<_> = decoder
+        .feed(&raw_frame(PROTOCOL_VERSION, kind::REQUEST, &body))
+        .collect();
+    assert!(
+        matches!(
+            results[..],
+            [Err(DecodeError::InvalidRequest {
+                request_id: 7,
+                error: ErrorCode::Malformed
+            })]
+        ),
+        "{results:?}"
+    );
+    // The calibration reply: request id 7, Ok, Calibration, then the same record.
+    let mut reply = vec![7, 0, 3];
+    reply.extend_from_slice(&body[2..]);
+    let results = decode_all(&raw_frame(1, kind::REPLY, &reply));
+    assert_eq!(
+        results,
+        [Err(DecodeError::UnsupportedVersion {
+            found: 1,
+            supported: PROTOCOL_VERSION
+        })]
+    );
 }
 
 #[test]

@@ -5,7 +5,10 @@
 mod common;
 
 use common::*;
-use wire::{Command, DeviceFrame, ErrorCode, ReplyFrame, ReplyPayload, Request, WireMessage};
+use wire::{
+    Command, DeviceFrame, ErrorCode, ReplyFrame, ReplyPayload, Request, TaxelCalibrationRecord,
+    TaxelCalibrationWire, WireMessage,
+};
 
 const PROTOCOL: &str = include_str!("../../docs/PROTOCOL.md");
 
@@ -41,6 +44,21 @@ fn examples() -> Vec<(&'static str, Vec<u8>)> {
             })),
         ),
         ("sample", encode(&DeviceFrame::Sample(example_sample()))),
+        (
+            "request-write-calibration",
+            encode(&Request {
+                request_id: 4,
+                command: Command::WriteCalibration(TaxelCalibrationRecord {
+                    taxel_index: 1,
+                    calibration_id: 7,
+                    calibration: TaxelCalibrationWire {
+                        points: [(0.0, 0.0), (10.0, 0.0829)].into_iter().collect(),
+                        parasitic_pf: 1.25,
+                        unloaded_sensor_pf: Some(4.5),
+                    },
+                }),
+            }),
+        ),
     ]
 }
 

@@ -36,7 +36,7 @@ fn worst_case_of_every_frame_has_the_documented_length() {
     let reply = encode(&DeviceFrame::Reply(worst_case_reply()));
     assert_eq!(reply.len(), ReplyFrame::MAX_ENCODED_LEN);
     assert_eq!(reply.len(), DeviceFrame::MAX_ENCODED_LEN);
-    assert_eq!(reply.len(), 150);
+    assert_eq!(reply.len(), 155);
 
     let info_reply = encode(&DeviceFrame::Reply(ReplyFrame {
         request_id: u16::MAX,
@@ -50,11 +50,13 @@ fn worst_case_of_every_frame_has_the_documented_length() {
 
     let request = encode(&worst_case_request());
     assert_eq!(request.len(), Request::MAX_ENCODED_LEN);
-    assert_eq!(request.len(), 149);
+    assert_eq!(request.len(), 154);
 
-    assert_eq!(MAX_FRAME_ENCODED_LEN, 150);
+    assert_eq!(MAX_FRAME_ENCODED_LEN, 155);
     assert_eq!(Frame::MAX_ENCODED_LEN, MAX_FRAME_ENCODED_LEN);
-    assert_eq!(MAX_PAYLOAD_LEN, 148);
+    assert_eq!(MAX_PAYLOAD_LEN, 153);
+    // Below 254 bytes, COBS adds exactly one code byte: no frame needs an `FF` run.
+    const { assert!(MAX_PAYLOAD_LEN < 254) };
 }
 
 #[test]
@@ -75,6 +77,7 @@ fn device_frames_fit_one_short_usb_packet_except_long_calibration_replies() {
     }
 
     let points = ReplyFrame::CALIBRATION_POINTS_IN_ONE_PACKET;
+    assert_eq!(points, 4);
     let fits = DeviceFrame::Reply(ReplyFrame {
         request_id: u16::MAX,
         result: Ok(ReplyPayload::Calibration(calibration_record_with_points(
@@ -82,6 +85,8 @@ fn device_frames_fit_one_short_usb_packet_except_long_calibration_replies() {
         ))),
     });
     assert!(encode(&fits).len() <= ONE_SHORT_PACKET);
+    // PROTOCOL.md section 8: "Reply (Calibration, up to 4 points)".
+    assert_eq!(encode(&fits).len(), 59);
     let too_long = DeviceFrame::Reply(ReplyFrame {
         request_id: u16::MAX,
         result: Ok(ReplyPayload::Calibration(calibration_record_with_points(

@@ -19,6 +19,7 @@ use model_core::calibration::{
     CalibrationSpec, CurvePoint, FaultThresholds, PermittivityPoint, TaxelCalibrationSpec,
     MAX_CURVE_POINTS, MAX_TEMPERATURE_POINTS,
 };
+use model_core::reading::MAX_MEASURABLE_PF;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 
@@ -87,7 +88,8 @@ pub fn spec(id: u32) -> CalibrationSpec {
     spec
 }
 
-/// The longest record's spec: a 5-byte id, 16 points on every taxel, 8 temperature points.
+/// The longest record's spec: a 5-byte id, 16 points and a calibrated C0 on every taxel, 8
+/// temperature points.
 pub fn worst_case_spec(id: u32) -> CalibrationSpec {
     let taxel = |taxel: usize| TaxelCalibrationSpec {
         points: (0..MAX_CURVE_POINTS)
@@ -97,6 +99,7 @@ pub fn worst_case_spec(id: u32) -> CalibrationSpec {
             })
             .collect(),
         parasitic_pf: 1.5 + taxel as f32,
+        unloaded_sensor_pf: Some(4.25 + 0.125 * taxel as f32),
     };
     CalibrationSpec {
         id,
@@ -111,6 +114,26 @@ pub fn worst_case_spec(id: u32) -> CalibrationSpec {
         characterised_max_c: 60.0,
         thresholds: FaultThresholds::default(),
     }
+}
+
+/// `spec` with no calibrated C0 on any taxel: what a version-2 record can hold.
+pub fn without_c0(mut spec: CalibrationSpec) -> CalibrationSpec {
+    for taxel in &mut spec.taxels {
+        taxel.unloaded_sensor_pf = None;
+    }
+    spec
+}
+
+/// The small-page flash as the previous firmware's store (record format version 2) left it after
+/// saving `spec(5)` and then `without_c0(worst_case_spec(7))`: produced by that store's code.
+pub fn version_2_flash() -> Box<SmallFlash> {
+    let image: &[u8; 3 * SMALL_PAGE] = include_bytes!("../data/v2-flash-small-pages.bin");
+    Box::new(SmallFlash::from_bytes(*image))
+}
+
+/// The newest calibration in [`version_2_flash`], saved with save counter 1.
+pub fn version_2_flash_newest() -> CalibrationSpec {
+    without_c0(worst_case_spec(7))
 }
 
 /// `spec(id)` for even ids and `worst_case_spec(id)` for odd ones: records of both lengths.
@@ -138,11 +161,24 @@ fn curve() -> impl Strategy<Value = Vec<CurvePoint, MAX_CURVE_POINTS>> {
     )
 }
 
+/// No calibrated C0 (the default, and every version-2 record), or one anywhere in the valid
+/// range (0, MAX_MEASURABLE_PF].
+fn unloaded_sensor_pf() -> impl Strategy<Value = Option<f32>> {
+    prop_oneof![
+        Just(None),
+        (f32::MIN_POSITIVE..=MAX_MEASURABLE_PF).prop_map(Some),
+        Just(Some(MAX_MEASURABLE_PF)),
+    ]
+}
+
 fn taxel() -> impl Strategy<Value = TaxelCalibrationSpec> {
-    (curve(), 0.0f32..=100.0).prop_map(|(points, parasitic_pf)| TaxelCalibrationSpec {
-        points,
-        parasitic_pf,
-    })
+    (curve(), 0.0f32..=100.0, unloaded_sensor_pf()).prop_map(
+        |(points, parasitic_pf, unloaded_sensor_pf)| TaxelCalibrationSpec {
+            points,
+            parasitic_pf,
+            unloaded_sensor_pf,
+        },
+    )
 }
 
 /// Any calibration that validates, up to the maximum sizes.

@@ -100,8 +100,14 @@ impl MonotoneCubicInverse {
                     inverse.error_bounds_per_kpa.get(index),
                 ) {
                     (Some(segment), Some(bound)) => {
-                        let s =
-                            solve_bracketed(segment, *bound, relative_change, 0.5 * segment.width);
+                        // No early acceptance: the grid is solved to the bracket's resolution.
+                        let s = solve_bracketed(
+                            segment,
+                            *bound,
+                            0.0,
+                            relative_change,
+                            0.5 * segment.width,
+                        );
                         clamp_pressure(segment.x_start + s, inverse.top_pressure_kpa)
                     }
                     _ => 0.0,
@@ -155,7 +161,13 @@ fn error_bound_per_kpa(segment: &CubicSegment) -> f32 {
 
 /// Stage 2 of the module doc: the bracketed, safeguarded Newton iteration from `s`.
 #[inline(never)]
-fn solve_bracketed(segment: &CubicSegment, error_bound_per_kpa: f32, y: f32, mut s: f32) -> f32 {
+fn solve_bracketed(
+    segment: &CubicSegment,
+    error_bound_per_kpa: f32,
+    accepted_error_kpa: f32,
+    y: f32,
+    mut s: f32,
+) -> f32 {
     let tolerance = segment.width * BRACKET_RELATIVE_WIDTH;
     let (mut low, mut high) = (0.0f32, segment.width);
     // Bracket width when the last Newton step was taken (infinite after a bisection).
@@ -176,7 +188,7 @@ fn solve_bracketed(segment: &CubicSegment, error_bound_per_kpa: f32, y: f32, mut
         let step = residual / segment.slope_at(s);
         let newton = s - step;
         if width <= 0.5 * width_at_newton && newton > low && newton < high {
-            if error_bound_per_kpa * step * step <= ACCEPTED_ERROR_KPA {
+            if error_bound_per_kpa * step * step <= accepted_error_kpa {
                 return newton;
             }
             width_at_newton = width;
@@ -210,7 +222,7 @@ impl InverseCurve for MonotoneCubicInverse {
         let s = if bound * step * step <= ACCEPTED_ERROR_KPA {
             clamp_f32(start - step, 0.0, segment.width)
         } else {
-            solve_bracketed(segment, *bound, relative_change, start)
+            solve_bracketed(segment, *bound, ACCEPTED_ERROR_KPA, relative_change, start)
         };
         clamp_pressure(segment.x_start + s, self.top_pressure_kpa)
     }

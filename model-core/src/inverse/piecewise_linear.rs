@@ -24,13 +24,19 @@ impl PiecewiseLinearInverse {
             segment_count: points.len().saturating_sub(1),
             top_pressure_kpa: curve.top().pressure_kpa,
         };
-        for (index, pair) in points.windows(2).enumerate() {
-            let (low, high) = (pair[0], pair[1]);
-            inverse.relative_change_starts[index] = low.relative_change;
-            inverse.pressure_starts_kpa[index] = low.pressure_kpa;
-            inverse.kpa_per_relative_change[index] = ((high.pressure_kpa - low.pressure_kpa) as f64
-                / (high.relative_change - low.relative_change) as f64)
-                as f32;
+        for (((pair, relative_start), pressure_start), slope) in points
+            .windows(2)
+            .zip(inverse.relative_change_starts.iter_mut())
+            .zip(inverse.pressure_starts_kpa.iter_mut())
+            .zip(inverse.kpa_per_relative_change.iter_mut())
+        {
+            if let [low, high] = pair {
+                *relative_start = low.relative_change;
+                *pressure_start = low.pressure_kpa;
+                *slope = ((high.pressure_kpa - low.pressure_kpa) as f64
+                    / (high.relative_change - low.relative_change) as f64)
+                    as f32;
+            }
         }
         inverse
     }
@@ -41,14 +47,22 @@ impl InverseCurve for PiecewiseLinearInverse {
     fn pressure_kpa(&self, relative_change: f32) -> f32 {
         let mut index = 0;
         while index + 1 < self.segment_count
-            && relative_change >= self.relative_change_starts[index + 1]
+            && self
+                .relative_change_starts
+                .get(index + 1)
+                .is_some_and(|start| relative_change >= *start)
         {
             index += 1;
         }
+        let (Some(pressure_start), Some(relative_start), Some(slope)) = (
+            self.pressure_starts_kpa.get(index),
+            self.relative_change_starts.get(index),
+            self.kpa_per_relative_change.get(index),
+        ) else {
+            return 0.0;
+        };
         clamp_pressure(
-            self.pressure_starts_kpa[index]
-                + (relative_change - self.relative_change_starts[index])
-                    * self.kpa_per_relative_change[index],
+            pressure_start + (relative_change - relative_start) * slope,
             self.top_pressure_kpa,
         )
     }

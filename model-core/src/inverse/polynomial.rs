@@ -52,10 +52,12 @@ impl PolynomialInverse {
                 *slot = power;
                 power *= u;
             }
-            for row in 0..D {
-                right[row] += powers[row] * pressure_kpa;
-                for column in 0..D {
-                    normal[row][column] += powers[row] * powers[column];
+            for ((normal_row, right_value), power_row) in
+                normal.iter_mut().zip(right.iter_mut()).zip(powers.iter())
+            {
+                *right_value += power_row * pressure_kpa;
+                for (value, power_column) in normal_row.iter_mut().zip(powers.iter()) {
+                    *value += power_row * power_column;
                 }
             }
         }
@@ -81,7 +83,9 @@ impl PolynomialInverse {
 
 /// Gaussian elimination with partial pivoting; `None` for a singular system.
 // Row operations read one row of the matrix while writing another: indices say it plainest.
-#[allow(clippy::needless_range_loop)]
+// Every index here ranges over 0..D on arrays of length D (`column`, `row`, `inner` from `0..D`
+// or `column + 1..D`, `pivot` from `(column..D)`), so none can be out of bounds.
+#[allow(clippy::needless_range_loop, clippy::indexing_slicing)]
 fn solve<const D: usize>(mut matrix: [[f64; D]; D], mut right: [f64; D]) -> Option<[f64; D]> {
     for column in 0..D {
         let pivot = (column..D).max_by(|a, b| {

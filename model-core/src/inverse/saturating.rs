@@ -77,7 +77,8 @@ impl SaturatingFit {
         };
         let (lowest, highest) = (libm::log(0.1f64), libm::log(1.0e5f64));
         let (mut low, mut high) = (lowest, highest);
-        let ratio = 0.5 * (libm::sqrt(5.0f64) - 1.0);
+        // The golden ratio's conjugate, (sqrt(5) - 1) / 2.
+        let ratio = 0.618_033_988_749_894_9;
         for _ in 0..120 {
             let left = high - ratio * (high - low);
             let right = low + ratio * (high - low);
@@ -98,7 +99,7 @@ impl SaturatingFit {
         Some(Self {
             asymptote: asymptote as f32,
             scale_kpa: scale_kpa as f32,
-            rms_residual: libm::sqrt(squared / pressures.len().max(1) as f64) as f32,
+            rms_residual: libm::sqrtf((squared / pressures.len().max(1) as f64) as f32),
         })
     }
 

@@ -156,11 +156,15 @@ pub fn calibration() -> impl Strategy<Value = TaxelCalibrationWire> {
     (
         prop::collection::vec((any_f32(), any_f32()), 0..=CALIBRATION_POINTS_MAX),
         any_f32(),
+        prop::option::of(any_f32()),
     )
-        .prop_map(|(points, parasitic_pf)| TaxelCalibrationWire {
-            points: points.into_iter().collect(),
-            parasitic_pf,
-        })
+        .prop_map(
+            |(points, parasitic_pf, unloaded_sensor_pf)| TaxelCalibrationWire {
+                points: points.into_iter().collect(),
+                parasitic_pf,
+                unloaded_sensor_pf,
+            },
+        )
 }
 
 pub fn calibration_record() -> impl Strategy<Value = TaxelCalibrationRecord> {
@@ -348,6 +352,8 @@ pub fn worst_case_counters() -> CountersFrame {
     }
 }
 
+/// The longest record with `point_count` points: every other field at its longest, an unloaded
+/// capacitance included.
 pub fn calibration_record_with_points(point_count: usize) -> TaxelCalibrationRecord {
     TaxelCalibrationRecord {
         taxel_index: u8::MAX,
@@ -357,6 +363,7 @@ pub fn calibration_record_with_points(point_count: usize) -> TaxelCalibrationRec
                 .map(|index| (f32::MAX, index as f32))
                 .collect(),
             parasitic_pf: f32::MAX,
+            unloaded_sensor_pf: Some(f32::MAX),
         },
     }
 }
