@@ -1,12 +1,14 @@
 //! The golden vectors: a pressure x temperature grid of raw FDC1004 readings synthesised from the
-//! f64 forward model, and the hard cases of model-core's tests, each with its expected flags and
-//! every tier's f64 reference pressure.
+//! f64 forward model, the hard cases of model-core's tests, each with its expected flags and
+//! every tier's f64 reference pressure, and the hard calibrations (build/hard_calibrations.rs).
 //!
 //! Expected flags are written by hand per case AND derived by an f64 re-statement of the
 //! model's documented rules (thresholds, temperature handling, classification order); the build
 //! fails if the two disagree, so a wrong hand-written expectation cannot slip through.
 
-use crate::format::{GridRecord, HardCase, Header, Setup, DESCRIPTION_BYTES, NAME_BYTES};
+use crate::format::{
+    GridRecord, HardCalibration, HardCase, Header, Setup, DESCRIPTION_BYTES, NAME_BYTES,
+};
 use crate::reference::References;
 use model_core::{TaxelFlags, TaxelReading, Tier};
 
@@ -47,6 +49,10 @@ const DEAD_BAND_RELATIVE: f64 = 0.003;
 const CHARACTERISED_MIN_C: f64 = 5.0;
 const CHARACTERISED_MAX_C: f64 = 55.0;
 const REFERENCE_TEMPERATURE_C: f64 = 25.0;
+/// Largest step of the measured temperature from the one in use that is applied as measured, °C.
+const MAX_PLAUSIBLE_STEP_C: f64 = 2.0;
+/// Largest move per sample set towards an implausible temperature, °C.
+const SLEW_C_PER_SET: f64 = 0.05;
 
 /// eps_r(T) / eps_r(25 °C): flat at or below 25 °C, linear to -3.24 % at 55 °C.
 pub fn permittivity_ratio(temperature_c: f64) -> f64 {
@@ -100,27 +106,52 @@ fn value_of(reading: TaxelReading) -> Value {
     }
 }
 
-/// Temperature used and its flags, as the model resolves it (clamped, or the fallback when
-/// missing).
-fn resolve_temperature(measured_c: Option<f32>, fallback_c: Option<f64>) -> (f64, TaxelFlags) {
+/// Temperature used and its flags, as the model resolves it: clamped; a step further than
+/// [`MAX_PLAUSIBLE_STEP_C`] from the last valid temperature is flagged implausible and only
+/// moves the temperature in use by [`SLEW_C_PER_SET`]; when missing, the last valid one, else
+/// the fallback (the tare's), else 25 °C.
+fn resolve_temperature(
+    measured_c: Option<f32>,
+    last_valid_c: Option<f64>,
+    fallback_c: Option<f64>,
+) -> (f64, TaxelFlags) {
     match measured_c {
         Some(value) if value.is_finite() => {
             let value = f64::from(value);
             let clamped = value.clamp(CHARACTERISED_MIN_C, CHARACTERISED_MAX_C);
-            let flags = if clamped != value {
+            let mut flags = if clamped != value {
                 TaxelFlags::TEMPERATURE_OUT_OF_RANGE
             } else {
                 TaxelFlags::empty()
             };
-            (clamped, flags)
+            let used = match last_valid_c {
+                Some(last) if (clamped - last).abs() > MAX_PLAUSIBLE_STEP_C => {
+                    flags |= TaxelFlags::TEMPERATURE_IMPLAUSIBLE;
+                    last + (clamped - last).clamp(-SLEW_C_PER_SET, SLEW_C_PER_SET)
+                }
+                _ => clamped,
+            };
+            (used, flags)
         }
         _ => (
-            fallback_c
+            last_valid_c
+                .or(fallback_c)
                 .unwrap_or(REFERENCE_TEMPERATURE_C)
                 .clamp(CHARACTERISED_MIN_C, CHARACTERISED_MAX_C),
             TaxelFlags::TEMPERATURE_MISSING,
         ),
     }
+}
+
+/// The last valid temperature the model holds after the tare sample set and the warm-up.
+fn last_valid_after(setup: &Setup, warm_up_c: Option<f32>) -> Option<f64> {
+    let after_tare = setup
+        .tare_temperature_c
+        .filter(|value| value.is_finite())
+        .map(|value| f64::from(value).clamp(CHARACTERISED_MIN_C, CHARACTERISED_MAX_C));
+    warm_up_c
+        .map(|value| f64::from(value).clamp(CHARACTERISED_MIN_C, CHARACTERISED_MAX_C))
+        .or(after_tare)
 }
 
 /// The tared state: sensor capacitance C0 and the tare's temperature.
@@ -130,7 +161,7 @@ struct Tare {
 }
 
 fn tare(setup: &Setup) -> Option<Tare> {
-    let (temperature_c, _) = resolve_temperature(setup.tare_temperature_c, None);
+    let (temperature_c, _) = resolve_temperature(setup.tare_temperature_c, None, None);
     let Value::Capacitance(capacitance_pf) = value_of(setup.tare_reading) else {
         return None;
     };
@@ -141,17 +172,20 @@ fn tare(setup: &Setup) -> Option<Tare> {
     })
 }
 
-/// Flags and per-tier reference pressures (NaN when the reading is a fault).
+/// Flags and per-tier reference pressures (NaN when the reading is a fault), for a reading after
+/// the setup's tare, with `last_valid_c` the last valid temperature the model holds (None for a
+/// fresh temperature state).
 pub fn expected(
     references: &References,
     setup: &Setup,
+    last_valid_c: Option<f64>,
     reading: TaxelReading,
     temperature_c: Option<f32>,
 ) -> (TaxelFlags, [f64; TIER_COUNT]) {
     let tare = tare(setup);
-    // A valid tare temperature is remembered by the model; else the baseline's is the fallback.
+    // The baseline's temperature is the fallback when no valid temperature was seen.
     let fallback_c = tare.as_ref().map(|tare| tare.temperature_c);
-    let (used_c, temperature_flags) = resolve_temperature(temperature_c, fallback_c);
+    let (used_c, temperature_flags) = resolve_temperature(temperature_c, last_valid_c, fallback_c);
     let fault = |flags: TaxelFlags| (flags | temperature_flags, [f64::NAN; TIER_COUNT]);
     let capacitance_pf = match value_of(reading) {
         Value::Capacitance(capacitance_pf) => capacitance_pf,
@@ -216,8 +250,15 @@ pub fn grid(references: &References) -> Result<Vec<GridRecord>, String> {
                 code: code_for(capacitance_pf, GRID_CAPDAC),
                 capdac: GRID_CAPDAC,
             };
-            let (flags, reference_kpa) =
-                expected(references, &setup, reading, Some(temperature_c as f32));
+            // The grid converts each reading with a fresh temperature state (no last valid
+            // temperature, so no plausibility step), as `checks::GridTaxel` does.
+            let (flags, reference_kpa) = expected(
+                references,
+                &setup,
+                None,
+                reading,
+                Some(temperature_c as f32),
+            );
             if flags.is_fault() || reference_kpa.iter().any(|value| !value.is_finite()) {
                 return Err(format!(
                     "grid point {pressure_kpa} kPa {temperature_c} °C is a fault: {flags:?}"
@@ -238,6 +279,7 @@ struct CaseSpec {
     name: &'static str,
     description: &'static str,
     setup: Setup,
+    warm_up_c: Option<f32>,
     reading: TaxelReading,
     temperature_c: Option<f32>,
     flags: TaxelFlags,
@@ -302,6 +344,7 @@ pub fn hard_cases(references: &References) -> Result<Vec<HardCase>, String> {
         name,
         description,
         setup,
+        warm_up_c: None,
         reading,
         temperature_c,
         flags,
@@ -586,30 +629,39 @@ pub fn hard_cases(references: &References) -> Result<Vec<HardCase>, String> {
             None,
             TaxelFlags::TEMPERATURE_MISSING,
         ),
-        case(
-            "temperature-below-range",
-            "20 kPa at 5 C, temperature -40 C: clamped to 5 C",
-            grid,
-            raw(20.0, 5.0),
-            Some(-40.0),
-            TaxelFlags::TEMPERATURE_OUT_OF_RANGE,
-        ),
-        case(
-            "temperature-above-range",
-            "20 kPa at 55 C, temperature 85 C: clamped to 55 C",
-            grid,
-            raw(20.0, 55.0),
-            Some(85.0),
-            TaxelFlags::TEMPERATURE_OUT_OF_RANGE,
-        ),
-        case(
-            "warm-unloaded",
-            "unloaded at 55 C, corrected: 0 kPa",
-            grid,
-            raw(0.0, 55.0),
-            Some(55.0),
-            none,
-        ),
+        CaseSpec {
+            warm_up_c: Some(5.0),
+            ..case(
+                "temperature-below-range",
+                "cooled to 5 C in plausible steps, 20 kPa at 5 C, temperature -40 C: clamped to 5 C",
+                grid,
+                raw(20.0, 5.0),
+                Some(-40.0),
+                TaxelFlags::TEMPERATURE_OUT_OF_RANGE,
+            )
+        },
+        CaseSpec {
+            warm_up_c: Some(55.0),
+            ..case(
+                "temperature-above-range",
+                "warmed to 55 C in plausible steps, 20 kPa at 55 C, temperature 85 C: clamped to 55 C",
+                grid,
+                raw(20.0, 55.0),
+                Some(85.0),
+                TaxelFlags::TEMPERATURE_OUT_OF_RANGE,
+            )
+        },
+        CaseSpec {
+            warm_up_c: Some(55.0),
+            ..case(
+                "warm-unloaded",
+                "warmed to 55 C in plausible steps, unloaded at 55 C, corrected: 0 kPa",
+                grid,
+                raw(0.0, 55.0),
+                Some(55.0),
+                none,
+            )
+        },
         case(
             "warm-uncorrected",
             "unloaded at 55 C, converted as 25 C: -3.24 %",
@@ -618,13 +670,24 @@ pub fn hard_cases(references: &References) -> Result<Vec<HardCase>, String> {
             Some(25.0),
             TaxelFlags::BELOW_BASELINE,
         ),
+        CaseSpec {
+            warm_up_c: Some(45.0),
+            ..case(
+                "tare-15c-read-45c",
+                "tare at 15 C, warmed to 45 C in plausible steps, 20 kPa read at 45 C",
+                cold_tare,
+                raw(20.0, 45.0),
+                Some(45.0),
+                none,
+            )
+        },
         case(
-            "tare-15c-read-45c",
-            "tare at 15 C, 20 kPa read at 45 C",
-            cold_tare,
-            raw(20.0, 45.0),
-            Some(45.0),
-            none,
+            "temperature-jump",
+            "tare at 25 C, 20 kPa at 25 C, temperature 55 C at once: implausible, 25.05 C used",
+            grid,
+            raw(20.0, 25.0),
+            Some(55.0),
+            TaxelFlags::TEMPERATURE_IMPLAUSIBLE,
         ),
         case(
             "not-tared",
@@ -637,8 +700,13 @@ pub fn hard_cases(references: &References) -> Result<Vec<HardCase>, String> {
     ];
     let mut cases = Vec::new();
     for spec in specs {
-        let (flags, reference_kpa) =
-            expected(references, &spec.setup, spec.reading, spec.temperature_c);
+        let (flags, reference_kpa) = expected(
+            references,
+            &spec.setup,
+            last_valid_after(&spec.setup, spec.warm_up_c),
+            spec.reading,
+            spec.temperature_c,
+        );
         if flags != spec.flags {
             return Err(format!(
                 "hard case {}: written {:?}, the f64 rules give {:?}",
@@ -664,6 +732,7 @@ pub fn hard_cases(references: &References) -> Result<Vec<HardCase>, String> {
             name: text::<NAME_BYTES>(spec.name)?,
             description: text::<DESCRIPTION_BYTES>(spec.description)?,
             setup: spec.setup,
+            warm_up_c: spec.warm_up_c,
             reading: spec.reading,
             temperature_c: spec.temperature_c,
             expected_flags: flags.bits(),
@@ -675,12 +744,13 @@ pub fn hard_cases(references: &References) -> Result<Vec<HardCase>, String> {
 }
 
 /// The whole file.
-pub fn file(references: &References) -> Result<Vec<u8>, String> {
+pub fn file(references: &References, calibrations: &[HardCalibration]) -> Result<Vec<u8>, String> {
     let grid_records = grid(references)?;
     let cases = hard_cases(references)?;
     let header = Header {
         grid_count: grid_records.len() as u32,
         hard_case_count: cases.len() as u32,
+        hard_calibration_count: calibrations.len() as u32,
         grid_setup: grid_setup(references),
         tolerance_kpa: GRID_TOLERANCE_KPA,
     };
@@ -701,6 +771,16 @@ pub fn file(references: &References) -> Result<Vec<u8>, String> {
         // NaN references and temperatures compare unequal: compare the bytes instead.
         if decoded.map(|decoded| decoded.encode()) != Some(encoded) {
             return Err("a hard case does not survive encoding".into());
+        }
+        bytes.extend_from_slice(&encoded);
+    }
+    for calibration in calibrations {
+        let encoded = calibration.encode();
+        if HardCalibration::decode(&encoded) != Some(*calibration) {
+            return Err(format!(
+                "hard calibration {} does not survive encoding",
+                calibration.seed
+            ));
         }
         bytes.extend_from_slice(&encoded);
     }

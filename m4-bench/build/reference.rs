@@ -3,7 +3,8 @@
 //! those are the numbers the firmware has).
 //!
 //! - reference curve: the Fritsch–Carlson monotone cubic, forward dC/C0 = f(P), in Hermite form,
-//!   inverted by bisection;
+//!   inverted by bisection: `reference_curves::ForwardCubic`, the one definition shared with
+//!   model-core's host tests and the fuzz target;
 //! - linear: the secant from the origin to the top point;
 //! - piecewise linear: secants between the points;
 //! - saturating: dC/C0 = A (1 - exp(-P / B)) fitted by least squares (A exact for each B, B by
@@ -11,101 +12,10 @@
 //! - table: 64 uniform intervals of the reference inverse sampled in f64, interpolated in f64.
 
 use model_core::Tier;
+pub use reference_curves::ForwardCubic;
 
 /// Intervals of the table tier (model-core's `TABLE_INTERVALS`).
 pub const TABLE_INTERVALS: usize = 64;
-
-/// The monotone cubic through the points, evaluated in f64.
-pub struct ForwardCubic {
-    pressures_kpa: Vec<f64>,
-    relative_changes: Vec<f64>,
-    tangents: Vec<f64>,
-}
-
-impl ForwardCubic {
-    /// Fritsch–Carlson: three-point mean tangents (zero at a change of sign), secant tangents at
-    /// the ends, then each interval's (alpha, beta) pulled into the circle of radius 3.
-    pub fn new(pressures_kpa: &[f64], relative_changes: &[f64]) -> Self {
-        let count = pressures_kpa.len();
-        let secants: Vec<f64> = (0..count - 1)
-            .map(|k| {
-                (relative_changes[k + 1] - relative_changes[k])
-                    / (pressures_kpa[k + 1] - pressures_kpa[k])
-            })
-            .collect();
-        let mut tangents = vec![0.0; count];
-        tangents[0] = secants[0];
-        tangents[count - 1] = secants[count - 2];
-        for k in 1..count - 1 {
-            let (left, right) = (secants[k - 1], secants[k]);
-            tangents[k] = if left * right <= 0.0 {
-                0.0
-            } else {
-                (left + right) / 2.0
-            };
-        }
-        for (k, secant) in secants.iter().enumerate() {
-            if *secant == 0.0 {
-                tangents[k] = 0.0;
-                tangents[k + 1] = 0.0;
-                continue;
-            }
-            let alpha = tangents[k] / secant;
-            let beta = tangents[k + 1] / secant;
-            let radius = alpha.hypot(beta);
-            if radius > 3.0 {
-                tangents[k] = 3.0 / radius * alpha * secant;
-                tangents[k + 1] = 3.0 / radius * beta * secant;
-            }
-        }
-        Self {
-            pressures_kpa: pressures_kpa.to_vec(),
-            relative_changes: relative_changes.to_vec(),
-            tangents,
-        }
-    }
-
-    /// dC/C0 at a pressure within the points' range (clamped to it).
-    pub fn relative_change_at(&self, pressure_kpa: f64) -> f64 {
-        let last = self.pressures_kpa.len() - 1;
-        let pressure_kpa = pressure_kpa.clamp(0.0, self.pressures_kpa[last]);
-        let k = (0..last)
-            .rev()
-            .find(|&k| pressure_kpa >= self.pressures_kpa[k])
-            .unwrap_or(0);
-        let width = self.pressures_kpa[k + 1] - self.pressures_kpa[k];
-        let t = (pressure_kpa - self.pressures_kpa[k]) / width;
-        let (t2, t3) = (t * t, t * t * t);
-        (2.0 * t3 - 3.0 * t2 + 1.0) * self.relative_changes[k]
-            + (t3 - 2.0 * t2 + t) * width * self.tangents[k]
-            + (-2.0 * t3 + 3.0 * t2) * self.relative_changes[k + 1]
-            + (t3 - t2) * width * self.tangents[k + 1]
-    }
-
-    /// Pressure at which the cubic reaches `relative_change` (bisection to f64 precision).
-    pub fn pressure_kpa(&self, relative_change: f64) -> f64 {
-        let last = self.pressures_kpa.len() - 1;
-        if !(relative_change > 0.0) {
-            return 0.0;
-        }
-        if relative_change >= self.relative_changes[last] {
-            return self.pressures_kpa[last];
-        }
-        let (mut low, mut high) = (0.0, self.pressures_kpa[last]);
-        for _ in 0..200 {
-            let middle = 0.5 * (low + high);
-            if middle <= low || middle >= high {
-                break;
-            }
-            if self.relative_change_at(middle) < relative_change {
-                low = middle;
-            } else {
-                high = middle;
-            }
-        }
-        0.5 * (low + high)
-    }
-}
 
 /// Least-squares fit of dC/C0 = A (1 - exp(-P / B)): (A, B in kPa).
 fn saturating_fit(pressures_kpa: &[f64], relative_changes: &[f64]) -> (f64, f64) {
@@ -204,9 +114,10 @@ fn polynomial_fit(forward: &ForwardCubic, top_relative: f64) -> Vec<f64> {
 }
 
 impl References {
-    /// Builds every model from calibration points starting at (0, 0).
-    pub fn new(pressures_kpa: &[f64], relative_changes: &[f64]) -> Self {
-        let forward = ForwardCubic::new(pressures_kpa, relative_changes);
+    /// Builds every model from calibration points starting at (0, 0); `None` when the points
+    /// are not a curve (fewer than two, or not strictly increasing).
+    pub fn new(pressures_kpa: &[f64], relative_changes: &[f64]) -> Option<Self> {
+        let forward = ForwardCubic::new(pressures_kpa, relative_changes)?;
         let (asymptote, scale_kpa) = saturating_fit(pressures_kpa, relative_changes);
         let top_relative = relative_changes[relative_changes.len() - 1];
         let mut table_kpa: Vec<f64> = (0..=TABLE_INTERVALS)
@@ -214,7 +125,7 @@ impl References {
             .collect();
         table_kpa[TABLE_INTERVALS] = pressures_kpa[pressures_kpa.len() - 1];
         let polynomial = polynomial_fit(&forward, top_relative);
-        Self {
+        Some(Self {
             forward,
             pressures_kpa: pressures_kpa.to_vec(),
             relative_changes: relative_changes.to_vec(),
@@ -222,7 +133,7 @@ impl References {
             scale_kpa,
             table_kpa,
             polynomial,
-        }
+        })
     }
 
     /// The reference curve (forward cubic).
@@ -232,8 +143,7 @@ impl References {
 
     /// Top calibration point (pressure kPa, dC/C0).
     pub fn top(&self) -> (f64, f64) {
-        let last = self.pressures_kpa.len() - 1;
-        (self.pressures_kpa[last], self.relative_changes[last])
+        self.forward.top()
     }
 
     /// A tier's pressure for `0 < relative_change <= top`, clamped to `0 ..= top pressure`

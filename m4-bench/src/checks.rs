@@ -1,13 +1,21 @@
-//! Correctness on the target: every grid reading and every hard case through model-core, compared
-//! with the f64 references of the golden file; results printed over semihosting, one line each.
+//! Correctness on the target: every grid reading, every hard case and every hard calibration
+//! through model-core, compared with the f64 references of the golden file; results printed over
+//! semihosting, one line each.
 
 use cortex_m_semihosting::hprintln;
+use model_core::calibration::MAX_CURVE_POINTS;
 use model_core::{
-    Baseline, Calibration, CalibrationSpec, PadModel, SampleInput, TaxelModel, TaxelReading,
-    TemperatureTracker, Tier,
+    Baseline, Calibration, CalibrationCurve, CalibrationSpec, CurvePoint, InverseCurve, PadModel,
+    SampleInput, TaxelInverses, TaxelModel, TaxelReading, TemperatureTracker, Tier,
 };
 
-use crate::format::{field_text, GridRecord, HardCase, Header, Setup, TIER_COUNT};
+use crate::format::{
+    field_text, GridRecord, HardCalibration, HardCase, Header, Setup, CALIBRATION_POINTS_MAX,
+    TIER_COUNT,
+};
+
+/// Step of a warm-up, °C: well inside the model's plausible step between two sample sets.
+pub const WARM_UP_STEP_C: f32 = 1.0;
 
 /// A calibration with the article's curve on every taxel and the setup's parasitic capacitance.
 pub fn calibration_for(setup: &Setup) -> Option<Calibration> {
@@ -27,6 +35,27 @@ pub fn tared_pad(setup: &Setup) -> Option<PadModel> {
         setup.tare_temperature_c,
     ));
     Some(pad)
+}
+
+/// Brings a tared pad's temperature to `target_c` as a real pad warms or cools: unloaded sample
+/// sets (the tare reading) with the temperature moving [`WARM_UP_STEP_C`] per set.
+pub fn warm_up(pad: &mut PadModel, setup: &Setup, target_c: f32) {
+    let mut temperature_c = pad.last_valid_temperature_c().unwrap_or(target_c);
+    // At most 200 sets: the characterised range is 50 °C wide.
+    for _ in 0..200 {
+        temperature_c = if (target_c - temperature_c).abs() <= WARM_UP_STEP_C {
+            target_c
+        } else {
+            temperature_c + (target_c - temperature_c).clamp(-WARM_UP_STEP_C, WARM_UP_STEP_C)
+        };
+        pad.process(&SampleInput::new(
+            [setup.tare_reading; 4],
+            Some(temperature_c),
+        ));
+        if temperature_c == target_c {
+            break;
+        }
+    }
 }
 
 /// The grid's taxel: its model, baseline and calibration.
@@ -180,19 +209,25 @@ impl core::fmt::Display for OptionalKpa {
 fn hard_case(case: &HardCase) -> u32 {
     let name = field_text(&case.name);
     hprintln!(
-        "case name={} reading={} temperature={:?} expected_flags={:#06x} description={}",
+        "case name={} reading={} temperature={:?} warm_up={:?} expected_flags={:#06x} description={}",
         name,
         ReadingText(case.reading),
         case.temperature_c,
+        case.warm_up_c,
         case.expected_flags,
         field_text(&case.description)
     );
-    let Some(mut pad) = tared_pad(&case.setup) else {
+    let Some(mut prepared) = tared_pad(&case.setup) else {
         hprintln!("hard case={} result=fail reason=calibration-refused", name);
         return 1;
     };
+    if let Some(target_c) = case.warm_up_c {
+        warm_up(&mut prepared, &case.setup, target_c);
+    }
     let mut misses = 0;
     for (slot, tier) in Tier::ALL.iter().enumerate() {
+        // Each tier from the same state: a reading moves the pad's temperature state.
+        let mut pad = prepared.clone();
         if pad.set_tier(*tier).is_err() {
             hprintln!(
                 "hard case={} tier={} result=fail reason=tier-unavailable",
@@ -246,5 +281,104 @@ pub fn hard_cases(golden: &[u8], header: &Header) -> u32 {
             }
         }
     }
+    misses
+}
+
+/// Checks one hard calibration: the curve is accepted, and the default tier's inverse of every
+/// probe is finite, within 0 ..= top and within the reference's accepted interval. Returns
+/// (probes checked, misses).
+fn hard_calibration(calibration: &HardCalibration) -> (u32, u32) {
+    let shape = field_text(&calibration.shape);
+    let mut points = [CurvePoint::new(0.0, 0.0); CALIBRATION_POINTS_MAX];
+    let given = calibration.points();
+    for (slot, (pressure_kpa, relative_change)) in points.iter_mut().zip(given) {
+        *slot = CurvePoint::new(*pressure_kpa, *relative_change);
+    }
+    let count = given.len().min(MAX_CURVE_POINTS);
+    let curve = match CalibrationCurve::new(&points[..count], 0) {
+        Ok(curve) => curve,
+        Err(error) => {
+            hprintln!(
+                "calibration seed={} shape={} points={} probes=0 result=fail reason={:?}",
+                calibration.seed,
+                shape,
+                given.len(),
+                error
+            );
+            return (0, 1);
+        }
+    };
+    let inverses = TaxelInverses::new(&curve);
+    let cubic = inverses.monotone_cubic();
+    let top_kpa = f64::from(curve.top().pressure_kpa);
+    let (mut misses, mut checked) = (0u32, 0u32);
+    // Smallest distance of an answer from the nearer end of its accepted interval (negative:
+    // outside), and the largest distance from the reference pressure itself.
+    let (mut margin_kpa, mut deviation_kpa) = (f64::INFINITY, 0.0f64);
+    for probe in calibration.probes() {
+        checked += 1;
+        let got_kpa = f64::from(cubic.pressure_kpa(probe.relative_change));
+        let margin = (got_kpa - probe.lower_kpa).min(probe.upper_kpa - got_kpa);
+        let pass = got_kpa.is_finite() && (0.0..=top_kpa).contains(&got_kpa) && margin >= 0.0;
+        margin_kpa = margin_kpa.min(if got_kpa.is_finite() {
+            margin
+        } else {
+            f64::NEG_INFINITY
+        });
+        deviation_kpa = deviation_kpa.max(libm::fabs(got_kpa - probe.reference_kpa));
+        if !pass {
+            misses += 1;
+            hprintln!(
+                "calibration-miss seed={} relative_change={:e} pressure_kpa={:e} reference_kpa={:e} lower_kpa={:e} upper_kpa={:e}",
+                calibration.seed,
+                probe.relative_change,
+                got_kpa,
+                probe.reference_kpa,
+                probe.lower_kpa,
+                probe.upper_kpa
+            );
+        }
+    }
+    hprintln!(
+        "calibration seed={} shape={} points={} probes={} min_margin_kpa={:.3e} max_from_reference_kpa={:.3e} misses={} result={}",
+        calibration.seed,
+        shape,
+        given.len(),
+        checked,
+        margin_kpa,
+        deviation_kpa,
+        misses,
+        if misses == 0 { "pass" } else { "fail" }
+    );
+    (checked, misses)
+}
+
+/// Runs every hard calibration; returns the number of misses (probes outside their interval,
+/// curves refused, records unreadable).
+pub fn hard_calibrations(golden: &[u8], header: &Header) -> u32 {
+    let (mut probes, mut misses, mut failed_curves) = (0u32, 0u32, 0u32);
+    for index in 0..header.hard_calibration_count as usize {
+        let calibration = golden
+            .get(header.hard_calibration_offset(index)..)
+            .and_then(HardCalibration::decode);
+        let Some(calibration) = calibration else {
+            hprintln!("error: hard calibration {} unreadable", index);
+            misses += 1;
+            failed_curves += 1;
+            continue;
+        };
+        let (checked, missed) = hard_calibration(&calibration);
+        probes += checked;
+        misses += missed;
+        failed_curves += u32::from(missed > 0);
+    }
+    hprintln!(
+        "calibrations curves={} probes={} failed_curves={} misses={} result={}",
+        header.hard_calibration_count,
+        probes,
+        failed_curves,
+        misses,
+        if misses == 0 { "pass" } else { "fail" }
+    );
     misses
 }

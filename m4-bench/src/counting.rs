@@ -10,7 +10,8 @@ use cortex_m::peripheral::SYST;
 use model_core::inverse::{InverseCurve, TableInverse};
 use model_core::{
     Baseline, FaultThresholds, PadModel, PadOutput, ReadingValue, SampleInput, SplitCapacitance,
-    TaxelFlags, TaxelInverses, TaxelModel, TaxelOutput, TemperatureUsed, Tier,
+    TaxelFlags, TaxelInverses, TaxelModel, TaxelOutput, TemperatureLaw, TemperatureTracker,
+    TemperatureUsed, Tier,
 };
 
 /// Instructions per SysTick tick with `-icount shift=0` and a 25 MHz SysTick.
@@ -129,6 +130,81 @@ pub fn table_loop(table: &TableInverse, inputs: &[f32], repetitions: u32) {
     for _ in 0..repetitions {
         for input in inputs {
             black_box(black_box(table).pressure_kpa(black_box(*input)));
+        }
+    }
+}
+
+/// A tier's inverse called directly (no dC/C0, no dispatch) over `inputs`.
+#[inline(never)]
+pub fn direct_inverse_loop<I: InverseCurve>(inverse: &I, inputs: &[f32], repetitions: u32) {
+    for _ in 0..repetitions {
+        for input in inputs {
+            black_box(black_box(inverse).pressure_kpa(black_box(*input)));
+        }
+    }
+}
+
+/// `TaxelReading::value` (the raw-code decode and range checks) of taxel 0's reading of each
+/// sample.
+#[inline(never)]
+pub fn reading_value_loop(samples: &[SampleInput], repetitions: u32) {
+    for _ in 0..repetitions {
+        for sample in samples {
+            black_box(black_box(sample.readings[0]).value());
+        }
+    }
+}
+
+/// [`reading_value_loop`] without the decode.
+#[inline(never)]
+pub fn reading_value_overhead_loop(samples: &[SampleInput], repetitions: u32) {
+    for _ in 0..repetitions {
+        for sample in samples {
+            black_box(sample.readings[0]);
+            black_box(ReadingValue::Unavailable);
+        }
+    }
+}
+
+/// `TemperatureTracker::resolve` (once per sample set in `PadModel::process`) with a tracker
+/// that last saw the same temperature: the steady state.
+#[inline(never)]
+pub fn temperature_loop(
+    trackers: &[(TemperatureTracker, f32)],
+    law: &TemperatureLaw,
+    repetitions: u32,
+) {
+    for _ in 0..repetitions {
+        for (tracker, temperature_c) in trackers {
+            let mut tracker = black_box(*tracker);
+            black_box(tracker.resolve(
+                black_box(Some(*temperature_c)),
+                black_box(Some(25.0)),
+                black_box(law),
+            ));
+        }
+    }
+}
+
+/// [`temperature_loop`] without the call.
+#[inline(never)]
+pub fn temperature_overhead_loop(
+    trackers: &[(TemperatureTracker, f32)],
+    law: &TemperatureLaw,
+    repetitions: u32,
+) {
+    let used = TemperatureUsed {
+        temperature_c: 25.0,
+        permittivity_ratio: 1.0,
+        flags: TaxelFlags::empty(),
+    };
+    for _ in 0..repetitions {
+        for (tracker, temperature_c) in trackers {
+            black_box(*tracker);
+            black_box(Some(*temperature_c));
+            black_box(Some(25.0f32));
+            black_box(law);
+            black_box(used);
         }
     }
 }

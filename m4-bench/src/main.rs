@@ -1,7 +1,8 @@
 //! On-target test and benchmark of model-core on a Cortex-M4F emulated by QEMU (mps2-an386):
 //! every tier over a 0–50 kPa x 5–55 °C grid of raw FDC1004 readings and over the hard cases,
-//! against f64 references computed on the host (golden file from the build script), then the
-//! instructions per taxel conversion from SysTick under `-icount shift=0`.
+//! the default tier's inverse on the hard calibrations, against f64 references computed on the
+//! host (golden file from the build script), then the instructions per taxel conversion from
+//! SysTick under `-icount shift=0`.
 //!
 //! Prints one `key=value` line per result over semihosting and exits with status 0 only if every
 //! check passed. `cargo xtask m4-test` builds, runs and parses it.
@@ -19,7 +20,7 @@ use cortex_m_semihosting::{debug, hprintln};
 use model_core::inverse::{Libm, Micromath, SaturatingInverse};
 use model_core::{
     Baseline, InverseCurve, ReadingValue, SampleInput, SplitCapacitance, TaxelInverses,
-    TaxelReading, Tier,
+    TaxelReading, TemperatureTracker, Tier,
 };
 use panic_semihosting as _;
 
@@ -62,10 +63,11 @@ fn run() -> u32 {
         return 1;
     };
     hprintln!(
-        "m4-bench opt-level={} grid_points={} hard_cases={} grid_repetitions={} single_repetitions={}",
+        "m4-bench opt-level={} grid_points={} hard_cases={} hard_calibrations={} grid_repetitions={} single_repetitions={}",
         env!("M4_BENCH_OPT_LEVEL"),
         header.grid_count,
         header.hard_case_count,
+        header.hard_calibration_count,
         GRID_REPETITIONS,
         SINGLE_REPETITIONS
     );
@@ -80,6 +82,7 @@ fn run() -> u32 {
     }
     let mut misses = checks::grid(GOLDEN, &header, &taxel);
     misses += checks::hard_cases(GOLDEN, &header);
+    misses += checks::hard_calibrations(GOLDEN, &header);
     let Some(peripherals) = cortex_m::Peripherals::take() else {
         hprintln!("error: peripherals already taken");
         return misses + 1;
@@ -92,6 +95,7 @@ struct Inputs {
     grid: [Input; GRID_CAPACITY],
     relative_changes: [f32; GRID_CAPACITY],
     samples: [SampleInput; GRID_CAPACITY],
+    trackers: [(TemperatureTracker, f32); GRID_CAPACITY],
     grid_count: usize,
     single: [Input; SINGLE_CAPACITY],
     single_count: usize,
@@ -103,6 +107,7 @@ impl Inputs {
             grid: [Input::default(); GRID_CAPACITY],
             relative_changes: [0.0; GRID_CAPACITY],
             samples: [SampleInput::new([TaxelReading::Unavailable; 4], None); GRID_CAPACITY],
+            trackers: [(TemperatureTracker::default(), 25.0); GRID_CAPACITY],
             grid_count: 0,
             single: [Input::default(); SINGLE_CAPACITY],
             single_count: 0,
@@ -128,6 +133,13 @@ impl Inputs {
                 .unwrap_or(0.0);
             inputs.samples[slot] =
                 SampleInput::new([record.reading; 4], Some(record.temperature_c));
+            let mut tracker = TemperatureTracker::default();
+            tracker.resolve(
+                Some(record.temperature_c),
+                None,
+                taxel.calibration.temperature_law(),
+            );
+            inputs.trackers[slot] = (tracker, record.temperature_c);
             inputs.grid_count += 1;
             let whole_kpa = record.pressure_kpa == libm::roundf(record.pressure_kpa);
             if record.temperature_c == 25.0 && whole_kpa && inputs.single_count < SINGLE_CAPACITY {
@@ -260,6 +272,24 @@ impl DirectInverseAction for DirectCount<'_> {
     }
 }
 
+/// Counts an inverse called directly, alone (no dC/C0, no dispatch).
+struct InverseAloneCount<'a> {
+    counter: &'a Counter,
+    relative_changes: &'a [f32],
+    calls: u32,
+}
+
+impl DirectInverseAction for InverseAloneCount<'_> {
+    fn run<I: InverseCurve>(&mut self, inverse: &I) -> f32 {
+        let relative_changes = self.relative_changes;
+        self.counter.per_call(
+            self.calls,
+            || counting::direct_inverse_loop(inverse, relative_changes, GRID_REPETITIONS),
+            || counting::f32_overhead_loop(relative_changes, GRID_REPETITIONS),
+        )
+    }
+}
+
 /// Runs the corrected inversion once over the inputs, then the empty loop, for the trace.
 struct DirectProbe<'a> {
     baseline: &'a Baseline,
@@ -322,16 +352,27 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
     }
 
     let inverses = taxel.model.inverses();
+    let top_pressure_kpa = taxel.calibration.taxels()[0].curve.top().pressure_kpa;
     for tier in Tier::ALL {
         let mean = counter.per_call(
             grid_calls,
             || counting::inverse_loop(inverses, tier, relative_changes, GRID_REPETITIONS),
             || counting::f32_overhead_loop(relative_changes, GRID_REPETITIONS),
         );
+        let mut alone = InverseAloneCount {
+            counter,
+            relative_changes,
+            calls: grid_calls,
+        };
+        let Some(direct) = with_direct_inverse(inverses, tier, top_pressure_kpa, &mut alone) else {
+            hprintln!("error: tier {} unavailable for the grid taxel", tier.name());
+            return 1;
+        };
         hprintln!(
-            "count subject=inverse tier={} mean={:.2} calls={}",
+            "count subject=inverse tier={} mean={:.2} direct={:.2} calls={}",
             tier.name(),
             mean,
+            direct,
             grid_calls
         );
     }
@@ -342,7 +383,6 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
     let baseline = context.baseline;
     let overhead =
         || counting::corrected_inversion_overhead_loop(baseline, capacitances, GRID_REPETITIONS);
-    let top_pressure_kpa = taxel.calibration.taxels()[0].curve.top().pressure_kpa;
     for tier in Tier::ALL {
         let mut direct_count = DirectCount {
             counter,
@@ -465,10 +505,33 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
         );
     }
 
+    let samples = &inputs.samples[..grid_count];
+    let reading_value = counter.per_call(
+        grid_calls,
+        || counting::reading_value_loop(samples, GRID_REPETITIONS),
+        || counting::reading_value_overhead_loop(samples, GRID_REPETITIONS),
+    );
+    hprintln!(
+        "count subject=reading-value mean={:.2} calls={}",
+        reading_value,
+        grid_calls
+    );
+    let trackers = &inputs.trackers[..grid_count];
+    let law = taxel.calibration.temperature_law();
+    let temperature = counter.per_call(
+        grid_calls,
+        || counting::temperature_loop(trackers, law, GRID_REPETITIONS),
+        || counting::temperature_overhead_loop(trackers, law, GRID_REPETITIONS),
+    );
+    hprintln!(
+        "count subject=temperature-resolve mean={:.2} calls={}",
+        temperature,
+        grid_calls
+    );
+
     let Some(mut pad) = checks::tared_pad(&header.grid_setup) else {
         return 1;
     };
-    let samples = &inputs.samples[..grid_count];
     let mut misses = 0;
     for tier in Tier::ALL {
         if pad.set_tier(tier).is_err() {
@@ -476,14 +539,34 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
             misses += 1;
             continue;
         }
-        let work = counter.instructions(|| counting::pad_loop(&mut pad, samples, 1));
-        let overhead = counter.instructions(|| counting::pad_overhead_loop(&mut pad, samples, 1));
-        let per_sample = (work as f32 - overhead as f32) / grid_count.max(1) as f32;
+        // Block by block of one temperature, the pad brought to it first in plausible steps
+        // (uncounted), so that every counted sample set is the steady state of a pad at that
+        // temperature, not the slew after an implausible jump between blocks.
+        let (mut work, mut overhead, mut sets) = (0u64, 0u64, 0u32);
+        let mut start = 0;
+        while start < samples.len() {
+            let temperature_c = samples[start].temperature_c;
+            let length = samples[start..]
+                .iter()
+                .take_while(|sample| sample.temperature_c == temperature_c)
+                .count();
+            let block = &samples[start..start + length];
+            if let Some(target_c) = temperature_c {
+                checks::warm_up(&mut pad, &header.grid_setup, target_c);
+            }
+            work += counter.instructions(|| counting::pad_loop(&mut pad, block, GRID_REPETITIONS));
+            overhead += counter
+                .instructions(|| counting::pad_overhead_loop(&mut pad, block, GRID_REPETITIONS));
+            sets += length as u32 * GRID_REPETITIONS;
+            start += length;
+        }
+        let per_set = (work as f32 - overhead as f32) / sets.max(1) as f32;
         hprintln!(
-            "count subject=pad-process-per-taxel tier={} mean={:.2} calls={}",
+            "count subject=pad-process tier={} per_set={:.2} mean={:.2} calls={}",
             tier.name(),
-            per_sample / 4.0,
-            grid_count
+            per_set,
+            per_set / 4.0,
+            sets
         );
     }
     misses

@@ -22,18 +22,21 @@ use crate::conditioning::{worst_noise_kpa, CONVERTER_NOISE_PF};
 use crate::inverse::{TaxelInverses, Tier};
 use crate::validation::leave_one_out_errors_kpa;
 
-/// Instructions per taxel conversion (temperature correction included) on the Cortex-M4F,
-/// measured by the on-target benchmark (`TaxelModel::convert`, opt-level 3, mean over a
-/// 0–50 kPa x 5–55 °C grid; see docs/PERFORMANCE.md); the on-target test fails if a build
-/// drifts from them by more than 15 %.
+/// Instructions per taxel conversion (temperature correction included) on the Cortex-M4F:
+/// `TaxelModel::convert`, mean over a 0–50 kPa x 5–55 °C grid, measured under QEMU in the
+/// build the firmware ships (opt-level "z", fat LTO, one codegen unit; see
+/// docs/PERFORMANCE.md). Written by `cargo xtask report` or `cargo xtask m4-test --write`,
+/// never by hand. `cargo xtask m4-test` fails when the measured order of the tiers differs
+/// from this one (counts within 2 instructions are tied), or when a count drifts
+/// further than half the smallest gap between neighbouring tiers.
 pub const MEASURED_INSTRUCTIONS: [(Tier, u32); 7] = [
-    (Tier::Linear, 88),
-    (Tier::PiecewiseLinear, 119),
-    (Tier::MonotoneCubic, 178),
-    (Tier::Saturating, 146),
-    (Tier::SaturatingMicromath, 132),
-    (Tier::Table, 108),
-    (Tier::Polynomial, 102),
+    (Tier::Linear, 120),
+    (Tier::PiecewiseLinear, 166),
+    (Tier::MonotoneCubic, 228),
+    (Tier::Saturating, 196),
+    (Tier::SaturatingMicromath, 187),
+    (Tier::Table, 147),
+    (Tier::Polynomial, 189),
 ];
 
 /// Uncertainty of the pad's temperature sensor, °C (TMP117: +-0.1 °C from -20 to 50 °C).

@@ -123,6 +123,8 @@ pub struct CaseInfo {
     pub reading: String,
     /// The temperature as printed (`Some(25.0)`, `None`, `Some(NaN)`...).
     pub temperature: String,
+    /// The temperature the pad was brought to before the reading, as printed (`None`: none).
+    pub warm_up: String,
     /// Expected flags.
     pub expected_flags: u16,
     /// What the case exercises.
@@ -165,6 +167,60 @@ pub struct ConvertCount {
     pub single_mean: f64,
 }
 
+/// Instructions per `PadModel::process` for a tier.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PadCount {
+    /// The tier.
+    pub tier: Tier,
+    /// Per sample set (four taxels, one temperature resolution).
+    pub per_set: f64,
+    /// Per taxel: a quarter of the set's.
+    pub per_taxel: f64,
+}
+
+/// Instructions per tier's inverse.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InverseCount {
+    /// The tier.
+    pub tier: Tier,
+    /// Through `TaxelInverses::pressure_kpa` (tier chosen at run time).
+    pub dispatched: f64,
+    /// The inverse alone, called directly.
+    pub direct: f64,
+}
+
+/// One hard calibration's result on the target.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrationResult {
+    /// Generator seed.
+    pub seed: u64,
+    /// The generator's shape name.
+    pub shape: String,
+    /// Calibration points.
+    pub points: u32,
+    /// Probes checked.
+    pub probes: u32,
+    /// Smallest distance of an answer inside its accepted interval, kPa (negative: outside).
+    pub min_margin_kpa: f64,
+    /// Largest |answer - f64 reference pressure|, kPa.
+    pub max_from_reference_kpa: f64,
+    /// Every probe within its interval and the curve accepted.
+    pub pass: bool,
+}
+
+/// The hard calibrations' summary line.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CalibrationSummary {
+    /// Curves in the golden file.
+    pub curves: u32,
+    /// Probes checked in all.
+    pub probes: u32,
+    /// Curves with at least one miss.
+    pub failed_curves: u32,
+    /// Probes outside their interval (and curves refused).
+    pub misses: u32,
+}
+
 /// Instructions per temperature-corrected inversion (`Baseline::relative_change`, then the tier's
 /// inverse) for a tier.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -180,7 +236,7 @@ pub struct CorrectedCount {
 /// Everything one m4-bench run printed.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BenchRun {
-    /// `3` or `s`.
+    /// `z`, `3`, ...
     pub opt_level: String,
     /// Readings in the grid.
     pub grid_points: u32,
@@ -194,16 +250,21 @@ pub struct BenchRun {
     pub cases: Vec<CaseInfo>,
     /// Hard case x tier results.
     pub hard: Vec<HardResult>,
+    /// Hard calibrations (default tier's inverse against the f64 reference).
+    pub calibrations: Vec<CalibrationResult>,
+    /// Their summary line (None: missing, which fails the run).
+    pub calibration_summary: Option<CalibrationSummary>,
     /// `TaxelModel::convert` counts per tier.
     pub convert: Vec<ConvertCount>,
-    /// `TaxelInverses::pressure_kpa` counts per tier.
-    pub inverse: Vec<(Tier, f64)>,
+    /// Inverse counts per tier.
+    pub inverse: Vec<InverseCount>,
     /// Temperature-corrected inversion counts per tier.
     pub corrected: Vec<CorrectedCount>,
-    /// `PadModel::process` per taxel, per tier.
-    pub pad: Vec<(Tier, f64)>,
-    /// Other subjects (`relative-change`, `table-direct`, `libm-logf`, `libm-expf`,
-    /// `micromath-ln`, `f32-min`); one with a tier is filed as `subject/tier`.
+    /// `PadModel::process` per set and per taxel, per tier.
+    pub pad: Vec<PadCount>,
+    /// Other subjects (`relative-change`, `reading-value`, `temperature-resolve`,
+    /// `table-direct`, `libm-logf`, `libm-expf`, `micromath-ln`, `f32-min`); one with a tier is
+    /// filed as `subject/tier`.
     pub functions: BTreeMap<String, f64>,
     /// Lines starting `error:` and lines that are not `key=value` results (panics).
     pub problems: Vec<String>,
@@ -251,6 +312,11 @@ impl BenchRun {
                     name: line.text("name")?.to_string(),
                     reading: line.text("reading")?.to_string(),
                     temperature: line.text("temperature")?.to_string(),
+                    warm_up: line
+                        .fields
+                        .get("warm_up")
+                        .cloned()
+                        .unwrap_or_else(|| "None".to_string()),
                     expected_flags: line.hex("expected_flags")?,
                     description: line.text("description")?.to_string(),
                 }),
@@ -267,6 +333,25 @@ impl BenchRun {
                     tolerance_kpa: line.number("tolerance_kpa")?,
                     pass: line.passed(),
                 }),
+                "calibration" => run.calibrations.push(CalibrationResult {
+                    seed: line.number("seed")? as u64,
+                    shape: line.text("shape")?.to_string(),
+                    points: line.number("points")? as u32,
+                    probes: line.number("probes")? as u32,
+                    min_margin_kpa: line.number("min_margin_kpa").unwrap_or(f64::NEG_INFINITY),
+                    max_from_reference_kpa: line
+                        .number("max_from_reference_kpa")
+                        .unwrap_or(f64::INFINITY),
+                    pass: line.passed(),
+                }),
+                "calibrations" => {
+                    run.calibration_summary = Some(CalibrationSummary {
+                        curves: line.number("curves")? as u32,
+                        probes: line.number("probes")? as u32,
+                        failed_curves: line.number("failed_curves")? as u32,
+                        misses: line.number("misses")? as u32,
+                    });
+                }
                 "count" => match line.text("subject")? {
                     "convert" => run.convert.push(ConvertCount {
                         tier: line.tier("tier")?,
@@ -275,15 +360,21 @@ impl BenchRun {
                         max: line.number("max")?,
                         single_mean: line.number("single_mean")?,
                     }),
-                    "inverse" => run.inverse.push((line.tier("tier")?, line.number("mean")?)),
+                    "inverse" => run.inverse.push(InverseCount {
+                        tier: line.tier("tier")?,
+                        dispatched: line.number("mean")?,
+                        direct: line.number("direct")?,
+                    }),
                     "corrected-inversion" => run.corrected.push(CorrectedCount {
                         tier: line.tier("tier")?,
                         direct: line.number("mean")?,
                         dispatched: line.number("dispatched")?,
                     }),
-                    "pad-process-per-taxel" => {
-                        run.pad.push((line.tier("tier")?, line.number("mean")?));
-                    }
+                    "pad-process" => run.pad.push(PadCount {
+                        tier: line.tier("tier")?,
+                        per_set: line.number("per_set")?,
+                        per_taxel: line.number("mean")?,
+                    }),
                     subject => {
                         let key = match line.fields.get("tier") {
                             Some(tier) => format!("{subject}/{tier}"),
@@ -326,6 +417,24 @@ impl BenchRun {
             .ok_or_else(|| anyhow!("no corrected-inversion count for tier {}", tier.name()))
     }
 
+    /// The inverse counts of a tier.
+    pub fn inverse_count(&self, tier: Tier) -> Result<InverseCount> {
+        self.inverse
+            .iter()
+            .find(|count| count.tier == tier)
+            .copied()
+            .ok_or_else(|| anyhow!("no inverse count for tier {}", tier.name()))
+    }
+
+    /// The `PadModel::process` counts of a tier.
+    pub fn pad_count(&self, tier: Tier) -> Result<PadCount> {
+        self.pad
+            .iter()
+            .find(|count| count.tier == tier)
+            .copied()
+            .ok_or_else(|| anyhow!("no PadModel::process count for tier {}", tier.name()))
+    }
+
     /// The grid result of a tier.
     pub fn grid_result(&self, tier: Tier) -> Result<&GridResult> {
         self.grid
@@ -363,6 +472,25 @@ impl BenchRun {
                 result.tolerance_kpa
             )
         }));
+        misses.extend(
+            self.calibrations
+                .iter()
+                .filter(|result| !result.pass)
+                .map(|result| {
+                    format!(
+                        "hard calibration seed {} ({}, {} points): an answer {:.3e} kPa outside the accepted interval",
+                        result.seed, result.shape, result.points, -result.min_margin_kpa
+                    )
+                }),
+        );
+        match self.calibration_summary {
+            None => misses.push("no hard-calibration summary line".to_string()),
+            Some(summary) if summary.misses > 0 => misses.push(format!(
+                "hard calibrations: {} misses on {} of {} curves",
+                summary.misses, summary.failed_curves, summary.curves
+            )),
+            Some(_) => {}
+        }
         if self.passed && misses.is_empty() {
             return Ok(());
         }
@@ -378,26 +506,30 @@ impl BenchRun {
 mod tests {
     use super::*;
 
-    const SAMPLE: &str = "m4-bench opt-level=3 grid_points=1111 hard_cases=2 grid_repetitions=4 single_repetitions=64
+    const SAMPLE: &str = "m4-bench opt-level=z grid_points=1111 hard_cases=2 hard_calibrations=2 grid_repetitions=4 single_repetitions=64
 grid tier=table points=1111 faults=0 max_error_kpa=3.870e-5 rms_error_kpa=8.350e-6 worst_at_kpa=48 worst_at_c=50 tolerance_kpa=5.0e-3 max_from_reference_curve_kpa=1.4604e-2 rms_from_reference_curve_kpa=4.0140e-3 result=pass
-case name=temperature-nan reading=raw:1234@3 temperature=Some(NaN) expected_flags=0x0020 description=20 kPa at 25 C, temperature NaN: the tare's is used
+case name=temperature-nan reading=raw:1234@3 temperature=Some(NaN) warm_up=None expected_flags=0x0020 description=20 kPa at 25 C, temperature NaN: the tare's is used
 hard case=temperature-nan tier=table flags=0x0020 expected_flags=0x0020 pressure_kpa=2.000000e1 reference_kpa=2.000001e1 tolerance_kpa=5.0e-3 result=pass
 hard case=open-lead tier=table flags=0x0008 expected_flags=0x0008 pressure_kpa=none reference_kpa=none tolerance_kpa=5.0e-3 result=pass
 count subject=convert tier=table mean=119.26 min=70.00 max=124.38 single_mean=120.00 calls=4444 single_inputs=51
-count subject=inverse tier=table mean=56.42 calls=4444
+calibration seed=0 shape=Saturating points=2 probes=7 min_margin_kpa=1.000e-2 max_from_reference_kpa=1.257e-7 misses=0 result=pass
+calibration seed=1 shape=FlatTop points=6 probes=43 min_margin_kpa=9.926e-3 max_from_reference_kpa=7.563e-5 misses=0 result=pass
+calibrations curves=2 probes=50 failed_curves=0 misses=0 result=pass
+count subject=inverse tier=table mean=56.42 direct=49.00 calls=4444
 count subject=corrected-inversion tier=table mean=45.92 dispatched=58.93 calls=4444
 count subject=corrected-inversion tier=linear mean=28.00 dispatched=37.95 calls=4444
 count subject=relative-change mean=14.00 calls=4444
 count subject=future-subject tier=table mean=1.5 calls=4444
 count subject=future-subject tier=linear mean=2.5 calls=4444
 count subject=libm-logf mean=37.66 calls=256
+count subject=pad-process tier=table per_set=1078.90 mean=269.73 calls=4444
 summary misses=0 result=pass
 ";
 
     #[test]
     fn a_complete_run_parses_and_passes() {
         let run = BenchRun::parse(SAMPLE).unwrap();
-        assert_eq!(run.opt_level, "3");
+        assert_eq!(run.opt_level, "z");
         assert!(run.problems.is_empty(), "{:?}", run.problems);
         assert!(run.require_pass().is_ok());
         let grid = run.grid_result(Tier::Table).unwrap();
@@ -426,6 +558,13 @@ summary misses=0 result=pass
         assert_eq!(run.corrected_count(Tier::Linear).unwrap().direct, 28.0);
         assert!(run.corrected_count(Tier::Polynomial).is_err());
         assert_eq!(run.functions.get("relative-change"), Some(&14.0));
+        assert_eq!(run.inverse_count(Tier::Table).unwrap().direct, 49.0);
+        let pad = run.pad_count(Tier::Table).unwrap();
+        assert_eq!((pad.per_set, pad.per_taxel), (1078.9, 269.73));
+        assert_eq!(run.calibrations.len(), 2);
+        assert_eq!(run.calibrations[1].shape, "FlatTop");
+        assert_eq!(run.calibration_summary.unwrap().probes, 50);
+        assert_eq!(run.cases[0].warm_up, "None");
         // An unknown subject per tier keeps one value per tier instead of overwriting.
         assert_eq!(run.functions.get("future-subject/table"), Some(&1.5));
         assert_eq!(run.functions.get("future-subject/linear"), Some(&2.5));
@@ -451,6 +590,30 @@ summary misses=0 result=pass
         assert!(!run.passed);
         let message = run.require_pass().unwrap_err().to_string();
         assert!(message.contains("panicked"), "{message}");
+    }
+
+    #[test]
+    fn a_hard_calibration_miss_fails_the_run() {
+        let missed = SAMPLE
+            .replace(
+                "calibrations curves=2 probes=50 failed_curves=0 misses=0 result=pass",
+                "calibration-miss seed=1 relative_change=1e-1 pressure_kpa=3e0 reference_kpa=2e0 lower_kpa=1.9e0 upper_kpa=2.1e0\ncalibrations curves=2 probes=50 failed_curves=1 misses=1 result=fail",
+            )
+            .replace("summary misses=0 result=pass", "summary misses=1 result=fail");
+        let message = BenchRun::parse(&missed)
+            .unwrap()
+            .require_pass()
+            .unwrap_err()
+            .to_string();
+        assert!(message.contains("calibration-miss seed=1"), "{message}");
+        let without_summary = SAMPLE.replace(
+            "calibrations curves=2 probes=50 failed_curves=0 misses=0 result=pass\n",
+            "",
+        );
+        assert!(BenchRun::parse(&without_summary)
+            .unwrap()
+            .require_pass()
+            .is_err());
     }
 
     #[test]

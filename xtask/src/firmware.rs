@@ -38,9 +38,11 @@ impl Footprint {
     }
 }
 
-/// The opt-level of `[profile.<profile>]` in a Cargo.toml, following `inherits` (a profile
-/// without one of its own inherits it; `release` and `bench` default to 3, the others to 0).
-pub fn profile_opt_level(manifest: &str, profile: &str) -> Result<String> {
+/// A setting of `[profile.<profile>]` in a Cargo.toml, following `inherits` (a profile without
+/// one of its own inherits it), else cargo's default for the built-in profile at the root of
+/// the chain (`release` and `bench`, or `dev` and `test`). Strings keep their quotes (`"z"`),
+/// numbers and booleans are as written; `lto = true` reads as `"fat"`, which it means.
+pub fn profile_setting(manifest: &str, profile: &str, key: &str) -> Result<String> {
     let document: toml::Table = manifest.parse().context("parsing Cargo.toml")?;
     let profiles = document.get("profile").and_then(toml::Value::as_table);
     let mut name = profile.to_string();
@@ -48,10 +50,11 @@ pub fn profile_opt_level(manifest: &str, profile: &str) -> Result<String> {
         let table = profiles
             .and_then(|profiles| profiles.get(&name))
             .and_then(toml::Value::as_table);
-        if let Some(level) = table.and_then(|table| table.get("opt-level")) {
-            return Ok(match level {
-                toml::Value::String(text) => format!("\"{text}\""),
-                other => other.to_string(),
+        if let Some(value) = table.and_then(|table| table.get(key)) {
+            return Ok(match (key, value) {
+                ("lto", toml::Value::Boolean(true)) => "\"fat\"".to_string(),
+                (_, toml::Value::String(text)) => format!("\"{text}\""),
+                (_, other) => other.to_string(),
             });
         }
         match table
@@ -59,12 +62,42 @@ pub fn profile_opt_level(manifest: &str, profile: &str) -> Result<String> {
             .and_then(toml::Value::as_str)
         {
             Some(parent) => name = parent.to_string(),
-            None if matches!(name.as_str(), "release" | "bench") => return Ok("3".to_string()),
-            None if matches!(name.as_str(), "dev" | "test") => return Ok("0".to_string()),
-            None => return Err(anyhow!("profile `{name}` has no opt-level and no inherits")),
+            None => {
+                let release = matches!(name.as_str(), "release" | "bench");
+                let dev = matches!(name.as_str(), "dev" | "test");
+                let default = match key {
+                    "opt-level" if release => "3",
+                    "opt-level" if dev => "0",
+                    "lto" if release || dev => "false",
+                    "codegen-units" if release => "16",
+                    "codegen-units" if dev => "256",
+                    _ => {
+                        return Err(anyhow!(
+                            "profile `{name}` has no {key}, no inherits and no known default"
+                        ))
+                    }
+                };
+                return Ok(default.to_string());
+            }
         }
     }
     Err(anyhow!("profile `{profile}` inherits in a loop"))
+}
+
+/// The opt-level of `[profile.<profile>]` (see [`profile_setting`]).
+pub fn profile_opt_level(manifest: &str, profile: &str) -> Result<String> {
+    profile_setting(manifest, profile, "opt-level")
+}
+
+/// The settings that decide code generation, and so the instruction counts.
+pub const CODE_GENERATION_KEYS: [&str; 3] = ["opt-level", "lto", "codegen-units"];
+
+/// `key = value` for each of [`CODE_GENERATION_KEYS`] of a profile.
+pub fn code_generation(manifest: &str, profile: &str) -> Result<Vec<(String, String)>> {
+    CODE_GENERATION_KEYS
+        .iter()
+        .map(|key| Ok((key.to_string(), profile_setting(manifest, profile, key)?)))
+        .collect()
 }
 
 /// Builds the firmware (`cargo fw-build`) and reads its footprint.
@@ -114,5 +147,23 @@ opt-level = 2
         assert_eq!(profile_opt_level(manifest, "fast").unwrap(), "3");
         assert_eq!(profile_opt_level(manifest, "numeric").unwrap(), "2");
         assert!(profile_opt_level(manifest, "missing").is_err());
+        assert_eq!(
+            code_generation(manifest, "small").unwrap(),
+            vec![
+                ("opt-level".to_string(), "\"z\"".to_string()),
+                ("lto".to_string(), "\"fat\"".to_string()),
+                ("codegen-units".to_string(), "16".to_string()),
+            ]
+        );
+        let with_bool = "[profile.release]\nlto = true\ncodegen-units = 1\n";
+        assert_eq!(
+            profile_setting(with_bool, "release", "lto").unwrap(),
+            "\"fat\""
+        );
+        assert_eq!(
+            profile_setting(with_bool, "release", "codegen-units").unwrap(),
+            "1"
+        );
+        assert!(profile_setting(manifest, "numeric", "lto").is_err());
     }
 }

@@ -5,11 +5,12 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, Context, Result};
+use model_core::conditioning::{CONVERTER_NOISE_PF, NOMINAL_SENSOR_PF};
 use model_core::inverse::{InverseCurve, PolynomialInverse, POLYNOMIAL_DEGREE};
-use model_core::use_case::{evaluate_tier, CONVERTER_NOISE_PF, NOMINAL_SENSOR_PF};
+use model_core::use_case::evaluate_tier;
 use model_core::{
-    leave_one_out_errors_kpa, select_tier, CalibrationCurve, SelectionError, TaxelInverses, Tier,
-    TierChoice, UseCase, ARTICLE_TABLE_1,
+    leave_one_out_errors_kpa, select_tier_for_taxels, CalibrationCurve, SelectionError,
+    TaxelInverses, Tier, TierChoice, UseCase, ARTICLE_TABLE_1,
 };
 
 use crate::m4;
@@ -186,17 +187,22 @@ pub struct UseCaseSelection {
     pub name: &'static str,
     /// The use case.
     pub use_case: UseCase,
-    /// What `select_tier` returned.
+    /// What `select_tier_for_taxels` returned.
     pub selected: std::result::Result<TierChoice, SelectionError>,
     /// Every supported tier evaluated over the use case's range.
     pub evaluated: Vec<TierChoice>,
 }
 
-/// `select_tier` for the three use cases on the article's curve.
+/// `select_tier_for_taxels` for the three use cases on the article's curve.
 pub fn use_case_selections() -> Vec<UseCaseSelection> {
     let inverses = article_inverses();
+    let curve = CalibrationCurve::article_default();
     let law = model_core::TemperatureLaw::article_default();
-    let top_kpa = CalibrationCurve::article_default().top().pressure_kpa;
+    let evidence = [model_core::TaxelEvidence {
+        inverses: &inverses,
+        curve: &curve,
+        sensor_pf: NOMINAL_SENSOR_PF,
+    }];
     [
         ("light touch", UseCase::LIGHT_TOUCH),
         ("gripper", UseCase::GRIPPER),
@@ -206,17 +212,11 @@ pub fn use_case_selections() -> Vec<UseCaseSelection> {
     .map(|(name, use_case)| UseCaseSelection {
         name,
         use_case,
-        selected: select_tier(
-            &inverses,
-            top_kpa,
-            law.characterised_min_c(),
-            law.characterised_max_c(),
-            &use_case,
-        ),
+        selected: select_tier_for_taxels(&evidence, &law, &use_case),
         evaluated: Tier::ALL
             .into_iter()
             .filter(|tier| inverses.supports(*tier))
-            .map(|tier| evaluate_tier(&inverses, tier, use_case.pressure_max_kpa))
+            .map(|tier| evaluate_tier(&evidence[0], tier, &law, &use_case))
             .collect(),
     })
     .collect()

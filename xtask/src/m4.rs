@@ -60,7 +60,7 @@ pub fn target_directory(root: &Path, manifest: &str) -> Result<PathBuf> {
         .ok_or_else(|| anyhow!("cargo metadata gave no target_directory"))
 }
 
-/// Builds m4-bench with a profile (`release`, `release-s`, ...) and features; returns the ELF.
+/// Builds m4-bench with a profile (`release`, `release-3`, ...) and features; returns the ELF.
 pub fn build(root: &Path, profile: &str, features: &[&str]) -> Result<PathBuf> {
     let mut command = cargo();
     command

@@ -1,18 +1,24 @@
 //! Project automation, run as `cargo xtask <command>` (alias in .cargo/config.toml).
 //!
-//! - `m4-test`: builds m4-bench for the Cortex-M4F, checks it was linked for QEMU's mps2-an386,
-//!   runs it under QEMU with a timeout, fails on any miss against the f64 references and when an
-//!   instruction count drifts more than 15 % from `model_core::use_case::MEASURED_INSTRUCTIONS`.
+//! - `m4-test [--write]`: builds m4-bench for the Cortex-M4F with the firmware's code generation
+//!   (opt-level "z", checked against the root `[profile.firmware]`), checks it was linked for
+//!   QEMU's mps2-an386, runs it under QEMU with a timeout, fails on any miss against the f64
+//!   references (grid, hard cases, hard calibrations), when the measured order of the tiers
+//!   differs from `model_core::use_case::MEASURED_INSTRUCTIONS` or a count drifts further than
+//!   half the smallest gap between neighbouring tiers. `--write` rewrites the constant instead.
 //! - `sim-bench [steps]`: throughput and latency of the simulated device, in a release build.
-//! - `report`: the same at opt-level 3 and "s", the instruction-mix trace, criterion on the host,
-//!   model-core's own figures, the firmware's footprint and the simulator's figures, written to
-//!   docs/PERFORMANCE.md and docs/speed-vs-error.svg.
+//! - `report`: the same at opt-level "z" (shipped) and 3, the instruction-mix trace, criterion on
+//!   the host, model-core's own figures, the firmware's footprint and the simulator's figures,
+//!   written to docs/PERFORMANCE.md and docs/speed-vs-error.svg; rewrites
+//!   `MEASURED_INSTRUCTIONS` from the "z" run first when it differs (and runs again on the
+//!   rebuilt model-core).
 
 mod bench_output;
 mod elf;
 mod firmware;
 mod host;
 mod m4;
+mod measured;
 mod mix;
 mod report;
 mod simulator;
@@ -27,23 +33,40 @@ use model_core::Tier;
 
 use bench_output::BenchRun;
 
-/// Largest accepted relative drift of a measured count from `MEASURED_INSTRUCTIONS`.
-pub const DRIFT_TOLERANCE: f64 = 0.15;
+/// m4-bench's profile for the tested and counted build: the firmware's code generation.
+pub const SHIPPED_PROFILE: &str = "release";
+/// m4-bench's profile for the comparison build at opt-level 3.
+pub const OPT3_PROFILE: &str = "release-3";
+
+/// Set in the environment of the second `report` run after it rewrote the constant.
+const REGENERATED_ENV: &str = "XTASK_REPORT_AFTER_REWRITE";
 
 const USAGE: &str = "usage: cargo xtask <command>
 
 commands:
-  m4-test   build m4-bench, run it on QEMU's Cortex-M4F (mps2-an386), fail on any miss or on an
-            instruction count more than 15 % away from model_core::use_case::MEASURED_INSTRUCTIONS
+  m4-test [--write]
+            build m4-bench as the firmware is built (opt-level \"z\"), run it on QEMU's
+            Cortex-M4F (mps2-an386), fail on any miss against the f64 references, or when the
+            order of the tiers by instruction count differs from
+            model_core::use_case::MEASURED_INSTRUCTIONS (or a count drifts further than half the
+            smallest gap between tiers); --write rewrites that constant from the run instead
   sim-bench [steps]
             throughput and latency of the simulated device over `steps` sample sets (default
             200000), always in a release build
-  report    write docs/PERFORMANCE.md and docs/speed-vs-error.svg (takes minutes: criterion)";
+  report    rewrite MEASURED_INSTRUCTIONS if it changed, then write docs/PERFORMANCE.md and
+            docs/speed-vs-error.svg (takes minutes: criterion)";
 
 fn main() -> ExitCode {
     let command = std::env::args().nth(1);
     let result = match command.as_deref() {
-        Some("m4-test") => m4_test(),
+        Some("m4-test") => match std::env::args().nth(2).as_deref() {
+            None => m4_test(false),
+            Some("--write") => m4_test(true),
+            Some(other) => {
+                eprintln!("unknown m4-test argument `{other}`\n{USAGE}");
+                return ExitCode::from(2);
+            }
+        },
         Some("report") => report(),
         Some("sim-bench") => sim_bench(std::env::args().nth(2).as_deref()),
         Some("help" | "--help" | "-h") => {
@@ -71,6 +94,32 @@ fn workspace_root() -> Result<PathBuf> {
         .ok_or_else(|| anyhow!("xtask has no parent directory"))
 }
 
+/// Refuses to measure unless m4-bench's tested profile generates code as the firmware's does.
+fn check_shipped_profile(root: &Path) -> Result<()> {
+    let read = |path: &str| {
+        std::fs::read_to_string(root.join(path)).with_context(|| format!("reading {path}"))
+    };
+    let firmware = firmware::code_generation(&read("Cargo.toml")?, firmware::PROFILE)?;
+    let bench = firmware::code_generation(&read(m4::MANIFEST)?, SHIPPED_PROFILE)?;
+    if firmware != bench {
+        let show = |settings: &[(String, String)]| {
+            settings
+                .iter()
+                .map(|(key, value)| format!("{key} = {value}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        bail!(
+            "m4-bench's [profile.{SHIPPED_PROFILE}] ({}) does not generate code as the root \
+             [profile.{}] ({}) does: the counts would not be the shipped build's. Make them agree.",
+            show(&bench),
+            firmware::PROFILE,
+            show(&firmware)
+        );
+    }
+    Ok(())
+}
+
 /// Builds m4-bench with a profile, checks its memory map, runs it on QEMU and parses the output.
 fn run_m4_bench(root: &Path, profile: &str) -> Result<BenchRun> {
     let elf = m4::build(root, profile, &[])?;
@@ -94,14 +143,16 @@ fn run_m4_bench(root: &Path, profile: &str) -> Result<BenchRun> {
 
 fn print_summary(run: &BenchRun) {
     println!(
-        "\n{:<22} {:>12} {:>12} {:>10} {:>26} {:>9} {:>18}",
-        "tier (opt-level 3)",
+        "\n{:<22} {:>11} {:>11} {:>9} {:>13} {:>22} {:>9} {:>14} {:>12}",
+        format!("tier (opt-level {})", run.opt_level),
         "max err kPa",
         "rms err kPa",
         "tolerance",
-        "instructions mean (min-max)",
+        "corrected inv",
+        "convert mean (min-max)",
         "constant",
-        "corrected inversion"
+        "process/taxel",
+        "process/set"
     );
     for tier in Tier::ALL {
         let grid = run.grid_result(tier).ok();
@@ -111,8 +162,9 @@ fn print_summary(run: &BenchRun) {
             .find(|(candidate, _)| *candidate == tier)
             .map_or(0, |(_, constant)| *constant);
         let corrected = run.corrected_count(tier).ok();
+        let pad = run.pad_count(tier).ok();
         println!(
-            "{:<22} {:>12} {:>12} {:>10} {:>26} {:>9} {:>18}",
+            "{:<22} {:>11} {:>11} {:>9} {:>13} {:>22} {:>9} {:>14} {:>12}",
             tier.name(),
             grid.map_or("-".to_string(), |grid| format!(
                 "{:.2e}",
@@ -126,80 +178,71 @@ fn print_summary(run: &BenchRun) {
                 "{:.0e}",
                 grid.tolerance_kpa
             )),
+            corrected.map_or("-".to_string(), |count| format!(
+                "{:.1} ({:.1})",
+                count.direct, count.dispatched
+            )),
             count.map_or("-".to_string(), |count| format!(
                 "{:.1} ({:.1}-{:.1})",
                 count.mean, count.min, count.max
             )),
             constant,
-            corrected.map_or("-".to_string(), |count| format!(
-                "{:.1} ({:.1})",
-                count.direct, count.dispatched
-            ))
+            pad.map_or("-".to_string(), |pad| format!("{:.1}", pad.per_taxel)),
+            pad.map_or("-".to_string(), |pad| format!("{:.1}", pad.per_set)),
         );
     }
     println!(
-        "corrected inversion: Baseline::relative_change and the inverse called directly \
-         (through TaxelInverses::pressure_kpa in brackets)"
+        "corrected inv: Baseline::relative_change and the inverse called directly (through \
+         TaxelInverses::pressure_kpa in brackets); convert: TaxelModel::convert; process: \
+         PadModel::process"
     );
     let passed = run.hard.iter().filter(|result| result.pass).count();
     println!(
-        "hard cases: {passed} of {} case x tier results pass ({} cases)\n",
+        "hard cases: {passed} of {} case x tier results pass ({} cases)",
         run.hard.len(),
         run.cases.len()
     );
+    match run.calibration_summary {
+        Some(summary) => println!(
+            "hard calibrations: {} curves, {} dC/C0 probes of the default tier's inverse \
+             checked against the f64 reference; {} misses\n",
+            summary.curves, summary.probes, summary.misses
+        ),
+        None => println!("hard calibrations: no result\n"),
+    }
 }
 
-/// Fails when a tier's measured mean count is more than [`DRIFT_TOLERANCE`] away from its
-/// `MEASURED_INSTRUCTIONS` constant (or the constant is missing or zero).
-fn check_drift(run: &BenchRun) -> Result<()> {
-    let mut drifted = Vec::new();
-    let mut suggestion = format!(
-        "pub const MEASURED_INSTRUCTIONS: [(Tier, u32); {}] = [\n",
-        Tier::ALL.len()
-    );
-    for tier in Tier::ALL {
-        let measured = run.convert_count(tier)?.mean;
-        suggestion.push_str(&format!(
-            "    (Tier::{tier:?}, {}),\n",
-            measured.round() as u32
-        ));
-        let constant = MEASURED_INSTRUCTIONS
-            .iter()
-            .find(|(candidate, _)| *candidate == tier)
-            .map_or(0, |(_, constant)| *constant);
-        let drift = (measured - f64::from(constant)).abs() / f64::from(constant.max(1));
-        if constant == 0 {
-            drifted.push(format!(
-                "{}: measured {measured:.1}, no constant",
-                tier.name()
-            ));
-        } else if drift > DRIFT_TOLERANCE {
-            drifted.push(format!(
-                "{}: measured {measured:.1}, constant {constant} ({:+.1} %)",
-                tier.name(),
-                100.0 * (measured / f64::from(constant) - 1.0)
-            ));
-        }
-    }
-    suggestion.push_str("];");
-    if drifted.is_empty() {
-        return Ok(());
-    }
-    bail!(
-        "instruction counts drifted more than {:.0} % from model_core::use_case::MEASURED_INSTRUCTIONS:\n  {}\nIf the change is intended, update model-core/src/use_case.rs to:\n{suggestion}",
-        DRIFT_TOLERANCE * 100.0,
-        drifted.join("\n  ")
-    )
-}
-
-fn m4_test() -> Result<()> {
+fn m4_test(write: bool) -> Result<()> {
     let root = workspace_root()?;
     m4::qemu_version()?;
-    let run = run_m4_bench(&root, "release")?;
+    check_shipped_profile(&root)?;
+    let run = run_m4_bench(&root, SHIPPED_PROFILE)?;
     print_summary(&run);
     run.require_pass()?;
-    check_drift(&run)?;
-    println!("m4-test: every check passed and the instruction counts match MEASURED_INSTRUCTIONS");
+    if write {
+        if measured::rewrite(&root, &run)? {
+            println!(
+                "m4-test: every check passed; wrote MEASURED_INSTRUCTIONS in {} from this run",
+                measured::USE_CASE_FILE
+            );
+        } else {
+            println!("m4-test: every check passed; MEASURED_INSTRUCTIONS already matches this run");
+        }
+        return Ok(());
+    }
+    measured::check_ranking(&run, &MEASURED_INSTRUCTIONS)?;
+    measured::check_drift(&run, &MEASURED_INSTRUCTIONS)?;
+    println!(
+        "m4-test: every check passed; the tiers rank as MEASURED_INSTRUCTIONS does ({}), each \
+         count within {:.1} instructions of it",
+        measured::order_text(
+            &MEASURED_INSTRUCTIONS
+                .iter()
+                .map(|(tier, value)| (*tier, f64::from(*value)))
+                .collect::<Vec<_>>()
+        ),
+        measured::drift_tolerance(&MEASURED_INSTRUCTIONS)
+    );
     Ok(())
 }
 
@@ -267,16 +310,39 @@ fn sim_bench(steps: Option<&str>) -> Result<()> {
     simulator::command(&workspace_root()?, steps)
 }
 
+/// Runs `cargo xtask report` again (cargo rebuilds xtask on the rewritten model-core).
+fn report_again(root: &Path) -> Result<()> {
+    println!(
+        "MEASURED_INSTRUCTIONS rewritten in {}: running the report again on the rebuilt model-core",
+        measured::USE_CASE_FILE
+    );
+    m4::run_checked(
+        m4::cargo()
+            .current_dir(root)
+            .args(["xtask", "report"])
+            .env(REGENERATED_ENV, "1"),
+    )
+}
+
 fn report() -> Result<()> {
     let root = workspace_root()?;
     let machine = machine(&root)?;
-    let opt3 = run_m4_bench(&root, "release")?;
-    opt3.require_pass().context("opt-level 3")?;
-    let opt_s = run_m4_bench(&root, "release-s")?;
-    opt_s.require_pass().context("opt-level \"s\"")?;
-    if let Err(error) = check_drift(&opt3) {
-        eprintln!("warning: {error:#}");
+    check_shipped_profile(&root)?;
+    let shipped = run_m4_bench(&root, SHIPPED_PROFILE)?;
+    shipped.require_pass().context("opt-level \"z\"")?;
+    if measured::from_run(&shipped)? != MEASURED_INSTRUCTIONS {
+        if std::env::var_os(REGENERATED_ENV).is_some() {
+            bail!(
+                "MEASURED_INSTRUCTIONS still differs from the run after it was rewritten: is {} \
+                 being edited?",
+                measured::USE_CASE_FILE
+            );
+        }
+        measured::rewrite(&root, &shipped)?;
+        return report_again(&root);
     }
+    let opt3 = run_m4_bench(&root, OPT3_PROFILE)?;
+    opt3.require_pass().context("opt-level 3")?;
 
     println!("tracing the instruction mix (m4-bench, instruction-mix build)");
     let mix = m4::build(&root, "release-mix", &["instruction-mix"]).and_then(|elf| {
@@ -317,8 +383,8 @@ fn report() -> Result<()> {
 
     let inverses = host::article_inverses();
     let data = report::ReportData {
+        shipped,
         opt3,
-        opt_s,
         mix,
         host_convert,
         host_convert_wall,
@@ -352,42 +418,4 @@ fn report() -> Result<()> {
     )?;
     println!("wrote docs/PERFORMANCE.md and docs/speed-vs-error.svg");
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn run_with_counts(counts: &[(Tier, f64)]) -> BenchRun {
-        let mut text = String::new();
-        for (tier, mean) in counts {
-            text.push_str(&format!(
-                "count subject=convert tier={} mean={mean} min={mean} max={mean} single_mean={mean}\n",
-                tier.name()
-            ));
-        }
-        text.push_str("summary misses=0 result=pass\n");
-        BenchRun::parse(&text).unwrap()
-    }
-
-    #[test]
-    fn counts_at_the_constants_pass_the_drift_check_and_a_20_percent_drift_fails() {
-        let at_constants: Vec<(Tier, f64)> = MEASURED_INSTRUCTIONS
-            .iter()
-            .map(|(tier, constant)| (*tier, f64::from(*constant)))
-            .collect();
-        assert!(check_drift(&run_with_counts(&at_constants)).is_ok());
-        let mut drifted = at_constants.clone();
-        drifted[2].1 *= 1.2;
-        let message = check_drift(&run_with_counts(&drifted))
-            .unwrap_err()
-            .to_string();
-        assert!(message.contains(drifted[2].0.name()), "{message}");
-        assert!(message.contains("MEASURED_INSTRUCTIONS"), "{message}");
-    }
-
-    #[test]
-    fn a_missing_count_is_an_error() {
-        assert!(check_drift(&run_with_counts(&[(Tier::Linear, 10.0)])).is_err());
-    }
 }
