@@ -13,50 +13,15 @@
 use crate::format::{
     HardCalibration, Probe, CALIBRATION_POINTS_MAX, CALIBRATION_PROBES_MAX, SHAPE_BYTES,
 };
-use reference_curves::{hard_calibration, ForwardCubic};
+use reference_curves::{
+    hard_calibration, probes, ulp, ForwardCubic, PRESSURE_TOLERANCE_KPA, ROUNDING_ULPS,
+};
 
 /// Seeds of the hard calibrations in the file: 0 .. this.
 pub const SEEDS: u64 = 64;
-/// Error allowed beyond rounding, kPa (model-core's host test).
-pub const PRESSURE_TOLERANCE_KPA: f64 = 0.01;
-/// f32 ulps of dC/C0 that rounding in the cubic's f32 evaluation explains (the host test's).
-pub const ROUNDING_ULPS: f64 = 8.0;
 /// Probes per interval spread evenly in pressure (the host test uses 24; the target gets a few
 /// dozen per curve in all).
 const PROBES_PER_INTERVAL: usize = 3;
-/// Offsets in f32 ulps around each calibration point's dC/C0.
-const POINT_OFFSETS_ULPS: [i32; 5] = [-3, -1, 0, 1, 3];
-
-fn ulp(value: f32) -> f64 {
-    let value = value.abs();
-    f64::from(f32::from_bits(value.to_bits() + 1) - value)
-}
-
-/// The probes of a curve, as the host test chooses them but fewer: evenly spread in pressure
-/// over every interval, the midpoint in dC/C0 of every interval, and each point's dC/C0 and a
-/// few ulps either side; only those in `0 < y <= top` (the inverse's domain).
-fn probe_values(reference: &ForwardCubic, points: &[(f32, f32)]) -> Vec<f32> {
-    let mut probes = Vec::new();
-    for pair in points.windows(2) {
-        let (low_kpa, high_kpa) = (f64::from(pair[0].0), f64::from(pair[1].0));
-        for step in 0..PROBES_PER_INTERVAL {
-            let fraction = (step as f64 + 0.5) / PROBES_PER_INTERVAL as f64;
-            probes.push(
-                reference.relative_change_at(low_kpa + fraction * (high_kpa - low_kpa)) as f32,
-            );
-        }
-        probes.push(((f64::from(pair[0].1) + f64::from(pair[1].1)) / 2.0) as f32);
-    }
-    for (_, relative_change) in points.iter().skip(1) {
-        let bits = relative_change.to_bits();
-        for offset in POINT_OFFSETS_ULPS {
-            probes.push(f32::from_bits(bits.wrapping_add_signed(offset)));
-        }
-    }
-    let (_, top_relative) = reference.top();
-    probes.retain(|y| *y > 0.0 && f64::from(*y) <= top_relative);
-    probes
-}
 
 /// One probe with its accepted interval, checked against `ForwardCubic::accepts`.
 fn probe(reference: &ForwardCubic, seed: u64, relative_change: f32) -> Result<Probe, String> {
@@ -102,7 +67,7 @@ pub fn hard_calibrations() -> Result<Vec<HardCalibration>, String> {
         let relative_changes: Vec<f64> = points.iter().map(|point| f64::from(point.1)).collect();
         let reference = ForwardCubic::new(&pressures_kpa, &relative_changes)
             .ok_or_else(|| format!("hard calibration seed {seed}: the reference refused it"))?;
-        let values = probe_values(&reference, &points);
+        let values = probes(&reference, &points, PROBES_PER_INTERVAL);
         if values.len() > CALIBRATION_PROBES_MAX {
             return Err(format!(
                 "hard calibration seed {seed}: {} probes",
