@@ -569,5 +569,12 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
             sets
         );
     }
+    // The SetUseCase command's work: every supported tier's error on all four taxels.
+    let selection = counter.instructions(|| {
+        let _ = core::hint::black_box(
+            core::hint::black_box(&pad).select_tier_for(&model_core::UseCase::GRIPPER),
+        );
+    });
+    hprintln!("count subject=select-use-case mean={} calls=1", selection);
     misses
 }

@@ -4,11 +4,12 @@
 //! Error is measured, not assumed, from the calibration in hand, as the sum of four parts:
 //! - numerical: the tier's largest deviation from the reference curve (the monotone cubic
 //!   through the calibration points) over a fine grid of the use case's pressure range;
-//! - model form: how well the tier predicts a calibration point it was not built from
-//!   (leave-one-out over the interior points in the range), scaled from the doubled spacing a
-//!   fold has to the calibration's own spacing by the tier's order of accuracy (2^-3 for the
-//!   cubic and the tiers sampled from it, 2^-2 for straight lines between points, none for the
-//!   fitted forms, whose fold error is their own form error);
+//! - model form: for the interpolating forms, how well the form predicts a calibration point it
+//!   was not built from (leave-one-out over the interior points in the range), scaled from the
+//!   doubled spacing a fold has to the calibration's own spacing by the form's order of accuracy
+//!   (2^-3 for the cubic, which the table and the polynomial carry too, 2^-2 for straight lines
+//!   between points); for the fitted forms (linear, saturating), their error at the calibration
+//!   points;
 //! - noise: the pressure noise the converter's 0.5 fF rms causes where the curve is flattest in
 //!   the range, on the taxel's C0 shrunk by the permittivity at the range's warmest temperature;
 //! - temperature: the pad sensor's uncertainty (TMP117, 0.1 °C) times the steepest slope of the
@@ -17,7 +18,9 @@
 //! Cost is the instruction count per taxel conversion measured on a Cortex-M4F under QEMU
 //! (`cargo xtask m4-test`, which fails when a build drifts from these figures).
 
-use crate::calibration::{CalibrationCurve, TemperatureLaw};
+use heapless::Vec;
+
+use crate::calibration::{CalibrationCurve, TemperatureLaw, MAX_CURVE_POINTS};
 use crate::conditioning::{worst_noise_kpa, CONVERTER_NOISE_PF};
 use crate::inverse::{TaxelInverses, Tier};
 use crate::validation::leave_one_out_errors_kpa;
@@ -30,7 +33,7 @@ use crate::validation::leave_one_out_errors_kpa;
 /// from this one (counts within 2 instructions are tied), or when a count drifts
 /// further than half the smallest gap between neighbouring tiers.
 pub const MEASURED_INSTRUCTIONS: [(Tier, u32); 7] = [
-    (Tier::Linear, 120),
+    (Tier::Linear, 122),
     (Tier::PiecewiseLinear, 166),
     (Tier::MonotoneCubic, 228),
     (Tier::Saturating, 196),
@@ -181,11 +184,42 @@ pub fn numerical_error_kpa(inverses: &TaxelInverses, tier: Tier, pressure_max_kp
     error_kpa
 }
 
-/// Leave-one-out model-form error of a tier over the interior points up to the first one at or
-/// above `pressure_max_kpa`, scaled by the tier's order; 0 when the curve has no interior point.
-pub fn model_form_error_kpa(curve: &CalibrationCurve, tier: Tier, pressure_max_kpa: f32) -> f32 {
-    let points = curve.points();
-    let errors = leave_one_out_errors_kpa(points, tier);
+/// The curve form whose model-form error a tier carries: the table and the polynomial
+/// approximate the monotone cubic (their own distance from it is the numerical part).
+const fn form_of(tier: Tier) -> Tier {
+    match tier {
+        Tier::Table | Tier::Polynomial => Tier::MonotoneCubic,
+        other => other,
+    }
+}
+
+/// Model-form error of a tier over the interior points up to the first one at or above
+/// `pressure_max_kpa`; 0 when the curve has no interior point.
+///
+/// For the interpolating forms (the cubic, and straight lines between points) it is the
+/// leave-one-out error scaled by the form's order. The fitted forms (linear, saturating) do not
+/// pass through the points, so their error at the points, with the fit in hand, is already
+/// their form error (refitting without each point would barely move it, and would cost the MCU
+/// seconds of soft-float fitting).
+pub fn model_form_error_kpa(taxel: &TaxelEvidence<'_>, tier: Tier, pressure_max_kpa: f32) -> f32 {
+    let points = taxel.curve.points();
+    let form = form_of(tier);
+    let errors = match form {
+        Tier::MonotoneCubic | Tier::PiecewiseLinear => leave_one_out_errors_kpa(points, form),
+        _ => {
+            let mut residuals: Vec<Option<f32>, MAX_CURVE_POINTS> = Vec::new();
+            for point in points.iter().skip(1).take(points.len().saturating_sub(2)) {
+                let predicted_kpa = taxel.inverses.pressure_kpa(tier, point.relative_change);
+                if residuals
+                    .push(Some(predicted_kpa - point.pressure_kpa))
+                    .is_err()
+                {
+                    break;
+                }
+            }
+            residuals
+        }
+    };
     let mut worst_kpa = 0.0f32;
     for (point, error) in points.iter().skip(1).zip(&errors) {
         let error_kpa = error.map_or(f32::INFINITY, f32::abs);
@@ -200,7 +234,7 @@ pub fn model_form_error_kpa(curve: &CalibrationCurve, tier: Tier, pressure_max_k
             break;
         }
     }
-    worst_kpa / (1u32 << order_of_accuracy(tier)) as f32
+    worst_kpa / (1u32 << order_of_accuracy(form)) as f32
 }
 
 /// Error and cost of a tier for a use case on one taxel.
@@ -242,7 +276,7 @@ pub fn evaluate_tier(
     TierChoice {
         tier,
         numerical_error_kpa: numerical_error_kpa(taxel.inverses, tier, pressure_max_kpa),
-        model_form_error_kpa: model_form_error_kpa(taxel.curve, tier, pressure_max_kpa),
+        model_form_error_kpa: model_form_error_kpa(taxel, tier, pressure_max_kpa),
         noise_kpa,
         temperature_error_kpa,
         instructions: measured_instructions(tier),
@@ -395,17 +429,31 @@ mod tests {
     }
 
     #[test]
-    fn model_form_error_is_the_scaled_leave_one_out() {
+    fn model_form_error_is_the_scaled_leave_one_out_or_the_fit_error() {
         let curve = CalibrationCurve::article_default();
+        let inverses = TaxelInverses::new(&curve);
+        let taxel = TaxelEvidence {
+            inverses: &inverses,
+            curve: &curve,
+            sensor_pf: NOMINAL_SENSOR_PF,
+        };
         // Piecewise linear without the 30 kPa point misses it by 2.02 kPa (validation's test
         // computes such a fold by hand); scaled by 2^-2 for straight lines.
-        let linear_pieces = model_form_error_kpa(&curve, Tier::PiecewiseLinear, 50.0);
+        let linear_pieces = model_form_error_kpa(&taxel, Tier::PiecewiseLinear, 50.0);
         assert!(
             (linear_pieces - 2.019 / 4.0).abs() < 0.01,
             "{linear_pieces}"
         );
         // Up to 10 kPa only the 10 kPa fold counts.
-        let light = model_form_error_kpa(&curve, Tier::PiecewiseLinear, 10.0);
+        let light = model_form_error_kpa(&taxel, Tier::PiecewiseLinear, 10.0);
         assert!((light - 1.2407 / 4.0).abs() < 0.01, "{light}");
+        // The table and the polynomial carry the cubic's form error.
+        let cubic = model_form_error_kpa(&taxel, Tier::MonotoneCubic, 50.0);
+        assert_eq!(model_form_error_kpa(&taxel, Tier::Table, 50.0), cubic);
+        assert_eq!(model_form_error_kpa(&taxel, Tier::Polynomial, 50.0), cubic);
+        // The linear tier's form error is its miss at the points: at 20 kPa by hand, the secant
+        // 50/0.2563 kPa per unit gives 28.78 kPa for 0.1475, 8.78 kPa off (the worst point).
+        let linear = model_form_error_kpa(&taxel, Tier::Linear, 50.0);
+        assert!((linear - 8.775).abs() < 0.01, "{linear}");
     }
 }

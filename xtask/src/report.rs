@@ -869,6 +869,11 @@ fn context_table(out: &mut String, data: &ReportData) {
         "`Baseline::relative_change` (dC/C0 alone)",
         "relative-change",
     );
+    function_row(
+        out,
+        "`PadModel::select_tier_for` (the SetUseCase command: every tier's error on four taxels, gripper use case; once, not per sample)",
+        "select-use-case",
+    );
     for tier in Tier::ALL {
         let _ = writeln!(
             out,
@@ -1627,9 +1632,10 @@ fn use_cases(out: &mut String, data: &ReportData) {
         "`model_core::select_tier_for_taxels` on the article's curve picks the cheapest tier \
          (by `MEASURED_INSTRUCTIONS`) whose error over the use case's pressure and temperature \
          range fits the budget. The error is the sum of four parts (model-core's `use_case` \
-         module): numerical (the tier against the reference curve), model form (leave-one-out \
-         over the calibration points in the range, scaled to the calibration's spacing by the \
-         tier's order), converter noise where the curve is flattest (C0 at the range's warmest \
+         module): numerical (the tier against the reference curve), model form (for the \
+         interpolating forms, leave-one-out over the calibration points in the range, scaled to \
+         the calibration's spacing by the form's order, the table and polynomial carrying the \
+         cubic's; for the fitted forms, their error at the calibration points), converter noise where the curve is flattest (C0 at the range's warmest \
          temperature), and the temperature sensor's 0.1 °C through the steepest part of the \
          permittivity law in the range.\n"
     );
