@@ -10,7 +10,7 @@
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -21,13 +21,15 @@ use model_core::{
     leave_one_out_errors_kpa, Calibration, CalibrationCurve, CalibrationError, CalibrationSpec,
     CurvePoint, TaxelInverses, TemperatureLaw, Tier, TAXEL_COUNT, TAXEL_NAMES,
 };
-use wire::{Command, ReplyPayload, TaxelCalibrationRecord, TaxelCalibrationWire};
 
 use crate::calibration_file::{self, describe_calibration_error};
 use crate::csv_format::{
     find_column, find_columns, parse_optional_number, CAPACITANCE_COLUMNS, TEMPERATURE_COLUMN,
 };
-use crate::device_link::{self, DeviceLink, RequestError};
+use crate::calibration_transfer::upload;
+use crate::device_link::{self, DeviceLink};
+use crate::noteln;
+use crate::output_file::refuse_same_file;
 
 /// The pressure column of a reference-load file.
 pub const PRESSURE_COLUMN: &str = "pressure_kpa";
@@ -46,7 +48,9 @@ a nearly flat stretch of the curve is information, not an error).\n\n\
 Output: a calibration file (JSON, format taxel-calibration version 1) with each taxel's curve, \
 parasitic capacitance and C0 - Cp at 25 °C; a later tare more than 5 % from that C0 is flagged \
 baseline_far_from_calibration. With --upload the calibration is written to the device \
-(WriteCalibration per taxel, then SaveCalibration with --save). To upload an existing file, give --calibration FILE instead of a load file.";
+(WriteCalibration per taxel, then SaveCalibration with --save). To upload an existing file, give --calibration FILE instead of a load file (or use `taxel calibration push`).\n\n\
+The calibration file is written (under a temporary name, renamed when complete) before the report is printed on stdout.\n\n\
+Example: taxel calibrate loads.csv -o cal.json --id 7 --parasitic-pf 1.2";
 
 /// Arguments of `taxel calibrate`.
 #[derive(Debug, Clone, clap::Args)]
@@ -626,72 +630,16 @@ pub fn conditioning_report(
     (table, warnings)
 }
 
-/// The wire record of one taxel's calibration.
-pub fn taxel_record(
-    calibration: &Calibration,
-    taxel: usize,
-) -> anyhow::Result<TaxelCalibrationRecord> {
-    let taxel_calibration = calibration
-        .taxels()
-        .get(taxel)
-        .with_context(|| format!("no taxel {taxel}"))?;
-    let mut points = heapless::Vec::new();
-    for point in taxel_calibration.curve.points() {
-        points
-            .push((point.pressure_kpa, point.relative_change))
-            .map_err(|_| anyhow::anyhow!("taxel {taxel}: too many points for the wire"))?;
-    }
-    Ok(TaxelCalibrationRecord {
-        taxel_index: taxel as u8,
-        calibration_id: calibration.id(),
-        calibration: TaxelCalibrationWire {
-            points,
-            parasitic_pf: taxel_calibration.parasitic_pf,
-            unloaded_sensor_pf: taxel_calibration.unloaded_sensor_pf,
-        },
-    })
-}
-
-/// Writes the calibration to the device, taxel by taxel, then saves it to flash if `save`.
-/// Each request waits for its reply; a refusal or a timeout stops the upload.
-pub fn upload<P: Read + Write>(
-    link: &mut DeviceLink<P>,
-    calibration: &Calibration,
-    save: bool,
-    timeout: Duration,
-    progress: &mut dyn FnMut(&str),
-) -> anyhow::Result<()> {
-    let expect_ack = |result: Result<ReplyPayload, RequestError>, what: &str| match result {
-        Ok(ReplyPayload::Ack) => Ok(()),
-        Ok(other) => bail!("{what}: unexpected reply {other:?}"),
-        Err(error) => Err(anyhow::Error::new(error).context(what.to_owned())),
-    };
-    for (taxel, name) in TAXEL_NAMES.iter().enumerate() {
-        let record = taxel_record(calibration, taxel)?;
-        let what = format!("WriteCalibration for taxel {name}");
-        expect_ack(
-            link.request(Command::WriteCalibration(record), timeout),
-            &what,
-        )?;
-        progress(&format!("{what}: acknowledged"));
-    }
-    if save {
-        expect_ack(
-            link.request(Command::SaveCalibration, timeout),
-            "SaveCalibration",
-        )?;
-        progress("SaveCalibration: acknowledged (saved to flash)");
-    }
-    Ok(())
-}
-
-/// Runs `taxel calibrate`.
+/// Runs `taxel calibrate`. The calibration file is written (and uploaded) first and the
+/// report printed after, so a closed or full stdout never costs the result.
 pub fn run(args: &CalibrateArgs) -> anyhow::Result<ExitCode> {
+    let mut report = String::new();
     let calibration = match (&args.calibration, &args.loads, &args.output) {
         (Some(path), _, _) => {
             calibration_file::read(path).with_context(|| format!("reading {}", path.display()))?
         }
         (None, Some(loads_path), Some(output_path)) => {
+            refuse_same_file(loads_path, output_path)?;
             let file = std::fs::File::open(loads_path)
                 .with_context(|| format!("opening {}", loads_path.display()))?;
             let rows = read_loads(std::io::BufReader::new(file))
@@ -699,7 +647,7 @@ pub fn run(args: &CalibrateArgs) -> anyhow::Result<ExitCode> {
             let law = Calibration::default().temperature_law().clone();
             let data = reference_data(&rows, [f64::from(args.parasitic_pf); TAXEL_COUNT], &law)?;
             if data.rows_temperature_clamped > 0 {
-                eprintln!(
+                noteln!(
                     "warning: {} row(s) outside the characterised {}..{} °C were corrected as if at the nearest end",
                     data.rows_temperature_clamped,
                     law.characterised_min_c(),
@@ -707,53 +655,21 @@ pub fn run(args: &CalibrateArgs) -> anyhow::Result<ExitCode> {
                 );
             }
             let calibration = fit_calibration(&data, args.id, args.parasitic_pf)?;
-            println!(
-                "{} rows, {} levels; C0 - Cp per taxel (pF, at 25 °C): {}",
-                data.rows.len(),
-                data.levels.len(),
-                data.unloaded_sensor_pf
-                    .iter()
-                    .map(|pf| format!("{pf:.6}"))
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            );
-            println!("\nMean dC/C0 per level (the curve points):");
-            print!("{}", levels_table(&data));
-            let results: [Vec<TierFitError>; TAXEL_COUNT] =
-                std::array::from_fn(|taxel| cross_validate(&curve_points(&data, taxel)));
-            println!(
-                "\nPressure error per tier, kPa (predicted - applied): fit_max at the points with \
-                 the full curve; loo = leave-one-out over the interior levels (folds = levels \
-                 where the tier was available):"
-            );
-            print!("{}", cross_validation_table(&results));
-            let (conditioning, warnings) =
-                conditioning_report(&calibration, &data.unloaded_sensor_pf, args.budget_kpa);
-            println!(
-                "\nConditioning: rms pressure noise from 0.5 fF of converter noise, worst point \
-                 of each interval:"
-            );
-            print!("{conditioning}");
-            for warning in &warnings {
-                eprintln!("{warning}");
-            }
             calibration_file::write(output_path, &calibration)?;
-            eprintln!(
+            noteln!(
                 "wrote calibration id {} to {}",
                 calibration.id(),
                 output_path.display()
             );
+            report = fit_report(&data, &calibration, args.budget_kpa);
             calibration
         }
         _ => bail!("give a load file and -o FILE, or --calibration FILE with --upload"),
     };
     if let Some(port_path) = &args.upload {
         let opened = device_link::open_serial(port_path, Duration::from_millis(50))?;
-        if let Some(error) = &opened.dtr_error {
-            eprintln!("warning: {port_path}: DTR not asserted ({error}); continuing");
-        }
         let mut link = DeviceLink::new(opened.port);
-        eprintln!(
+        noteln!(
             "uploading calibration id {} to {port_path}",
             calibration.id()
         );
@@ -762,10 +678,47 @@ pub fn run(args: &CalibrateArgs) -> anyhow::Result<ExitCode> {
             &calibration,
             args.save,
             Duration::from_millis(args.timeout_ms),
-            &mut |message| eprintln!("{message}"),
+            &mut |message| noteln!("{message}"),
         )?;
     }
+    crate::console::out(format_args!("{report}")).context("writing the report to stdout")?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// The fit's report for people: levels, the tiers' cross-validated errors, conditioning.
+/// Conditioning warnings go to stderr.
+fn fit_report(data: &ReferenceData, calibration: &Calibration, budget_kpa: f32) -> String {
+    let mut text = format!(
+        "{} rows, {} levels; C0 - Cp per taxel (pF, at 25 °C): {}\n",
+        data.rows.len(),
+        data.levels.len(),
+        data.unloaded_sensor_pf
+            .iter()
+            .map(|pf| format!("{pf:.6}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    text.push_str("\nMean dC/C0 per level (the curve points):\n");
+    text.push_str(&levels_table(data));
+    let results: [Vec<TierFitError>; TAXEL_COUNT] =
+        std::array::from_fn(|taxel| cross_validate(&curve_points(data, taxel)));
+    text.push_str(
+        "\nPressure error per tier, kPa (predicted - applied): fit_max at the points with \
+         the full curve; loo = leave-one-out over the interior levels (folds = levels where \
+         the tier was available):\n",
+    );
+    text.push_str(&cross_validation_table(&results));
+    let (conditioning, warnings) =
+        conditioning_report(calibration, &data.unloaded_sensor_pf, budget_kpa);
+    text.push_str(
+        "\nConditioning: rms pressure noise from 0.5 fF of converter noise, worst point of \
+         each interval:\n",
+    );
+    text.push_str(&conditioning);
+    for warning in &warnings {
+        noteln!("{warning}");
+    }
+    text
 }
 
 #[cfg(test)]
@@ -813,7 +766,7 @@ mod tests {
         for (taxel, expected_pf) in [4.5f32, 4.3, 4.7, 4.4].into_iter().enumerate() {
             let unloaded_pf = calibration.taxels()[taxel].unloaded_sensor_pf.unwrap();
             assert!((unloaded_pf - expected_pf).abs() < 1e-5, "{unloaded_pf}");
-            let record = taxel_record(&calibration, taxel).unwrap();
+            let record = device::calibration_record(&calibration, taxel as u8).unwrap();
             assert_eq!(record.calibration.unloaded_sensor_pf, Some(unloaded_pf));
             assert_eq!(record.check(), Ok(()));
         }

@@ -10,6 +10,7 @@
 
 use std::path::{Path, PathBuf};
 
+use anyhow::Context;
 use model_core::reading::MAX_MEASURABLE_PF;
 use model_core::{Calibration, CalibrationError, CalibrationSpec, TAXEL_NAMES};
 use serde::{Deserialize, Serialize};
@@ -153,13 +154,14 @@ pub fn read(path: &Path) -> Result<Calibration, CalibrationFileError> {
     from_json(&text)
 }
 
-/// Writes a calibration file.
-pub fn write(path: &Path, calibration: &Calibration) -> Result<(), CalibrationFileError> {
+/// Writes a calibration file (under a temporary name, renamed when complete: an existing file
+/// is replaced only by a complete one).
+pub fn write(path: &Path, calibration: &Calibration) -> anyhow::Result<()> {
     let text = to_json(calibration)?;
-    std::fs::write(path, text).map_err(|source| CalibrationFileError::Io {
-        path: path.to_owned(),
-        source,
-    })
+    let mut file = crate::output_file::OutputFile::create(path)?;
+    std::io::Write::write_all(&mut file, text.as_bytes())
+        .with_context(|| format!("writing {}", path.display()))?;
+    file.commit()
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::{calibrate, convert, list, plot, record, sim, view};
+use crate::{calibrate, calibration_transfer, convert, list, plot, record, sim, view};
 
 /// Host tool for the taxel tactile pad.
 #[derive(Debug, Parser)]
@@ -27,6 +27,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Commands {
     /// The simulated device and the live view together: see the pad work without hardware.
+    #[command(long_about = sim::DEMO_LONG_ABOUT)]
     Demo(sim::DemoArgs),
     /// Run the simulated device on a pseudo-terminal (no hardware needed).
     #[command(long_about = sim::LONG_ABOUT)]
@@ -37,6 +38,9 @@ pub enum Commands {
     /// Fit a calibration from reference loads, cross-validate the tiers, write and upload it.
     #[command(long_about = calibrate::LONG_ABOUT)]
     Calibrate(calibrate::CalibrateArgs),
+    /// Read the calibration a device uses into a file, or write one to it.
+    #[command(long_about = calibration_transfer::LONG_ABOUT)]
+    Calibration(calibration_transfer::CalibrationArgs),
     /// Plot a recording or a calibration (SVG or PNG).
     #[command(long_about = plot::LONG_ABOUT)]
     Plot(plot::PlotArgs),
@@ -58,6 +62,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<ExitCode> {
         Commands::Sim(args) => sim::run(args),
         Commands::Convert(args) => convert::run(args),
         Commands::Calibrate(args) => calibrate::run(args),
+        Commands::Calibration(args) => calibration_transfer::run(args),
         Commands::Plot(args) => plot::run(args),
         Commands::List(args) => list::run(args),
         Commands::Record(args) => record::run(args),

@@ -2,6 +2,8 @@
 //! columns, flag cells (documented flag names joined by `|`), numbers with '.' as the decimal
 //! separator whatever the locale, and device timestamps in seconds.
 
+use std::io::{BufRead, Read};
+
 use model_core::{TaxelFlags, TAXEL_COUNT};
 use wire::TemperatureSource;
 
@@ -115,6 +117,101 @@ pub fn parse_optional_number(cell: &str) -> Result<Option<f64>, String> {
         .parse::<f64>()
         .map(Some)
         .map_err(|_| format!("'{trimmed}' is not a number"))
+}
+
+/// The largest time a file may carry, s (about 31 years): anything beyond is corrupt data, and
+/// drawing or modelling it would only waste time.
+pub const MAX_TIME_S: f64 = 1.0e9;
+
+/// Parses a time cell: a finite number of seconds within ±[`MAX_TIME_S`].
+pub fn parse_time_s(cell: &str, decimal_comma: bool) -> Result<f64, String> {
+    match parse_number(cell, decimal_comma)? {
+        None => Err("time_s is empty".to_owned()),
+        Some(time_s) if !time_s.is_finite() => {
+            Err(format!("time_s '{}' is not a finite time", cell.trim()))
+        }
+        Some(time_s) if time_s.abs() > MAX_TIME_S => Err(format!(
+            "time_s '{}' is beyond {MAX_TIME_S:e} s: not a plausible time",
+            cell.trim()
+        )),
+        Some(time_s) => Ok(time_s),
+    }
+}
+
+/// Parses a number cell with '.' decimals, or with ',' decimals when `decimal_comma` (files
+/// separated by ';' from spreadsheets in many locales). `Ok(None)` for an empty cell.
+pub fn parse_number(cell: &str, decimal_comma: bool) -> Result<Option<f64>, String> {
+    if decimal_comma && cell.contains(',') {
+        parse_optional_number(&cell.replace(',', "."))
+    } else {
+        parse_optional_number(cell)
+    }
+}
+
+/// How a CSV file is written: its separator, and whether numbers use ',' as the decimal mark.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CsvDialect {
+    /// The field separator.
+    pub separator: u8,
+    /// Numbers written with ',' decimals (only possible when the separator is not ',').
+    pub decimal_comma: bool,
+}
+
+impl Default for CsvDialect {
+    fn default() -> Self {
+        Self {
+            separator: b',',
+            decimal_comma: false,
+        }
+    }
+}
+
+impl CsvDialect {
+    /// Words for people: "';'-separated with ',' decimals".
+    pub fn describe(&self) -> String {
+        let decimals = if self.decimal_comma { "','" } else { "'.'" };
+        format!(
+            "'{}'-separated with {decimals} decimals",
+            char::from(self.separator)
+        )
+    }
+
+    /// A CSV reader of this dialect (header row, rows of varying length allowed).
+    pub fn reader<R: Read>(&self, input: R) -> csv::Reader<R> {
+        csv::ReaderBuilder::new()
+            .has_headers(true)
+            .flexible(true)
+            .delimiter(self.separator)
+            .from_reader(input)
+    }
+}
+
+/// Reads the first line of `input` and chooses the dialect whose separator splits it into
+/// fields that include `wanted_column`: ',' first, then ';' and tab. With ';' or tab, ','
+/// decimals are accepted. Returns the dialect and a reader that still yields the whole input.
+pub fn detect_dialect<R: BufRead>(
+    mut input: R,
+    wanted_column: &str,
+) -> std::io::Result<(CsvDialect, impl Read)> {
+    let mut first_line = Vec::new();
+    // A header longer than this is not a header the tool wrote; the reader reports it.
+    let limit = 64 * 1024;
+    (&mut input)
+        .take(limit)
+        .read_until(b'\n', &mut first_line)?;
+    let text = String::from_utf8_lossy(&first_line);
+    let dialect = [b',', b';', b'\t']
+        .into_iter()
+        .find(|&separator| {
+            text.split(char::from(separator))
+                .any(|field| field.trim_start_matches('\u{feff}').trim().trim_matches('"') == wanted_column)
+        })
+        .map(|separator| CsvDialect {
+            separator,
+            decimal_comma: separator != b',',
+        })
+        .unwrap_or_default();
+    Ok((dialect, std::io::Cursor::new(first_line).chain(input)))
 }
 
 /// The temperature-source cell of a recording.

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use wire::{
     encode_frame_to_vec, Command, DecodeError, DeviceFrame, DeviceFrameDecoder, EncodeError,
-    ErrorCode, ReplyFrame, ReplyPayload, Request,
+    ErrorCode, InfoFrame, ReplyFrame, ReplyPayload, Request,
 };
 
 /// The pad's USB vendor id (pid.codes).
@@ -100,6 +100,9 @@ pub enum RequestError {
     /// The device answered with an error code.
     #[error("the device refused the request: {0:?}")]
     Refused(ErrorCode),
+    /// The device answered with a payload of another kind.
+    #[error("the device answered {0} with a reply of another kind")]
+    UnexpectedReply(&'static str),
 }
 
 /// One attached board.
@@ -441,16 +444,52 @@ impl<P: Read + Write> DeviceLink<P> {
         command: Command,
         timeout: Duration,
     ) -> Result<ReplyPayload, RequestError> {
+        self.request_discarding_earlier(command, timeout, false)
+            .map(|(payload, _)| payload)
+    }
+
+    /// Starts a session on a freshly opened port: asks for the device's identity and discards
+    /// every frame queued before the answer. Those were waiting in the port's buffer from
+    /// before this connection (a device that streamed while nobody read, such as a simulated
+    /// device on a pseudo-terminal), so their samples are stale. Returns the identity and the
+    /// number of frames discarded.
+    pub fn synchronise(&mut self, timeout: Duration) -> Result<(InfoFrame, u64), RequestError> {
+        match self.request_discarding_earlier(Command::Info, timeout, true)? {
+            (ReplyPayload::Info(info), discarded) => Ok((info, discarded)),
+            (_, _) => Err(RequestError::UnexpectedReply("Info")),
+        }
+    }
+
+    fn request_discarding_earlier(
+        &mut self,
+        command: Command,
+        timeout: Duration,
+        discard_earlier: bool,
+    ) -> Result<(ReplyPayload, u64), RequestError> {
         let request_id = self.send(command)?;
         let deadline = Instant::now() + timeout;
+        let mut discarded = 0u64;
         loop {
             let position = self.frames.iter().position(|frame| {
                 matches!(frame, DeviceFrame::Reply(ReplyFrame { request_id: id, .. }) if *id == request_id)
             });
+            if let Some(position) = position {
+                if discard_earlier {
+                    self.frames.drain(..position);
+                    discarded += position as u64;
+                }
+            } else if discard_earlier {
+                discarded += self.frames.len() as u64;
+                self.frames.clear();
+            }
+            let position = position.map(|position| if discard_earlier { 0 } else { position });
             if let Some(DeviceFrame::Reply(reply)) =
                 position.and_then(|position| self.frames.remove(position))
             {
-                return reply.result.map_err(RequestError::Refused);
+                return reply
+                    .result
+                    .map(|payload| (payload, discarded))
+                    .map_err(RequestError::Refused);
             }
             if Instant::now() >= deadline {
                 return Err(RequestError::Timeout {

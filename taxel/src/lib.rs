@@ -7,15 +7,23 @@
 //! - [`device_link`]: the serial link: board discovery, frame decoding, requests and replies.
 //! - [`calibration_file`], [`csv_format`]: the file formats.
 #![deny(missing_docs)]
+// Output goes through `console`, which never panics on a closed stdout or stderr.
+#![deny(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod calibrate;
 pub mod calibration_file;
+pub mod calibration_transfer;
 pub mod cli;
+pub mod console;
 pub mod convert;
 pub mod csv_format;
 pub mod device_link;
+pub mod device_words;
 pub mod list;
+pub mod output_file;
 pub mod plot;
 pub mod record;
+pub mod recording;
 pub mod sim;
+pub mod stream_accounting;
 pub mod view;

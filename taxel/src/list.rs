@@ -50,7 +50,7 @@ pub fn listing(boards: &[BoardPort]) -> String {
 /// Runs `taxel list`.
 pub fn run(args: &ListArgs) -> anyhow::Result<ExitCode> {
     let boards = attached_boards(args.vid, args.pid)?;
-    print!("{}", listing(&boards));
+    crate::console::out(format_args!("{}", listing(&boards)))?;
     Ok(ExitCode::SUCCESS)
 }
 

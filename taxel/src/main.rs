@@ -4,13 +4,21 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use taxel::cli::{run, Cli};
+use taxel::console::{error_message, is_broken_pipe};
+use taxel::noteln;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match run(&cli) {
         Ok(code) => code,
+        Err(error) if is_broken_pipe(&error) => {
+            noteln!(
+                "error: the output pipe was closed before everything was written (files the command writes are complete)"
+            );
+            ExitCode::FAILURE
+        }
         Err(error) => {
-            eprintln!("error: {error:#}");
+            noteln!("error: {}", error_message(&error));
             ExitCode::FAILURE
         }
     }

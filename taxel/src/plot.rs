@@ -20,8 +20,11 @@ use plotters::style::register_font;
 
 use crate::calibrate::{read_loads, reference_data, ReferenceData};
 use crate::csv_format::{
-    find_column, find_columns, parse_optional_number, PRESSURE_COLUMNS, TAXEL_LABELS, TIME_COLUMN,
+    detect_dialect, find_column, find_columns, parse_number, parse_time_s, PRESSURE_COLUMNS,
+    TAXEL_LABELS, TIME_COLUMN,
 };
+use crate::noteln;
+use crate::output_file::PendingRename;
 
 /// The embedded font (DejaVu Sans 2.37, Bitstream Vera license, see assets/).
 static EMBEDDED_FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
@@ -51,7 +54,13 @@ pub const LONG_ABOUT: &str = "Plot to SVG or PNG (chosen by the output file's ex
 `taxel plot --calibration cal.json -o c.png [--loads loads.csv]`: the curve (dC/C0 against \
 pressure) of each taxel with its points; with --loads, the measured rows on the curves and each \
 tier's residual (predicted - applied pressure) per row.\n\n\
-Text uses a font built into the tool, so no system fonts are needed.";
+Rows whose time_s is not a finite, plausible number of seconds are skipped and listed; a \
+long recording is drawn as the lowest and highest value of each of 10 000 time buckets per \
+taxel, so every peak shows and the work stays bounded. The image is written under a temporary \
+name and renamed when complete. Text uses a font built into the tool, so no system fonts are \
+needed.\n\n\
+Examples:\n  taxel plot rec.csv -o rec.png\n  taxel plot --calibration cal.json --loads loads.csv -o \
+cal.svg";
 
 /// Arguments of `taxel plot`.
 #[derive(Debug, Clone, clap::Args)]
@@ -114,6 +123,13 @@ pub fn register_embedded_font() -> anyhow::Result<()> {
     }
 }
 
+/// The most points drawn per taxel: longer recordings are reduced to the lowest and highest
+/// value of each of this many time buckets, which keeps every peak and bounds the work.
+pub const MAX_POINTS_PER_TAXEL: usize = 20_000;
+
+/// The largest pressure drawn, kPa; anything beyond is not a measurement and is a gap.
+const MAX_PLOTTED_KPA: f64 = 1.0e6;
+
 /// Pressures over time.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct PressureSeries {
@@ -121,16 +137,16 @@ pub struct PressureSeries {
     pub time_s: Vec<f64>,
     /// Pressure per taxel per row, kPa (`None` = empty cell: faulted or unreadable).
     pub pressures_kpa: [Vec<Option<f64>>; TAXEL_COUNT],
-    /// Rows skipped because their time could not be read.
-    pub skipped_rows: usize,
+    /// Rows skipped because their time could not be read: line number and reason.
+    pub skipped_rows: Vec<(u64, String)>,
 }
 
-/// Reads `time_s` and `p11_kpa..p22_kpa` from a recording or a converted file.
+/// Reads `time_s` and `p11_kpa..p22_kpa` from a recording or a converted file. A row whose time
+/// is not a finite, plausible number of seconds is skipped and listed with its line number.
 pub fn read_pressure_series<R: Read>(input: R) -> anyhow::Result<PressureSeries> {
-    let mut reader = csv::ReaderBuilder::new()
-        .has_headers(true)
-        .flexible(true)
-        .from_reader(input);
+    let (dialect, input) =
+        detect_dialect(BufReader::new(input), TIME_COLUMN).context("reading the header row")?;
+    let mut reader = dialect.reader(input);
     let header = reader.headers().context("reading the header row")?.clone();
     let time_column = find_column(&header, TIME_COLUMN)
         .with_context(|| format!("the header lacks the column {TIME_COLUMN}"))?;
@@ -141,26 +157,80 @@ pub fn read_pressure_series<R: Read>(input: R) -> anyhow::Result<PressureSeries>
         )
     })?;
     let mut series = PressureSeries::default();
-    for record in reader.records() {
-        let Ok(record) = record else {
-            series.skipped_rows += 1;
-            continue;
-        };
-        let time = parse_optional_number(record.get(time_column).unwrap_or(""));
-        let Ok(Some(time_s)) = time else {
-            series.skipped_rows += 1;
-            continue;
+    let mut record = csv::StringRecord::new();
+    loop {
+        let line = reader.position().line();
+        match reader.read_record(&mut record) {
+            Ok(false) => break,
+            Ok(true) => {}
+            Err(error) if matches!(error.kind(), csv::ErrorKind::Io(_)) => {
+                return Err(error).context(format!("reading line {line}"))
+            }
+            Err(error) => {
+                series.skipped_rows.push((line, error.to_string()));
+                continue;
+            }
+        }
+        let time_s = match parse_time_s(record.get(time_column).unwrap_or(""), dialect.decimal_comma)
+        {
+            Ok(time_s) => time_s,
+            Err(reason) => {
+                series.skipped_rows.push((line, reason));
+                continue;
+            }
         };
         series.time_s.push(time_s);
         for (taxel, column) in pressure_columns.iter().enumerate() {
-            let pressure = parse_optional_number(record.get(*column).unwrap_or(""))
+            let pressure = parse_number(record.get(*column).unwrap_or(""), dialect.decimal_comma)
                 .ok()
                 .flatten()
-                .filter(|value| value.is_finite());
+                .filter(|value| value.is_finite() && value.abs() <= MAX_PLOTTED_KPA);
             series.pressures_kpa[taxel].push(pressure);
         }
     }
+    if series.time_s.is_empty() {
+        bail!("no row with a readable time_s: nothing to plot");
+    }
     Ok(series)
+}
+
+/// At most [`MAX_POINTS_PER_TAXEL`] points of one taxel, in time order: all of them when they
+/// are fewer, else the lowest and highest value of each time bucket (a gap stays a gap).
+fn reduced(time_s: &[f64], values: &[Option<f64>]) -> (Vec<f64>, Vec<Option<f64>>) {
+    if time_s.len() <= MAX_POINTS_PER_TAXEL {
+        return (time_s.to_vec(), values.to_vec());
+    }
+    let bucket_len = time_s.len().div_ceil(MAX_POINTS_PER_TAXEL / 2);
+    let mut reduced_time = Vec::with_capacity(MAX_POINTS_PER_TAXEL);
+    let mut reduced_values = Vec::with_capacity(MAX_POINTS_PER_TAXEL);
+    for (times, bucket) in time_s.chunks(bucket_len).zip(values.chunks(bucket_len)) {
+        let present = bucket
+            .iter()
+            .zip(times)
+            .filter_map(|(value, time)| value.map(|value| (*time, value)));
+        let lowest = present.clone().min_by(|a, b| a.1.total_cmp(&b.1));
+        let highest = present.max_by(|a, b| a.1.total_cmp(&b.1));
+        match (lowest, highest) {
+            (Some(lowest), Some(highest)) => {
+                let (first, second) = if lowest.0 <= highest.0 {
+                    (lowest, highest)
+                } else {
+                    (highest, lowest)
+                };
+                for (time, value) in [first, second] {
+                    reduced_time.push(time);
+                    reduced_values.push(Some(value));
+                }
+            }
+            _ => {
+                if let Some(time) = times.first() {
+                    reduced_time.push(*time);
+                    reduced_values.push(None);
+                }
+            }
+        }
+    }
+    (reduced_time, reduced_values)
 }
 
 /// Runs of consecutive present values: each a line segment.
@@ -232,7 +302,8 @@ fn draw_pressures<DB: DrawingBackend>(
     for (taxel, values) in series.pressures_kpa.iter().enumerate() {
         let colour = TAXEL_COLOURS[taxel];
         let mut labelled = false;
-        for run in segments(&series.time_s, values) {
+        let (time_s, values) = reduced(&series.time_s, values);
+        for run in segments(&time_s, &values) {
             let annotation = if run.len() == 1 {
                 chart.draw_series(
                     run.iter()
@@ -490,22 +561,29 @@ fn drawing_error<E: std::error::Error + Send + Sync>(
 }
 
 /// Draws with `draw` into an SVG or PNG file chosen by the extension of `path`.
+/// The picture goes to a temporary file beside the target (same extension) that replaces the
+/// target only once it is complete.
 macro_rules! render_to_file {
     ($path:expr, $size:expr, |$root:ident| $draw:expr) => {{
         register_embedded_font()?;
-        match image_format($path)? {
-            ImageFormat::Svg => {
-                let $root = SVGBackend::new($path, $size).into_drawing_area();
-                $draw.map_err(drawing_error)?;
-                $root.present().map_err(drawing_error)?;
-            }
-            ImageFormat::Png => {
-                let $root = BitMapBackend::new($path, $size).into_drawing_area();
-                $draw.map_err(drawing_error)?;
-                $root.present().map_err(drawing_error)?;
+        let format = image_format($path)?;
+        let pending = PendingRename::beside($path)?;
+        {
+            let temporary = pending.path();
+            match format {
+                ImageFormat::Svg => {
+                    let $root = SVGBackend::new(temporary, $size).into_drawing_area();
+                    $draw.map_err(drawing_error)?;
+                    $root.present().map_err(drawing_error)?;
+                }
+                ImageFormat::Png => {
+                    let $root = BitMapBackend::new(temporary, $size).into_drawing_area();
+                    $draw.map_err(drawing_error)?;
+                    $root.present().map_err(drawing_error)?;
+                }
             }
         }
-        anyhow::Ok(())
+        pending.commit()
     }};
 }
 
@@ -539,21 +617,36 @@ pub fn run(args: &PlotArgs) -> anyhow::Result<ExitCode> {
     image_format(&args.output)?;
     match (&args.input, &args.calibration) {
         (Some(input), None) => {
+            crate::output_file::refuse_same_file(input, &args.output)?;
+            if input.is_dir() {
+                bail!("{} is a directory, not a file", input.display());
+            }
             let file = File::open(input).with_context(|| format!("opening {}", input.display()))?;
             let series = read_pressure_series(BufReader::new(file))
                 .with_context(|| format!("reading {}", input.display()))?;
-            if series.skipped_rows > 0 {
-                eprintln!(
-                    "warning: {} row(s) without a readable time_s were skipped",
-                    series.skipped_rows
+            for (line, reason) in series.skipped_rows.iter().take(10) {
+                noteln!("line {line}: skipped: {reason}");
+            }
+            if series.skipped_rows.len() > 10 {
+                noteln!(
+                    "... and {} more skipped rows",
+                    series.skipped_rows.len() - 10
                 );
             }
             let size = (args.width.unwrap_or(1200), args.height.unwrap_or(600));
             plot_pressures(&series, &args.output, size)?;
-            eprintln!(
-                "wrote {} ({} rows)",
+            noteln!(
+                "wrote {} ({} rows{})",
                 args.output.display(),
-                series.time_s.len()
+                series.time_s.len(),
+                if series.time_s.len() > MAX_POINTS_PER_TAXEL {
+                    format!(
+                        "; drawn as the low and high of {} time buckets per taxel",
+                        MAX_POINTS_PER_TAXEL / 2
+                    )
+                } else {
+                    String::new()
+                }
             );
         }
         (None, Some(calibration_path)) => {
@@ -582,7 +675,7 @@ pub fn run(args: &PlotArgs) -> anyhow::Result<ExitCode> {
                 args.height.unwrap_or(default_height),
             );
             plot_calibration(&calibration, loads.as_ref(), &args.output, size)?;
-            eprintln!("wrote {}", args.output.display());
+            noteln!("wrote {}", args.output.display());
         }
         _ => bail!("give a CSV file, or --calibration FILE"),
     }

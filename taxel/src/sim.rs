@@ -24,7 +24,19 @@ sliding across the pad, the whole pad pressed to 50 kPa, the pad warming 25 -> 4
 loaded, and a concentrated-load short on one taxel.\n\n\
 It prints the terminal's path (e.g. /dev/pts/7); open it with `taxel view PATH`, `taxel record \
 PATH -o out.csv`, pyserial or a terminal. It answers the same commands as the firmware. \
-Scene files are TOML: see sim-device/scenes/default.toml.";
+Scene files are TOML: see sim-device/scenes/default.toml.\n\n\
+Example: taxel sim --speed 20 --duration 40 --path-file port.txt";
+
+/// Long help of `taxel demo`.
+pub const DEMO_LONG_ABOUT: &str = "The simulated device and the live view together: see the \
+pad work without hardware.\n\n\
+The simulated device (see `taxel sim --help`) plays the built-in demo scene, or --scene FILE, \
+and the live view (see `taxel view --help`) shows it: the 2x2 heat map with kPa and flags, the \
+pressure of each taxel over the last seconds, the temperature and the rates.\n\n\
+Keys: t = tare (keep the pad unloaded), p = pause the display, r = start/stop recording to a \
+file, m = drop a marker into the recording, q = quit.\n\n\
+Examples:\n  taxel demo\n  taxel demo --speed 10 --snapshot-after 69   (prints one text snapshot \
+at the concentrated-load short and exits)";
 
 /// Arguments of `taxel sim`.
 #[derive(Debug, Clone, Args)]
@@ -154,8 +166,8 @@ pub fn run(args: &SimArgs) -> anyhow::Result<ExitCode> {
         std::fs::write(path_file, simulator.path().to_string_lossy().as_bytes())
             .with_context(|| format!("writing {}", path_file.display()))?;
     }
-    println!("{}", simulator.path().display());
-    eprintln!(
+    crate::outln!("{}", simulator.path().display()).context("writing the port to stdout")?;
+    crate::noteln!(
         "simulated device '{}' on {} ({}); Ctrl-C to stop",
         if name.is_empty() { "scene" } else { &name },
         simulator.path().display(),
@@ -175,7 +187,7 @@ pub fn run(args: &SimArgs) -> anyhow::Result<ExitCode> {
     if let Some(link) = &args.link {
         let _ = std::fs::remove_file(link);
     }
-    eprintln!("simulated device stopped");
+    crate::noteln!("simulated device stopped");
     Ok(ExitCode::SUCCESS)
 }
 

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use model_core::{Calibration, CalibrationSpec, CurvePoint};
 use support::{ack, encoded, sample, ChunkedReader, FakeDevice};
-use taxel::calibrate::upload;
+use taxel::calibration_transfer::upload;
 use taxel::device_link::{DeviceLink, FrameReceiver, LinkError, RequestError};
 use taxel::record::{record_header, record_link, StopReason};
 use wire::{
@@ -295,21 +295,21 @@ fn recording_writes_samples_and_every_byte_until_the_stream_ends() {
     let lines: Vec<&str> = text.split("\r\n").collect();
     assert_eq!(
         lines[0],
-        "seq,time_s,temp_c,temp_source,c11_pf,c12_pf,c21_pf,c22_pf,p11_kpa,p12_kpa,p21_kpa,p22_kpa,flags11,flags12,flags21,flags22"
+        "seq,time_s,temp_c,temp_source,c11_pf,c12_pf,c21_pf,c22_pf,p11_kpa,p12_kpa,p21_kpa,p22_kpa,flags11,flags12,flags21,flags22,marker"
     );
     assert_eq!(
         lines[1],
-        "1,0.001000,23.5,tmp117,4.75,-0.25,4.5,4.6,12.5,,0,1,,below_baseline|shorted,,below_baseline"
+        "1,0.001000,23.5,tmp117,4.75,-0.25,4.5,4.6,12.5,,0,1,,below_baseline|shorted,,below_baseline,"
     );
     assert_eq!(
         lines[3],
-        "4,0.016000,23.5,tmp117,0.2,0.2,0.2,0.2,,,,,open,open,open,open"
+        "4,0.016000,23.5,tmp117,0.2,0.2,0.2,0.2,,,,,open,open,open,open,"
     );
     assert_eq!(lines[4], "");
     assert_eq!(lines.len(), 5);
     assert!(messages
         .iter()
-        .any(|message| message.contains("TemperatureSourceChanged")));
+        .any(|message| message.contains("temperature now from the MCU internal sensor")));
 }
 
 #[test]

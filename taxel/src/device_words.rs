@@ -1,0 +1,127 @@
+//! Device frames in words for people: identity, counters and events as a person reads them
+//! (serial in hex, versions dotted, rates with their units), never as Rust struct dumps.
+
+use model_core::Tier;
+use wire::{CalibrationSource, CountersFrame, DeviceEvent, EventFrame, InfoFrame};
+
+use crate::csv_format::{format_time_us, temperature_source_words};
+
+/// The board serial number in hex, as printed on labels and used by `--serial`.
+pub fn board_serial_hex(info: &InfoFrame) -> String {
+    info.board_serial
+        .iter()
+        .map(|byte| format!("{byte:02X}"))
+        .collect()
+}
+
+/// Where the calibration came from, in words.
+pub fn calibration_source_words(source: CalibrationSource) -> &'static str {
+    match source {
+        CalibrationSource::Defaults => "built-in default",
+        CalibrationSource::Flash => "from flash",
+        CalibrationSource::DefaultsAfterCorruptFlash => {
+            "built-in default (the flash copy was corrupt)"
+        }
+        CalibrationSource::Host => "written by the host, not saved",
+    }
+}
+
+/// The tier's name, or its id when this host does not know it.
+pub fn tier_words(tier_id: u8) -> String {
+    match Tier::from_id(tier_id) {
+        Some(tier) => tier.name().to_owned(),
+        None => format!("tier {tier_id}"),
+    }
+}
+
+/// The device's rates in words: the converter's conversions per second and the sample sets per
+/// second they give (one set is four conversions, one per taxel).
+pub fn rate_words(rate_sps: u16) -> String {
+    format!(
+        "converter {rate_sps} conversions/s = {} sample sets/s",
+        rate_sps / 4
+    )
+}
+
+/// One line describing the device.
+pub fn info_words(info: &InfoFrame) -> String {
+    let version = info.firmware_version;
+    format!(
+        "firmware {}.{}.{}, protocol {}, board {}, calibration {} ({}), tier {}, {}",
+        version.major,
+        version.minor,
+        version.patch,
+        info.protocol_version,
+        board_serial_hex(info),
+        info.calibration_id,
+        calibration_source_words(info.calibration_source),
+        tier_words(info.model_tier),
+        rate_words(info.rate_sps)
+    )
+}
+
+/// The device's health counters (since its boot) in words.
+pub fn counters_words(counters: &CountersFrame) -> String {
+    format!(
+        "since boot: {} sample sets dropped by the acquisition, {} frames not sent (no host or queue full), {} converter re-initialisations, {} I2C errors, {} temperature-sensor errors, {} bad frames from the host",
+        counters.dropped_sample_sets,
+        counters.frames_dropped_no_host,
+        counters.converter_reinits,
+        counters.i2c_errors,
+        counters.temperature_sensor_errors,
+        counters.host_frames_rejected
+    )
+}
+
+/// A device event in words, with its device time.
+pub fn event_words(event: &EventFrame) -> String {
+    let what = match event.event {
+        DeviceEvent::ConverterReinitialised { reinit_count } => format!(
+            "the converter was reset after an error (re-initialisation {reinit_count}); samples were lost"
+        ),
+        DeviceEvent::TemperatureSourceChanged { source } => format!(
+            "temperature now from the {}",
+            temperature_source_words(source)
+        ),
+        DeviceEvent::CalibrationFlashCorrupt => {
+            "the calibration in flash was corrupt; the built-in default is in use".to_owned()
+        }
+    };
+    format!(
+        "device event at {} s: {what}",
+        format_time_us(event.timestamp_us)
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wire::FirmwareVersion;
+
+    #[test]
+    fn info_reads_as_words_with_the_serial_in_hex() {
+        let info = InfoFrame {
+            protocol_version: 2,
+            firmware_version: FirmwareVersion {
+                major: 0,
+                minor: 1,
+                patch: 0,
+            },
+            board_serial: [0x53, 0x49, 0x4d, 0, 0, 0, 0, 0, 0, 0, 0, 0x2a],
+            calibration_id: 7,
+            calibration_source: CalibrationSource::Flash,
+            rate_sps: 400,
+            model_tier: Tier::MonotoneCubic as u8,
+            streaming: true,
+            text_mode: false,
+        };
+        let text = info_words(&info);
+        assert!(text.contains("board 53494D00000000000000002A"), "{text}");
+        assert!(text.contains("firmware 0.1.0"), "{text}");
+        assert!(
+            text.contains("400 conversions/s = 100 sample sets/s"),
+            "{text}"
+        );
+        assert!(!text.contains('['), "no struct dump: {text}");
+    }
+}

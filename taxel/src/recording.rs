@@ -1,0 +1,443 @@
+//! A recording of the device's stream, as `taxel record` and the live view's record key write
+//! it: three files written under temporary names and renamed when the recording ends cleanly.
+//!
+//! - `NAME.csv`: one row per sample frame: `seq,time_s,temp_c,temp_source,c11_pf..c22_pf,
+//!   p11_kpa..p22_kpa,flags11..flags22,marker` (RFC 4180, '.' decimals; an empty pressure is a
+//!   faulted taxel; `marker` is empty except on the first sample after a marker was dropped).
+//! - `NAME.csv.raw`: every byte received, for `taxel convert --raw`.
+//! - `NAME.csv.device.json`: the device's state the pressures were computed with: identity,
+//!   tier, the whole calibration in use and the baselines (tares) with the sequence number
+//!   from which each applies. `taxel convert` finds it beside the CSV and uses it, so a
+//!   re-processed recording agrees with the device.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::{bail, Context};
+use model_core::{BaselineRecord, Calibration, CalibrationSpec, TAXEL_COUNT};
+use serde::{Deserialize, Serialize};
+use wire::{InfoFrame, SampleFrame};
+
+use crate::csv_format::{
+    format_number, format_optional, format_time_us, temperature_source_name, wire_flag_names,
+    CAPACITANCE_COLUMNS, FLAGS_COLUMNS, PRESSURE_COLUMNS,
+};
+use crate::device_link::DeviceLink;
+use crate::device_words::{board_serial_hex, calibration_source_words, tier_words};
+use crate::output_file::{OutputFile, PendingRename};
+
+/// The marker column of a recording.
+pub const MARKER_COLUMN: &str = "marker";
+
+/// The sequence-number column of a recording.
+pub const SEQUENCE_COLUMN: &str = "seq";
+
+/// The `format` field of a device-state file.
+pub const DEVICE_STATE_FORMAT: &str = "taxel-recording-device-state";
+
+/// The version of the device-state file format.
+pub const DEVICE_STATE_VERSION: u64 = 1;
+
+/// The CSV header of a recording.
+pub fn record_header() -> Vec<&'static str> {
+    let mut header = vec![SEQUENCE_COLUMN, "time_s", "temp_c", "temp_source"];
+    header.extend(CAPACITANCE_COLUMNS);
+    header.extend(PRESSURE_COLUMNS);
+    header.extend(FLAGS_COLUMNS);
+    header.push(MARKER_COLUMN);
+    header
+}
+
+/// The CSV cells of one sample frame, in [`record_header`] order.
+pub fn sample_cells(sample: &SampleFrame, marker: &str) -> Vec<String> {
+    let mut cells = vec![
+        sample.sequence.to_string(),
+        format_time_us(sample.timestamp_us),
+        format_optional(sample.temperature_c),
+        temperature_source_name(sample.temperature_source).to_owned(),
+    ];
+    cells.extend(
+        sample
+            .taxels
+            .iter()
+            .map(|taxel| format_number(taxel.capacitance_pf)),
+    );
+    cells.extend(
+        sample
+            .taxels
+            .iter()
+            .map(|taxel| format_optional(taxel.pressure_kpa)),
+    );
+    cells.extend(
+        sample
+            .taxels
+            .iter()
+            .map(|taxel| wire_flag_names(taxel.flags)),
+    );
+    cells.push(marker.to_owned());
+    cells
+}
+
+/// The device-state file beside a recording's CSV (or beside a raw log named `X.raw`, the one
+/// of `X`).
+pub fn device_state_path(recording: &Path) -> PathBuf {
+    let base = match recording.extension() {
+        Some(extension) if extension == "raw" => recording.with_extension(""),
+        _ => recording.to_path_buf(),
+    };
+    let mut name = base.into_os_string();
+    name.push(".device.json");
+    PathBuf::from(name)
+}
+
+/// The raw log path beside a CSV: the CSV path with `.raw` appended.
+pub fn default_raw_path(csv_path: &Path) -> PathBuf {
+    let mut name = csv_path.as_os_str().to_owned();
+    name.push(".raw");
+    PathBuf::from(name)
+}
+
+/// Baselines in use from a sample sequence number on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BaselineChange {
+    /// The first sample (by sequence number) computed with these baselines; 0 for the ones in
+    /// use when the recording started.
+    pub from_sequence: u32,
+    /// Per taxel in pad order; `None` for a taxel without a baseline (not tared).
+    pub taxels: [Option<BaselineRecord>; TAXEL_COUNT],
+}
+
+/// What the device computed a recording's pressures with (the `.device.json` file).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordedDeviceState {
+    /// Always [`DEVICE_STATE_FORMAT`].
+    pub format: String,
+    /// Always [`DEVICE_STATE_VERSION`].
+    pub version: u64,
+    /// Firmware version, dotted.
+    pub firmware: String,
+    /// Protocol version.
+    pub protocol_version: u8,
+    /// Board serial number, hex.
+    pub board_serial: String,
+    /// Where the calibration came from, in words.
+    pub calibration_source: String,
+    /// The inversion tier's name.
+    pub tier: String,
+    /// Converter conversions per second.
+    pub converter_rate_sps: u16,
+    /// The whole calibration in use.
+    pub calibration: CalibrationSpec,
+    /// The baselines, in the order they took effect; empty when the device could not say.
+    pub baselines: Vec<BaselineChange>,
+}
+
+impl RecordedDeviceState {
+    /// The state of a device from its identity and calibration.
+    pub fn new(info: &InfoFrame, calibration: &Calibration) -> Self {
+        let version = info.firmware_version;
+        Self {
+            format: DEVICE_STATE_FORMAT.to_owned(),
+            version: DEVICE_STATE_VERSION,
+            firmware: format!("{}.{}.{}", version.major, version.minor, version.patch),
+            protocol_version: info.protocol_version,
+            board_serial: board_serial_hex(info),
+            calibration_source: calibration_source_words(info.calibration_source).to_owned(),
+            tier: tier_words(info.model_tier),
+            converter_rate_sps: info.rate_sps,
+            calibration: calibration.to_spec(),
+            baselines: Vec::new(),
+        }
+    }
+
+    /// The calibration, validated.
+    pub fn calibration(&self) -> anyhow::Result<Calibration> {
+        Calibration::new(&self.calibration).map_err(|error| {
+            anyhow::anyhow!(
+                "the recorded calibration is not valid: {}",
+                crate::calibration_file::describe_calibration_error(&error)
+            )
+        })
+    }
+
+    /// The baselines in use for the sample with this sequence number.
+    pub fn baselines_at(&self, sequence: u32) -> Option<&[Option<BaselineRecord>; TAXEL_COUNT]> {
+        self.baselines
+            .iter()
+            .rev()
+            .find(|change| change.from_sequence <= sequence)
+            .or(self.baselines.first())
+            .map(|change| &change.taxels)
+    }
+
+    /// Reads a device-state file.
+    pub fn read(path: &Path) -> anyhow::Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("reading {}", path.display()))?;
+        let state: Self = serde_json::from_str(&text)
+            .with_context(|| format!("reading {}", path.display()))?;
+        if state.format != DEVICE_STATE_FORMAT || state.version != DEVICE_STATE_VERSION {
+            bail!(
+                "{} is not a version-{DEVICE_STATE_VERSION} {DEVICE_STATE_FORMAT} file",
+                path.display()
+            );
+        }
+        Ok(state)
+    }
+
+    /// Writes a device-state file (under a temporary name, renamed when complete).
+    pub fn write(&self, path: &Path) -> anyhow::Result<()> {
+        let mut file = OutputFile::create(path)?;
+        serde_json::to_writer_pretty(&mut file, self)
+            .with_context(|| format!("writing {}", path.display()))?;
+        file.write_all(b"\n")
+            .with_context(|| format!("writing {}", path.display()))?;
+        file.commit()
+    }
+}
+
+/// Reads the device's whole calibration (four ReadCalibration requests) as the state a
+/// recording starts with.
+pub fn read_device_state<P: std::io::Read + Write>(
+    link: &mut DeviceLink<P>,
+    info: &InfoFrame,
+    timeout: Duration,
+) -> anyhow::Result<RecordedDeviceState> {
+    let calibration = crate::calibration_transfer::pull(link, info.calibration_id, timeout)?;
+    Ok(RecordedDeviceState::new(info, &calibration))
+}
+
+/// Where recorded samples go: a [`Recording`], or any CSV writer (tests, pipes).
+pub trait SampleSink {
+    /// Writes one sample row.
+    fn write_sample(&mut self, sample: &SampleFrame) -> anyhow::Result<()>;
+    /// Pushes buffered rows out.
+    fn flush(&mut self) -> anyhow::Result<()>;
+}
+
+impl<W: Write> SampleSink for csv::Writer<W> {
+    fn write_sample(&mut self, sample: &SampleFrame) -> anyhow::Result<()> {
+        self.write_record(sample_cells(sample, ""))
+            .context("writing the CSV")
+    }
+
+    fn flush(&mut self) -> anyhow::Result<()> {
+        csv::Writer::flush(self).context("writing the CSV")
+    }
+}
+
+impl SampleSink for Recording {
+    fn write_sample(&mut self, sample: &SampleFrame) -> anyhow::Result<()> {
+        Recording::write_sample(self, sample)
+    }
+
+    fn flush(&mut self) -> anyhow::Result<()> {
+        Recording::flush(self)
+    }
+}
+
+/// The files of a recording and what went into them.
+#[derive(Debug)]
+pub struct Recording {
+    csv: csv::Writer<BufWriter<File>>,
+    csv_pending: PendingRename,
+    raw: Option<PendingRename>,
+    device_state: Option<RecordedDeviceState>,
+    device_state_path: PathBuf,
+    pending_marker: Option<String>,
+    markers: u64,
+    samples: u64,
+}
+
+/// Where a finished recording is.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RecordingFiles {
+    /// The CSV file.
+    pub csv: PathBuf,
+    /// The raw log, if one was written.
+    pub raw: Option<PathBuf>,
+    /// The device-state file, if the device's state was known.
+    pub device_state: Option<PathBuf>,
+    /// Sample rows written.
+    pub samples: u64,
+    /// Markers written.
+    pub markers: u64,
+}
+
+impl Recording {
+    /// Starts a recording into `csv_path` and, if given, a raw log whose writer is returned to
+    /// be handed to the link ([`DeviceLink::set_raw_log`]). Nothing existing is touched until
+    /// [`Recording::finish`].
+    pub fn create(
+        csv_path: &Path,
+        raw_path: Option<&Path>,
+    ) -> anyhow::Result<(Self, Option<BufWriter<File>>)> {
+        let (csv_writer, csv_pending) = OutputFile::create(csv_path)?.into_parts();
+        let mut csv = csv::WriterBuilder::new()
+            .terminator(csv::Terminator::CRLF)
+            .from_writer(csv_writer);
+        csv.write_record(record_header())
+            .with_context(|| format!("writing {}", csv_path.display()))?;
+        let (raw_writer, raw) = match raw_path {
+            Some(path) => {
+                let (writer, pending) = OutputFile::create(path)?.into_parts();
+                (Some(writer), Some(pending))
+            }
+            None => (None, None),
+        };
+        Ok((
+            Self {
+                csv,
+                csv_pending,
+                raw,
+                device_state: None,
+                device_state_path: device_state_path(csv_path),
+                pending_marker: None,
+                markers: 0,
+                samples: 0,
+            },
+            raw_writer,
+        ))
+    }
+
+    /// Records the device's state (written beside the CSV at the end).
+    pub fn set_device_state(&mut self, state: RecordedDeviceState) {
+        self.device_state = Some(state);
+    }
+
+    /// The device's state, if known, to add baseline changes to.
+    pub fn device_state_mut(&mut self) -> Option<&mut RecordedDeviceState> {
+        self.device_state.as_mut()
+    }
+
+    /// Puts a marker on the next sample row (markers dropped before it are joined with '|').
+    pub fn mark(&mut self, label: &str) {
+        self.markers += 1;
+        match &mut self.pending_marker {
+            Some(pending) => {
+                pending.push('|');
+                pending.push_str(label);
+            }
+            None => self.pending_marker = Some(label.to_owned()),
+        }
+    }
+
+    /// Writes one sample row.
+    pub fn write_sample(&mut self, sample: &SampleFrame) -> anyhow::Result<()> {
+        let marker = self.pending_marker.take().unwrap_or_default();
+        self.csv
+            .write_record(sample_cells(sample, &marker))
+            .with_context(|| format!("writing the CSV after {} samples", self.samples))?;
+        self.samples += 1;
+        Ok(())
+    }
+
+    /// Sample rows written so far.
+    pub fn samples(&self) -> u64 {
+        self.samples
+    }
+
+    /// Pushes buffered rows to the file (the file still has its temporary name).
+    pub fn flush(&mut self) -> anyhow::Result<()> {
+        self.csv.flush().context("writing the CSV")
+    }
+
+    /// Ends the recording: writes the device state, then renames every file to its name. The
+    /// raw log's writer (taken back from the link) must be given back here.
+    pub fn finish(self, raw_writer: Option<BufWriter<File>>) -> anyhow::Result<RecordingFiles> {
+        let Self {
+            csv,
+            csv_pending,
+            raw,
+            device_state,
+            device_state_path,
+            markers,
+            samples,
+            ..
+        } = self;
+        let csv_file = csv
+            .into_inner()
+            .map_err(|error| anyhow::anyhow!("writing the CSV: {}", error.error()))?
+            .into_inner()
+            .map_err(|error| error.into_error())
+            .context("writing the CSV")?;
+        let csv_path = csv_pending.target().to_path_buf();
+        let raw_path = match (raw, raw_writer) {
+            (Some(pending), Some(writer)) => {
+                let path = pending.target().to_path_buf();
+                let file = writer
+                    .into_inner()
+                    .map_err(|error| error.into_error())
+                    .context("writing the raw log")?;
+                pending.commit_file(file)?;
+                Some(path)
+            }
+            (Some(pending), None) => {
+                let path = pending.target().to_path_buf();
+                pending.commit()?;
+                Some(path)
+            }
+            (None, _) => None,
+        };
+        let device_state_written = match &device_state {
+            Some(state) => {
+                state.write(&device_state_path)?;
+                Some(device_state_path)
+            }
+            None => None,
+        };
+        csv_pending.commit_file(csv_file)?;
+        Ok(RecordingFiles {
+            csv: csv_path,
+            raw: raw_path,
+            device_state: device_state_written,
+            samples,
+            markers,
+        })
+    }
+
+    /// Gives up without renaming, keeping what was written under the temporary names (a
+    /// recording that failed half-way keeps its data); returns those names.
+    pub fn abandon(self, raw_writer: Option<BufWriter<File>>) -> Vec<PathBuf> {
+        let Self {
+            mut csv,
+            csv_pending,
+            raw,
+            ..
+        } = self;
+        let mut kept = Vec::new();
+        let _ = csv.flush();
+        drop(csv);
+        if let Ok(path) = csv_pending.keep() {
+            kept.push(path);
+        }
+        if let Some(pending) = raw {
+            if let Some(mut writer) = raw_writer {
+                let _ = writer.flush();
+            }
+            if let Ok(path) = pending.keep() {
+                kept.push(path);
+            }
+        }
+        kept
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn device_state_sits_beside_the_csv_for_either_file() {
+        assert_eq!(
+            device_state_path(Path::new("dir/rec.csv")),
+            PathBuf::from("dir/rec.csv.device.json")
+        );
+        assert_eq!(
+            device_state_path(Path::new("dir/rec.csv.raw")),
+            PathBuf::from("dir/rec.csv.device.json")
+        );
+    }
+}

@@ -1,0 +1,199 @@
+//! Where sample sets went, told apart honestly for one connection:
+//!
+//! - **received**: sample frames decoded;
+//! - **dropped by the device**: the growth of the device's `dropped_sample_sets` counter since
+//!   this connection's first counters (sets it acquired while streaming and could not send);
+//! - **lost on the link**: sequence gaps between consecutive received samples of one stream
+//!   that the device's drops do not explain;
+//! - **stale**: frames that were waiting in the port's buffer from before this connection and
+//!   were discarded.
+//!
+//! A sequence gap across anything that stops the stream (a stop and start, a text-mode switch,
+//! a reconnection, a device restart) is not loss: the device numbers every sample set it
+//! acquires whether or not anybody is listening.
+
+use wire::{CountersFrame, SampleFrame};
+
+/// Accounting of one connection's samples.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct StreamAccounting {
+    received: u64,
+    sequence_gap_sets: u64,
+    stale_frames: u64,
+    previous_sequence: Option<u32>,
+    device_dropped_origin: Option<u32>,
+    device_dropped_since_origin: u64,
+    device_dropped_last: u32,
+}
+
+impl StreamAccounting {
+    /// Nothing counted yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Takes one sample frame; returns the sets missing just before it (0 when consecutive or
+    /// after an interruption).
+    pub fn sample(&mut self, sample: &SampleFrame) -> u64 {
+        self.received += 1;
+        let gap = self
+            .previous_sequence
+            .map_or(0, |previous| sequence_gap(previous, sample.sequence));
+        self.sequence_gap_sets += gap;
+        self.previous_sequence = Some(sample.sequence);
+        gap
+    }
+
+    /// Takes the device's counters (a Counters reply or frame). The first one is the origin;
+    /// a counter that went down means the device restarted, and its new value counts from 0.
+    /// The device's drops are the sets its acquisition queue refused plus the frames its
+    /// output queue could not send.
+    pub fn counters(&mut self, counters: &CountersFrame) {
+        let now = counters
+            .dropped_sample_sets
+            .saturating_add(counters.frames_dropped_no_host);
+        match self.device_dropped_origin {
+            None => {
+                self.device_dropped_origin = Some(now);
+            }
+            Some(_) if now < self.device_dropped_last => {
+                self.device_dropped_since_origin += u64::from(now);
+                self.previous_sequence = None;
+            }
+            Some(_) => {
+                self.device_dropped_since_origin += u64::from(now - self.device_dropped_last);
+            }
+        }
+        self.device_dropped_last = now;
+    }
+
+    /// The stream was interrupted on purpose (stopped, switched to text, reconnected): the next
+    /// sample's sequence is not compared with the last one.
+    pub fn interrupted(&mut self) {
+        self.previous_sequence = None;
+    }
+
+    /// Frames found waiting from before the connection and discarded.
+    pub fn stale_discarded(&mut self, frames: u64) {
+        self.stale_frames += frames;
+    }
+
+    /// Sample frames received.
+    pub fn received(&self) -> u64 {
+        self.received
+    }
+
+    /// Sets missing from the sequence numbers within uninterrupted streams.
+    pub fn sequence_gap_sets(&self) -> u64 {
+        self.sequence_gap_sets
+    }
+
+    /// Sets the device says it dropped since this connection's first counters.
+    pub fn device_dropped(&self) -> u64 {
+        self.device_dropped_since_origin
+    }
+
+    /// Sets lost between the device and this program: gaps the device's drops do not explain.
+    pub fn lost_on_link(&self) -> u64 {
+        self.sequence_gap_sets
+            .saturating_sub(self.device_dropped_since_origin)
+    }
+
+    /// Frames discarded as stale at connection.
+    pub fn stale_frames(&self) -> u64 {
+        self.stale_frames
+    }
+
+    /// One line for people: "1988 received, 0 lost on the link, 0 dropped by the device".
+    pub fn summary(&self) -> String {
+        let mut text = format!(
+            "{} sample sets received, {} lost on the link, {} dropped by the device",
+            self.received,
+            self.lost_on_link(),
+            self.device_dropped()
+        );
+        if self.stale_frames > 0 {
+            text.push_str(&format!(
+                ", {} stale frames from before the connection discarded",
+                self.stale_frames
+            ));
+        }
+        text
+    }
+}
+
+/// Sets missing between two sequence numbers (wrapping), 0 for consecutive ones. A repeated or
+/// backward number (the device restarted) counts as no loss.
+pub fn sequence_gap(previous: u32, current: u32) -> u64 {
+    let step = current.wrapping_sub(previous);
+    if step == 0 || step > u32::MAX / 2 {
+        0
+    } else {
+        u64::from(step - 1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(sequence: u32) -> SampleFrame {
+        SampleFrame {
+            sequence,
+            timestamp_us: 0,
+            temperature_c: None,
+            temperature_source: wire::TemperatureSource::None,
+            taxels: [wire::TaxelSample {
+                capacitance_pf: 4.5,
+                pressure_kpa: None,
+                flags: 0,
+            }; 4],
+        }
+    }
+
+    fn counters(dropped: u32) -> CountersFrame {
+        CountersFrame {
+            dropped_sample_sets: dropped,
+            ..CountersFrame::default()
+        }
+    }
+
+    #[test]
+    fn sequence_gaps_wrap() {
+        assert_eq!(sequence_gap(1, 2), 0);
+        assert_eq!(sequence_gap(1, 5), 3);
+        assert_eq!(sequence_gap(u32::MAX, 0), 0);
+        assert_eq!(sequence_gap(u32::MAX - 1, 1), 2);
+        assert_eq!(sequence_gap(7, 7), 0);
+        assert_eq!(sequence_gap(1000, 3), 0);
+    }
+
+    #[test]
+    fn device_drops_are_deltas_since_connection_and_explain_gaps() {
+        let mut accounting = StreamAccounting::new();
+        accounting.counters(&counters(91_843));
+        accounting.sample(&sample(10));
+        accounting.sample(&sample(15));
+        assert_eq!(accounting.sequence_gap_sets(), 4);
+        assert_eq!(accounting.device_dropped(), 0);
+        assert_eq!(accounting.lost_on_link(), 4);
+        accounting.counters(&counters(91_846));
+        assert_eq!(accounting.device_dropped(), 3);
+        assert_eq!(accounting.lost_on_link(), 1);
+    }
+
+    #[test]
+    fn gaps_across_an_interruption_or_a_restart_are_not_loss() {
+        let mut accounting = StreamAccounting::new();
+        accounting.sample(&sample(1));
+        accounting.interrupted();
+        accounting.sample(&sample(1_219));
+        assert_eq!(accounting.lost_on_link(), 0);
+        accounting.counters(&counters(50));
+        accounting.counters(&counters(2));
+        assert_eq!(accounting.device_dropped(), 2, "a restart counts from 0");
+        accounting.sample(&sample(3));
+        assert_eq!(accounting.sequence_gap_sets(), 0);
+        assert_eq!(accounting.received(), 3);
+    }
+}
