@@ -59,9 +59,13 @@ pub fn error_message(error: &anyhow::Error) -> String {
 /// `head` or closed the viewer, which is not worth an error message.
 pub fn is_broken_pipe(error: &anyhow::Error) -> bool {
     error.chain().any(|cause| {
-        cause
-            .downcast_ref::<io::Error>()
-            .is_some_and(|error| error.kind() == io::ErrorKind::BrokenPipe)
+        let io_error = cause.downcast_ref::<io::Error>().or_else(|| {
+            match cause.downcast_ref::<csv::Error>().map(csv::Error::kind) {
+                Some(csv::ErrorKind::Io(error)) => Some(error),
+                _ => None,
+            }
+        });
+        io_error.is_some_and(|error| error.kind() == io::ErrorKind::BrokenPipe)
     })
 }
 

@@ -20,15 +20,15 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context};
 use model_core::{
-    BaselineRecord, Calibration, PadModel, SampleInput, TareStatus, TaxelFlags, TaxelReading,
-    Tier, TAXEL_COUNT, TAXEL_NAMES,
+    BaselineRecord, Calibration, PadModel, SampleInput, TareStatus, TaxelFlags, TaxelReading, Tier,
+    TAXEL_COUNT, TAXEL_NAMES,
 };
 use wire::DeviceFrame;
 
 use crate::csv_format::{
     detect_dialect, find_column, find_columns, flag_names, format_optional, format_time_us,
-    parse_flag_names, parse_number, parse_time_s, CsvDialect, CAPACITANCE_COLUMNS,
-    FLAGS_COLUMNS, PRESSURE_COLUMNS, TEMPERATURE_COLUMN, TIME_COLUMN,
+    parse_flag_names, parse_number, parse_time_s, CsvDialect, CAPACITANCE_COLUMNS, FLAGS_COLUMNS,
+    PRESSURE_COLUMNS, TEMPERATURE_COLUMN, TIME_COLUMN,
 };
 use crate::device_link::FrameReceiver;
 use crate::noteln;
@@ -231,7 +231,11 @@ impl RecordedBaselines {
                 .changes
                 .iter()
                 .rposition(|change| change.from_sequence <= sequence)
-                .or(if self.changes.is_empty() { None } else { Some(0) }),
+                .or(if self.changes.is_empty() {
+                    None
+                } else {
+                    Some(0)
+                }),
             None if self.changes.is_empty() => None,
             None => Some(0),
         };
@@ -401,12 +405,12 @@ fn parse_sample(record: &csv::StringRecord, columns: &CsvColumns) -> Result<Pars
         }
     }
     let sequence = match columns.sequence {
-        Some(index) => Some(
-            cell(index)
-                .trim()
-                .parse::<u32>()
-                .map_err(|_| format!("{SEQUENCE_COLUMN}: '{}' is not a sequence number", cell(index).trim()))?,
-        ),
+        Some(index) => Some(cell(index).trim().parse::<u32>().map_err(|_| {
+            format!(
+                "{SEQUENCE_COLUMN}: '{}' is not a sequence number",
+                cell(index).trim()
+            )
+        })?),
         None => None,
     };
     let mut input = SampleInput::new(readings, temperature_c);
@@ -481,13 +485,27 @@ pub fn convert_csv<R: Read, W: Write>(
         match parsed {
             Ok(row) => {
                 baselines.before_sample(&mut pad, row.sequence);
-                let mut cells = vec![time_cell.to_owned(), temperature_cell.to_owned()];
+                // The output is ','-separated with '.' decimals whatever the input was.
+                let as_written = |cell: &str| {
+                    if dialect.decimal_comma {
+                        cell.replace(',', ".")
+                    } else {
+                        cell.to_owned()
+                    }
+                };
+                let mut cells = vec![as_written(time_cell), as_written(temperature_cell)];
                 cells.extend(model_cells(&mut pad, &row.input, &mut tare_watch));
                 writer.write_record(&cells)?;
             }
             Err(reason) => {
                 let readable_time = parse_time_s(time_cell, dialect.decimal_comma)
-                    .map(|_| time_cell.to_owned())
+                    .map(|time_s| {
+                        if dialect.decimal_comma {
+                            format!("{time_s}")
+                        } else {
+                            time_cell.to_owned()
+                        }
+                    })
                     .unwrap_or_default();
                 let mut cells = vec![readable_time, String::new()];
                 cells.extend(empty_cells.iter().cloned());
@@ -652,7 +670,11 @@ pub fn resolve_options(args: &ConvertArgs) -> anyhow::Result<(ConvertOptions, St
         said.push(format!("a tare on the first {rows} readable row(s)"));
     }
     let source = match &state_path {
-        Some(path) => format!("converting with {} (from {})", said.join(", "), path.display()),
+        Some(path) => format!(
+            "converting with {} (from {})",
+            said.join(", "),
+            path.display()
+        ),
         None => format!("converting with {}", said.join(", ")),
     };
     Ok((
@@ -685,15 +707,15 @@ pub fn run(args: &ConvertArgs) -> anyhow::Result<ExitCode> {
     let summary = match &args.output {
         Some(path) => {
             let mut file = OutputFile::create(path)?;
-            let summary = convert(&mut file)
-                .with_context(|| format!("converting {}", input.display()))?;
+            let summary =
+                convert(&mut file).with_context(|| format!("converting {}", input.display()))?;
             file.commit()?;
             summary
         }
         None => {
             let mut stdout = BufWriter::new(io::stdout().lock());
-            let summary = convert(&mut stdout)
-                .with_context(|| format!("converting {}", input.display()))?;
+            let summary =
+                convert(&mut stdout).with_context(|| format!("converting {}", input.display()))?;
             stdout.flush().context("writing to stdout")?;
             summary
         }

@@ -113,10 +113,20 @@ pub fn parse_optional_number(cell: &str) -> Result<Option<f64>, String> {
     if trimmed.is_empty() {
         return Ok(None);
     }
-    trimmed
-        .parse::<f64>()
-        .map(Some)
-        .map_err(|_| format!("'{trimmed}' is not a number"))
+    trimmed.parse::<f64>().map(Some).map_err(|_| {
+        let decimal_comma = trimmed.split_once(',').is_some_and(|(whole, fraction)| {
+            !fraction.is_empty()
+                && whole.trim_start_matches('-').chars().all(|c| c.is_ascii_digit())
+                && fraction.chars().all(|c| c.is_ascii_digit())
+        });
+        if decimal_comma {
+            format!(
+                "'{trimmed}' is not a number: write decimals with '.', or separate the fields with ';' (then ',' decimals are read)"
+            )
+        } else {
+            format!("'{}' is not a number", shortened_cell(trimmed))
+        }
+    })
 }
 
 /// The largest time a file may carry, s (about 31 years): anything beyond is corrupt data, and
@@ -199,12 +209,23 @@ pub fn detect_dialect<R: BufRead>(
     (&mut input)
         .take(limit)
         .read_until(b'\n', &mut first_line)?;
+    if first_line.len() as u64 == limit && !first_line.ends_with(b"\n") {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            "the first line is longer than 64 KiB: this is not a CSV file with a header row",
+        ));
+    }
     let text = String::from_utf8_lossy(&first_line);
     let dialect = [b',', b';', b'\t']
         .into_iter()
         .find(|&separator| {
-            text.split(char::from(separator))
-                .any(|field| field.trim_start_matches('\u{feff}').trim().trim_matches('"') == wanted_column)
+            text.split(char::from(separator)).any(|field| {
+                field
+                    .trim_start_matches('\u{feff}')
+                    .trim()
+                    .trim_matches('"')
+                    == wanted_column
+            })
         })
         .map(|separator| CsvDialect {
             separator,
@@ -212,6 +233,15 @@ pub fn detect_dialect<R: BufRead>(
         })
         .unwrap_or_default();
     Ok((dialect, std::io::Cursor::new(first_line).chain(input)))
+}
+
+/// At most 40 characters of a cell, for messages.
+fn shortened_cell(cell: &str) -> String {
+    if cell.chars().count() <= 40 {
+        cell.to_owned()
+    } else {
+        format!("{}…", cell.chars().take(40).collect::<String>())
+    }
 }
 
 /// The temperature-source cell of a recording.

@@ -60,13 +60,21 @@ pub enum LinkError {
         /// The port.
         path: String,
     },
+    /// The path is not a serial port (a regular file, a directory, /dev/null).
+    #[error("{path} is not a serial port ({what}); give the board's port (see `taxel list`) or a simulated device's terminal (see `taxel sim`)")]
+    NotSerialPort {
+        /// The path.
+        path: String,
+        /// What it is instead.
+        what: String,
+    },
     /// The serial port could not be opened or configured.
-    #[error("opening {path}: {source}")]
+    #[error("opening {path}: {description}")]
     Open {
         /// The port.
         path: String,
-        /// The cause.
-        source: serialport::Error,
+        /// The cause, as the serial library says it.
+        description: String,
     },
     /// The stream ended: the device was unplugged or the port closed.
     #[error("the device closed the connection (unplugged?)")]
@@ -229,15 +237,48 @@ pub struct OpenedPort {
 /// Opens a serial port with a read timeout and asserts DTR (the device only sends to an open
 /// port). The baud rate is irrelevant for CDC-ACM.
 pub fn open_serial(path: &str, read_timeout: Duration) -> Result<OpenedPort, LinkError> {
+    check_is_serial_port(path)?;
     let mut port = serialport::new(path, 115_200)
         .timeout(read_timeout)
         .open()
-        .map_err(|source| LinkError::Open {
-            path: path.to_owned(),
-            source,
+        .map_err(|source| {
+            if source.description.contains("typewriter") {
+                // ENOTTY: a character device that is not a terminal, such as /dev/null.
+                LinkError::NotSerialPort {
+                    path: path.to_owned(),
+                    what: "a device that is not a terminal".to_owned(),
+                }
+            } else {
+                LinkError::Open {
+                    path: path.to_owned(),
+                    description: source.description,
+                }
+            }
         })?;
     let dtr_error = port.write_data_terminal_ready(true).err();
     Ok(OpenedPort { port, dtr_error })
+}
+
+/// Refuses, before trying to open it, a path that cannot be a serial port: a missing path, a
+/// regular file or a directory.
+pub fn check_is_serial_port(path: &str) -> Result<(), LinkError> {
+    let metadata = std::fs::metadata(path).map_err(|_| LinkError::PortMissing {
+        path: path.to_owned(),
+    })?;
+    let what = if metadata.is_dir() {
+        Some("a directory")
+    } else if metadata.is_file() {
+        Some("a regular file")
+    } else {
+        None
+    };
+    match what {
+        Some(what) => Err(LinkError::NotSerialPort {
+            path: path.to_owned(),
+            what: what.to_owned(),
+        }),
+        None => Ok(()),
+    }
 }
 
 /// Counters of what a [`FrameReceiver`] saw.

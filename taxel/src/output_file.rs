@@ -20,11 +20,18 @@ pub struct OutputFile {
 }
 
 /// The rename that finishes an [`OutputFile`] whose bytes were written through another owner
-/// (for example a raw log handed to the serial link).
+/// (for example a raw log handed to the serial link). A target that exists and is not a regular
+/// file (`/dev/null`, a FIFO, a terminal) is written directly and never renamed over.
 #[derive(Debug)]
 pub struct PendingRename {
-    temporary: TempPath,
+    temporary: Option<TempPath>,
     target: PathBuf,
+}
+
+/// Whether `target` exists as something other than a regular file or a directory: written in
+/// place, since replacing a device or a pipe by a file would be wrong.
+fn is_special_file(target: &Path) -> bool {
+    std::fs::metadata(target).is_ok_and(|metadata| !metadata.is_file() && !metadata.is_dir())
 }
 
 impl OutputFile {
@@ -33,6 +40,19 @@ impl OutputFile {
     pub fn create(target: &Path) -> anyhow::Result<Self> {
         if target.is_dir() {
             bail!("{} is a directory, not a file", target.display());
+        }
+        if is_special_file(target) {
+            let file = std::fs::OpenOptions::new()
+                .write(true)
+                .open(target)
+                .with_context(|| format!("opening {}", target.display()))?;
+            return Ok(Self {
+                writer: BufWriter::new(file),
+                pending: PendingRename {
+                    temporary: None,
+                    target: target.to_path_buf(),
+                },
+            });
         }
         let directory = match target.parent() {
             Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
@@ -51,7 +71,7 @@ impl OutputFile {
         Ok(Self {
             writer: BufWriter::new(file),
             pending: PendingRename {
-                temporary,
+                temporary: Some(temporary),
                 target: target.to_path_buf(),
             },
         })
@@ -96,6 +116,12 @@ impl PendingRename {
         if target.is_dir() {
             bail!("{} is a directory, not a file", target.display());
         }
+        if is_special_file(target) {
+            return Ok(Self {
+                temporary: None,
+                target: target.to_path_buf(),
+            });
+        }
         let directory = match target.parent() {
             Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
             _ => PathBuf::from("."),
@@ -115,14 +141,17 @@ impl PendingRename {
             .with_context(|| format!("creating a file in {}", directory.display()))?
             .into_temp_path();
         Ok(Self {
-            temporary,
+            temporary: Some(temporary),
             target: target.to_path_buf(),
         })
     }
 
     /// Where the bytes go until the commit.
     pub fn path(&self) -> &Path {
-        &self.temporary
+        match &self.temporary {
+            Some(temporary) => temporary,
+            None => &self.target,
+        }
     }
 
     /// The file that will be replaced.
@@ -133,8 +162,10 @@ impl PendingRename {
     /// Syncs `file` (the writer given out by [`OutputFile::into_parts`], already flushed) and
     /// renames the temporary file over the target.
     pub fn commit_file(self, file: File) -> anyhow::Result<()> {
-        file.sync_all()
-            .with_context(|| format!("writing {}", self.target.display()))?;
+        if self.temporary.is_some() {
+            file.sync_all()
+                .with_context(|| format!("writing {}", self.target.display()))?;
+        }
         drop(file);
         self.commit()
     }
@@ -142,19 +173,25 @@ impl PendingRename {
     /// Renames the temporary file over the target (its writer must be flushed and closed).
     pub fn commit(self) -> anyhow::Result<()> {
         let target = self.target;
-        self.temporary
-            .persist(&target)
-            .map_err(|error| error.error)
-            .with_context(|| format!("renaming the finished file to {}", target.display()))
+        match self.temporary {
+            Some(temporary) => temporary
+                .persist(&target)
+                .map_err(|error| error.error)
+                .with_context(|| format!("renaming the finished file to {}", target.display())),
+            None => Ok(()),
+        }
     }
 
     /// Keeps the temporary file under its own name (a recording that could not be finished
     /// keeps what it has) and returns that name.
     pub fn keep(self) -> anyhow::Result<PathBuf> {
-        self.temporary
-            .keep()
-            .map_err(|error| error.error)
-            .context("keeping the partial file")
+        match self.temporary {
+            Some(temporary) => temporary
+                .keep()
+                .map_err(|error| error.error)
+                .context("keeping the partial file"),
+            None => Ok(self.target),
+        }
     }
 }
 
