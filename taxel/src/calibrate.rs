@@ -23,10 +23,10 @@ use model_core::{
 };
 
 use crate::calibration_file::{self, describe_calibration_error};
+use crate::calibration_transfer::upload;
 use crate::csv_format::{
     find_column, find_columns, parse_optional_number, CAPACITANCE_COLUMNS, TEMPERATURE_COLUMN,
 };
-use crate::calibration_transfer::upload;
 use crate::device_link::{self, DeviceLink};
 use crate::noteln;
 use crate::output_file::refuse_same_file;

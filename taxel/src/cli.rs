@@ -45,6 +45,7 @@ pub enum Commands {
     #[command(long_about = plot::LONG_ABOUT)]
     Plot(plot::PlotArgs),
     /// List attached boards (USB VID:PID, serial numbers).
+    #[command(long_about = list::LONG_ABOUT)]
     List(list::ListArgs),
     /// Record the device's stream to CSV and a raw byte log.
     #[command(long_about = record::LONG_ABOUT)]

@@ -5,6 +5,12 @@ use std::process::ExitCode;
 use crate::device_link::{attached_boards, BoardPort, DEFAULT_PID, DEFAULT_VID};
 use crate::record::parse_hex_u16;
 
+/// The long help of the subcommand.
+pub const LONG_ABOUT: &str = "List the boards attached by USB with the pad's VID:PID: port, \
+serial number, manufacturer and product. The serial number chooses a board with --serial in \
+`record` and `view`, and finds it again after an unplug.\n\n\
+Example: taxel list";
+
 /// Arguments of `taxel list`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ListArgs {

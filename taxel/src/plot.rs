@@ -171,14 +171,14 @@ pub fn read_pressure_series<R: Read>(input: R) -> anyhow::Result<PressureSeries>
                 continue;
             }
         }
-        let time_s = match parse_time_s(record.get(time_column).unwrap_or(""), dialect.decimal_comma)
-        {
-            Ok(time_s) => time_s,
-            Err(reason) => {
-                series.skipped_rows.push((line, reason));
-                continue;
-            }
-        };
+        let time_s =
+            match parse_time_s(record.get(time_column).unwrap_or(""), dialect.decimal_comma) {
+                Ok(time_s) => time_s,
+                Err(reason) => {
+                    series.skipped_rows.push((line, reason));
+                    continue;
+                }
+            };
         series.time_s.push(time_s);
         for (taxel, column) in pressure_columns.iter().enumerate() {
             let pressure = parse_number(record.get(*column).unwrap_or(""), dialect.decimal_comma)
@@ -594,6 +594,19 @@ pub fn plot_pressures(
     size: (u32, u32),
 ) -> anyhow::Result<()> {
     render_to_file!(path, size, |root| draw_pressures(&root, series))
+}
+
+/// Draws pressures over time as SVG text: what `plot` writes to a `.svg` file (for tests and
+/// fuzzing, without a file).
+pub fn pressures_svg(series: &PressureSeries, size: (u32, u32)) -> anyhow::Result<String> {
+    register_embedded_font()?;
+    let mut text = String::new();
+    {
+        let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
+        draw_pressures(&root, series).map_err(drawing_error)?;
+        root.present().map_err(drawing_error)?;
+    }
+    Ok(text)
 }
 
 /// Plots a calibration's curves (and with reference loads, their rows and residuals per tier)

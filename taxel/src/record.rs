@@ -316,10 +316,10 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
         files.csv.display(),
         files.samples,
         raw_path.display(),
-        files
-            .device_state
-            .as_ref()
-            .map_or_else(|| "no device state".to_owned(), |path| path.display().to_string()),
+        files.device_state.as_ref().map_or_else(
+            || "no device state".to_owned(),
+            |path| path.display().to_string()
+        ),
         accounting.summary(),
         link.statistics().bytes_received,
         link.statistics().frames_rejected

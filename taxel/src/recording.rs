@@ -174,10 +174,10 @@ impl RecordedDeviceState {
 
     /// Reads a device-state file.
     pub fn read(path: &Path) -> anyhow::Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("reading {}", path.display()))?;
-        let state: Self = serde_json::from_str(&text)
-            .with_context(|| format!("reading {}", path.display()))?;
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let state: Self =
+            serde_json::from_str(&text).with_context(|| format!("reading {}", path.display()))?;
         if state.format != DEVICE_STATE_FORMAT || state.version != DEVICE_STATE_VERSION {
             bail!(
                 "{} is not a version-{DEVICE_STATE_VERSION} {DEVICE_STATE_FORMAT} file",

@@ -13,8 +13,8 @@ use std::time::Duration;
 
 use model_core::{CalibrationCurve, TaxelInverses, TemperatureLaw};
 use support::{ack, taxel_binary, FakeDevice, SplitMix64};
-use taxel::calibration_transfer::upload;
 use taxel::calibration_file;
+use taxel::calibration_transfer::upload;
 use taxel::device_link::DeviceLink;
 use wire::Command as WireCommand;
 
