@@ -216,6 +216,37 @@ fn bad_input_matrix() {
             1,
             "creating a file in nowhere",
         ),
+        case(
+            "empty calibration file",
+            vec![("in.csv", good.clone()), ("cal.json", vec![])],
+            &[
+                "convert",
+                "in.csv",
+                "--calibration",
+                "cal.json",
+                "-o",
+                "out.csv",
+            ],
+            1,
+            "EOF while parsing",
+        ),
+        case(
+            "calibration of another format",
+            vec![
+                ("in.csv", good.clone()),
+                ("cal.json", b"{\"format\": \"other\"}".to_vec()),
+            ],
+            &[
+                "convert",
+                "in.csv",
+                "--calibration",
+                "cal.json",
+                "-o",
+                "out.csv",
+            ],
+            1,
+            "not a calibration file",
+        ),
         // plot: bounded work whatever the data.
         case(
             "plot skips an inf time",
@@ -339,6 +370,16 @@ fn bad_input_matrix() {
         }
         if stderr.contains("panicked") || stderr.contains(" { ") {
             problems.push("a panic or a struct dump reached the user".to_owned());
+        }
+        for line in stderr.lines().filter(|line| line.starts_with("error: ")) {
+            let parts: Vec<&str> = line.split(": ").map(str::trim).collect();
+            let repeated = parts
+                .iter()
+                .enumerate()
+                .any(|(index, part)| parts[index + 1..].contains(part));
+            if repeated {
+                problems.push(format!("the message repeats itself: {line}"));
+            }
         }
         if case.status == 1 && std::fs::read(&output_path).unwrap() != precious_before {
             problems.push("the existing output file was changed by a failed run".to_owned());
