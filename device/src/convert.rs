@@ -3,10 +3,12 @@
 use acquisition::{Counters, ProcessedSample, TemperatureOrigin};
 use fdc1004::Rate;
 use heapless::Vec;
-use model_core::{Calibration, CurvePoint, PadModel, TaxelCalibrationSpec};
+use model_core::{
+    BaselineRecord, Calibration, CurvePoint, PadModel, SplitCapacitance, TaxelCalibrationSpec,
+};
 use wire::{
-    CountersFrame, SampleFrame, SampleRate, TaxelCalibrationRecord, TaxelCalibrationWire,
-    TaxelSample, TemperatureSource,
+    BaselineWire, CountersFrame, SampleFrame, SampleRate, TaxelCalibrationRecord,
+    TaxelCalibrationWire, TaxelSample, TemperatureSource,
 };
 
 use crate::HostCounters;
@@ -127,4 +129,24 @@ pub fn taxel_calibration_spec(
         parasitic_pf: wire.parasitic_pf,
         unloaded_sensor_pf: wire.unloaded_sensor_pf,
     })
+}
+
+/// A model baseline as the wire carries it.
+pub fn baseline_wire(record: &BaselineRecord) -> BaselineWire {
+    BaselineWire {
+        offset_pf: record.capacitance.offset_pf,
+        fine_pf: record.capacitance.fine_pf,
+        temperature_c: record.temperature_c,
+    }
+}
+
+/// A wire baseline as model-core's record (validated when the model installs it).
+pub fn baseline_record(wire: &BaselineWire) -> BaselineRecord {
+    BaselineRecord {
+        capacitance: SplitCapacitance {
+            offset_pf: wire.offset_pf,
+            fine_pf: wire.fine_pf,
+        },
+        temperature_c: wire.temperature_c,
+    }
 }

@@ -19,18 +19,22 @@ mod retained;
 
 pub use control::DeviceControl;
 pub use convert::{
-    calibration_record, converter_rate, counters_frame, sample_frame, taxel_calibration_spec,
-    wire_sample_rate, wire_temperature_source, CalibrationConversionError,
+    baseline_record, baseline_wire, calibration_record, converter_rate, counters_frame,
+    sample_frame, taxel_calibration_spec, wire_sample_rate, wire_temperature_source,
+    CalibrationConversionError,
 };
 pub use host_input::{HostInput, HostInputEvent};
 pub use persistence::{CalibrationPersistence, PersistenceFailed};
 pub use retained::{boot_plan, BootPlan, ResetKind, RetainedState, RETAINED_LEN};
 
 use acquisition::{ProcessedSample, TemperatureOrigin};
-use model_core::{BaselineError, Calibration, TareStatus, Tier, UseCase};
+use model_core::{
+    BaselineError, BaselineRecord, Calibration, TareStatus, Tier, UseCase, TAXEL_COUNT,
+};
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
-    InfoFrame, ReplyFrame, ReplyPayload, Request, SampleFrame, SampleRate, PROTOCOL_VERSION,
+    InfoFrame, ReplyFrame, ReplyPayload, Request, SampleFrame, SampleRate, TaxelBaselineWire,
+    PROTOCOL_VERSION,
 };
 
 /// Largest encoded output: a CSV line (283 bytes) or the largest frame (155 bytes).
@@ -120,6 +124,7 @@ pub struct Device<A, P> {
     last_temperature_origin: Option<TemperatureOrigin>,
     announce_flash_corrupt: bool,
     retained_written: Option<RetainedState>,
+    announced_baselines: [Option<BaselineRecord>; TAXEL_COUNT],
 }
 
 impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
@@ -149,6 +154,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             announce_flash_corrupt: calibration_source
                 == CalibrationSource::DefaultsAfterCorruptFlash,
             retained_written: None,
+            announced_baselines: [None; TAXEL_COUNT],
         }
     }
 
@@ -300,6 +306,21 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             self.send(
                 host,
                 Outgoing::Frame(DeviceFrame::Reply(ReplyFrame { request_id, result })),
+            );
+        }
+        let baselines = self.control.pad().baseline_records();
+        if baselines != self.announced_baselines {
+            // Whatever changed them (a tare at boot or on command, a restore after a reset), a
+            // recording host learns it before the first sample computed with them.
+            self.announced_baselines = baselines;
+            let tared_mask = (0u8..)
+                .zip(&baselines)
+                .filter(|(_, baseline)| baseline.is_some())
+                .fold(0u8, |mask, (taxel, _)| mask | (1 << taxel));
+            self.send_event(
+                host,
+                sample.timestamp_us,
+                DeviceEvent::TareFinished { tared_mask },
             );
         }
         if self.streaming {
@@ -455,6 +476,20 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             Command::SetTextMode { enabled } => {
                 self.text_mode = enabled;
                 Ok(ReplyPayload::Ack)
+            }
+            Command::ReadBaseline { taxel_index } => {
+                match self
+                    .control
+                    .pad()
+                    .baseline_records()
+                    .get(usize::from(taxel_index))
+                {
+                    Some(record) => Ok(ReplyPayload::Baseline(TaxelBaselineWire {
+                        taxel_index,
+                        baseline: record.as_ref().map(baseline_wire),
+                    })),
+                    None => Err(ErrorCode::InvalidArgument),
+                }
             }
         };
         Some(result)

@@ -149,9 +149,25 @@ pub fn simulated_board_serial(seed: u64) -> [u8; 12] {
 }
 
 impl SimulatedDevice {
-    /// Boots the simulated device: calibration from the simulated flash (blank: the defaults
-    /// matching the simulated pad), converter initialisation and tare on the first cycles.
+    /// Boots the simulated device as it leaves the factory: the simulated pad's factory
+    /// calibration (its true curve sampled every 5 kPa, with its parasitic capacitance, as a
+    /// careful calibration of a real pad gives; sensor-sim's `matching_calibration`) saved in the
+    /// simulated flash through the firmware's storage code, then the firmware's boot: calibration
+    /// from flash, converter initialisation and a tare on the first cycles.
     pub fn new(config: SimulatedDeviceConfig) -> Result<Self, SimulatedDeviceError> {
+        Self::boot_new(config, true)
+    }
+
+    /// Boots the simulated device on erased flash, as a board that was never calibrated: it
+    /// runs on the built-in default calibration, exactly as the firmware does.
+    pub fn with_blank_flash(config: SimulatedDeviceConfig) -> Result<Self, SimulatedDeviceError> {
+        Self::boot_new(config, false)
+    }
+
+    fn boot_new(
+        config: SimulatedDeviceConfig,
+        factory_calibrated: bool,
+    ) -> Result<Self, SimulatedDeviceError> {
         let simulation = Simulation::new(SimulationConfig {
             seed: config.seed,
             ..SimulationConfig::default()
@@ -168,8 +184,16 @@ impl SimulatedDevice {
                 .set_pacing(Pacing::RealTime { speed })
                 .map_err(|error| SimulatedDeviceError::Simulation(error.to_string()))?;
         }
-        let store = CalibrationStore::new(SimulatedFlash::new(), 0..FLASH_SIZE as u32)
+        let mut store = CalibrationStore::new(SimulatedFlash::new(), 0..FLASH_SIZE as u32)
             .map_err(|_| SimulatedDeviceError::Storage)?;
+        if factory_calibrated {
+            let factory = simulation
+                .physics()
+                .matching_calibration()
+                .map_err(|error| SimulatedDeviceError::Simulation(format!("{error:?}")))?;
+            embassy_futures::block_on(store.save(&factory.to_spec()))
+                .map_err(|_| SimulatedDeviceError::Storage)?;
+        }
         let device = boot(
             &simulation,
             SimulatedPersistence(store),
@@ -288,13 +312,8 @@ fn boot(
     plan: BootPlan,
 ) -> Result<Device<SimulatedAcquisition, SimulatedPersistence>, SimulatedDeviceError> {
     {
-        // The simulated pad's factory calibration: its true curve sampled every 5 kPa with its
-        // parasitic capacitance (sensor-sim's `matching_calibration`), as a careful calibration
-        // of a real pad would give; the model then only knows what a calibration could tell it.
-        let defaults = simulation
-            .physics()
-            .matching_calibration()
-            .unwrap_or_default();
+        // As the firmware: the built-in default whenever flash holds no valid calibration.
+        let defaults = Calibration::default();
         let (calibration, source) = match embassy_futures::block_on(persistence.0.load()) {
             LoadOutcome::Stored(spec) => match Calibration::new(&spec) {
                 Ok(calibration) => (calibration, CalibrationSource::Flash),

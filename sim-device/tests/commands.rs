@@ -97,7 +97,8 @@ fn info_and_counters_describe_the_device() {
     let info = host.info();
     assert_eq!(info.protocol_version, wire::PROTOCOL_VERSION);
     assert_eq!(&info.board_serial[..9], b"SIMULATED");
-    assert_eq!(info.calibration_source, CalibrationSource::Defaults);
+    // Factory calibrated: the simulated pad's own curve is in its flash.
+    assert_eq!(info.calibration_source, CalibrationSource::Flash);
     assert_eq!(info.rate_sps, 400);
     assert_eq!(info.model_tier, model_core::Tier::MonotoneCubic as u8);
     assert!(info.streaming && !info.text_mode);
@@ -530,4 +531,118 @@ fn malformed_and_unknown_requests_are_answered_or_counted_never_fatal() {
         host.request(Command::Info),
         Ok(ReplyPayload::Info(_))
     ));
+}
+
+fn calibration_records(host: &mut Host) -> Vec<TaxelCalibrationRecord> {
+    (0..4)
+        .map(
+            |taxel_index| match host.request(Command::ReadCalibration { taxel_index }) {
+                Ok(ReplyPayload::Calibration(record)) => record,
+                other => panic!("{other:?}"),
+            },
+        )
+        .collect()
+}
+
+/// One default calibration: a board with erased flash, RestoreDefaults and the host all mean
+/// model-core's `Calibration::default()`; the simulated pad's own curve comes from its flash.
+#[test]
+fn the_built_in_default_is_one_calibration_and_the_factory_one_is_in_flash() {
+    let defaults = model_core::Calibration::default();
+    let expected: Vec<TaxelCalibrationRecord> = (0..4)
+        .map(|taxel| device::calibration_record(&defaults, taxel).unwrap())
+        .collect();
+
+    let mut host = Host::new();
+    assert_eq!(host.info().calibration_source, CalibrationSource::Flash);
+    assert_ne!(calibration_records(&mut host), expected);
+    assert_eq!(
+        host.request(Command::RestoreDefaults),
+        Ok(ReplyPayload::Ack)
+    );
+    assert_eq!(calibration_records(&mut host), expected);
+
+    let mut blank = Host::new();
+    blank.device = SimulatedDevice::with_blank_flash(SimulatedDeviceConfig {
+        scene: SceneFile::default_scene().unwrap(),
+        seed: 9,
+        speed: None,
+    })
+    .unwrap();
+    blank.steps(20);
+    assert_eq!(blank.info().calibration_source, CalibrationSource::Defaults);
+    assert_eq!(calibration_records(&mut blank), expected);
+}
+
+fn baselines(host: &mut Host) -> Vec<Option<wire::BaselineWire>> {
+    (0..4)
+        .map(
+            |taxel_index| match host.request(Command::ReadBaseline { taxel_index }) {
+                Ok(ReplyPayload::Baseline(reply)) => {
+                    assert_eq!(reply.taxel_index, taxel_index);
+                    reply.baseline
+                }
+                other => panic!("{other:?}"),
+            },
+        )
+        .collect()
+}
+
+/// The boot tare and every later tare announce themselves with TareFinished, before the first
+/// sample that uses them, and ReadBaseline returns what the model uses.
+#[test]
+fn baselines_are_read_back_and_every_tare_is_announced() {
+    let mut host = Host::new();
+    let boot = baselines(&mut host);
+    assert!(boot.iter().all(Option::is_some), "{boot:?}");
+    let model: Vec<Option<wire::BaselineWire>> = host
+        .device
+        .device_mut()
+        .control()
+        .pad()
+        .baseline_records()
+        .iter()
+        .map(|record| record.as_ref().map(device::baseline_wire))
+        .collect();
+    assert_eq!(boot, model);
+    assert_eq!(
+        host.request(Command::ReadBaseline { taxel_index: 4 }),
+        Err(ErrorCode::InvalidArgument)
+    );
+
+    // The demo scene is still before 3 s: a new tare succeeds and is announced.
+    assert_eq!(
+        host.request(Command::Tare { sample_sets: 8 }),
+        Ok(ReplyPayload::Ack)
+    );
+    let mut announced = false;
+    let mut encoded = [0u8; 64];
+    let length = wire::encode_frame(
+        &Request {
+            request_id: 600,
+            command: Command::Tare { sample_sets: 4 },
+        },
+        &mut encoded,
+    )
+    .unwrap();
+    host.send_bytes(&encoded[..length]);
+    let mut event_then_sample = false;
+    for _ in 0..50 {
+        for frame in host.steps(1) {
+            match frame {
+                DeviceFrame::Event(EventFrame {
+                    event: DeviceEvent::TareFinished { tared_mask },
+                    ..
+                }) => {
+                    assert_eq!(tared_mask, 0b1111);
+                    announced = true;
+                }
+                DeviceFrame::Sample(_) if announced => event_then_sample = true,
+                _ => {}
+            }
+        }
+    }
+    assert!(announced && event_then_sample);
+    let after = baselines(&mut host);
+    assert_ne!(after, boot, "a new tare gives new baselines");
 }

@@ -9,7 +9,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{bail, Context};
-use model_core::{Calibration, CalibrationSpec, TAXEL_NAMES};
+use model_core::{BaselineRecord, Calibration, CalibrationSpec, TAXEL_COUNT, TAXEL_NAMES};
 use wire::{Command, ReplyPayload};
 
 use crate::calibration_file::{self, describe_calibration_error};
@@ -109,6 +109,25 @@ pub fn pull<P: Read + Write>(
             describe_calibration_error(&error)
         )
     })
+}
+
+/// Reads the baselines the device's model uses now (four ReadBaseline requests); `None` for a
+/// taxel that is not tared.
+pub fn pull_baselines<P: Read + Write>(
+    link: &mut DeviceLink<P>,
+    timeout: Duration,
+) -> anyhow::Result<[Option<BaselineRecord>; TAXEL_COUNT]> {
+    let mut baselines = [None; TAXEL_COUNT];
+    for (taxel_index, baseline) in (0u8..).zip(baselines.iter_mut()) {
+        *baseline = match link.request(Command::ReadBaseline { taxel_index }, timeout) {
+            Ok(ReplyPayload::Baseline(reply)) => {
+                reply.baseline.as_ref().map(device::baseline_record)
+            }
+            Ok(_) => return Err(RequestError::UnexpectedReply("ReadBaseline").into()),
+            Err(error) => return Err(error).with_context(|| format!("ReadBaseline {taxel_index}")),
+        };
+    }
+    Ok(baselines)
 }
 
 /// Writes the calibration to the device, taxel by taxel, then saves it to flash if `save`.

@@ -1,7 +1,7 @@
 //! Device frames in words for people: identity, counters and events as a person reads them
 //! (serial in hex, versions dotted, rates with their units), never as Rust struct dumps.
 
-use model_core::Tier;
+use model_core::{Tier, TAXEL_NAMES};
 use wire::{CalibrationSource, CountersFrame, DeviceEvent, EventFrame, InfoFrame};
 
 use crate::csv_format::{format_time_us, temperature_source_words};
@@ -85,6 +85,19 @@ pub fn event_words(event: &EventFrame) -> String {
         ),
         DeviceEvent::CalibrationFlashCorrupt => {
             "the calibration in flash was corrupt; the built-in default is in use".to_owned()
+        }
+        DeviceEvent::TareFinished { tared_mask } => {
+            let tared: Vec<&str> = TAXEL_NAMES
+                .iter()
+                .enumerate()
+                .filter(|(taxel, _)| tared_mask & (1 << taxel) != 0)
+                .map(|(_, name)| *name)
+                .collect();
+            if tared.is_empty() {
+                "new baselines: no taxel is tared".to_owned()
+            } else {
+                format!("new baselines (tared: {})", tared.join(", "))
+            }
         }
     };
     format!(

@@ -198,15 +198,20 @@ impl RecordedDeviceState {
     }
 }
 
-/// Reads the device's whole calibration (four ReadCalibration requests) as the state a
-/// recording starts with.
+/// Reads the device's whole calibration and its baselines (four ReadCalibration and four
+/// ReadBaseline requests) as the state a recording starts with.
 pub fn read_device_state<P: std::io::Read + Write>(
     link: &mut DeviceLink<P>,
     info: &InfoFrame,
     timeout: Duration,
 ) -> anyhow::Result<RecordedDeviceState> {
     let calibration = crate::calibration_transfer::pull(link, info.calibration_id, timeout)?;
-    Ok(RecordedDeviceState::new(info, &calibration))
+    let mut state = RecordedDeviceState::new(info, &calibration);
+    state.baselines.push(BaselineChange {
+        from_sequence: 0,
+        taxels: crate::calibration_transfer::pull_baselines(link, timeout)?,
+    });
+    Ok(state)
 }
 
 /// Where recorded samples go: a [`Recording`], or any CSV writer (tests, pipes).
@@ -215,6 +220,11 @@ pub trait SampleSink {
     fn write_sample(&mut self, sample: &SampleFrame) -> anyhow::Result<()>;
     /// Pushes buffered rows out.
     fn flush(&mut self) -> anyhow::Result<()>;
+    /// The device's baselines changed (a tare finished); they apply from the sample with
+    /// `change.from_sequence` on. Sinks that keep no device state ignore it.
+    fn baselines_changed(&mut self, change: BaselineChange) {
+        let _ = change;
+    }
 }
 
 impl<W: Write> SampleSink for csv::Writer<W> {
@@ -235,6 +245,12 @@ impl SampleSink for Recording {
 
     fn flush(&mut self) -> anyhow::Result<()> {
         Recording::flush(self)
+    }
+
+    fn baselines_changed(&mut self, change: BaselineChange) {
+        if let Some(state) = self.device_state.as_mut() {
+            state.baselines.push(change);
+        }
     }
 }
 

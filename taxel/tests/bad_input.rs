@@ -161,6 +161,13 @@ fn bad_input_matrix() {
             "not a raw log",
         ),
         case(
+            "';' CSV with ',' decimals",
+            vec![("in.csv", semicolons)],
+            &["convert", "in.csv", "-o", "out.csv"],
+            0,
+            "';'-separated with ',' decimals",
+        ),
+        case(
             "same input and output",
             vec![("out.csv", good.clone())],
             &["convert", "out.csv", "-o", "out.csv"],

@@ -42,7 +42,11 @@ fn every_subcommand_has_an_example() {
 fn the_tier_option_lists_every_tier() {
     let text = help(&["convert"]);
     for tier in model_core::Tier::ALL {
-        assert!(text.contains(tier.name()), "{} missing: {text}", tier.name());
+        assert!(
+            text.contains(tier.name()),
+            "{} missing: {text}",
+            tier.name()
+        );
     }
 }
 

@@ -134,7 +134,7 @@ fn a_recording_of_the_simulated_device_matches_its_scene() {
 #[test]
 fn a_calibration_uploaded_and_saved_over_the_serial_path_survives_a_reboot() {
     use model_core::{Calibration, CalibrationSpec};
-    use taxel::calibrate::upload;
+    use taxel::calibration_transfer::upload;
     use wire::{CalibrationSource, Command, ReplyPayload};
 
     let mut device = SimulatedDevice::new(SimulatedDeviceConfig {

@@ -12,7 +12,7 @@ pub const CALIBRATION_POINTS_MAX: usize = 16;
 
 /// The number of [`Command`] variants; a discriminant at or above it is
 /// [`ErrorCode::UnknownCommand`].
-pub const COMMAND_COUNT: u32 = 13;
+pub const COMMAND_COUNT: u32 = 14;
 
 /// Why the device refused a request.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -203,6 +203,12 @@ pub enum Command {
         /// Text mode on.
         enabled: bool,
     },
+    /// Replies [`crate::ReplyPayload::Baseline`] for one taxel: the unloaded reference the model
+    /// uses now (added within version 2).
+    ReadBaseline {
+        /// The taxel, 0..=3.
+        taxel_index: u8,
+    },
 }
 
 impl Command {
@@ -228,7 +234,7 @@ impl Command {
                     Err(ErrorCode::InvalidArgument)
                 }
             }
-            Command::ReadCalibration { taxel_index }
+            Command::ReadCalibration { taxel_index } | Command::ReadBaseline { taxel_index }
                 if usize::from(*taxel_index) >= TAXEL_COUNT =>
             {
                 Err(ErrorCode::InvalidArgument)

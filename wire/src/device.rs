@@ -121,6 +121,32 @@ pub enum ReplyPayload {
     Calibration(TaxelCalibrationRecord),
     /// The answer to [`crate::Command::SetUseCase`]: the model tier the device selected.
     ModelTier(u8),
+    /// The answer to [`crate::Command::ReadBaseline`] (added within version 2).
+    Baseline(TaxelBaselineWire),
+}
+
+/// A taxel's baseline as the model holds it: the tared capacitance, split into two parts that
+/// are each exact in f32 (the CAPDAC offset and the converter's fine part), and the temperature
+/// at the tare. With it a host reproduces the device's pressures exactly.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BaselineWire {
+    /// The coarse part of the tared capacitance (CAPDAC offset), pF.
+    pub offset_pf: f32,
+    /// The fine part of the tared capacitance (converter code), pF.
+    pub fine_pf: f32,
+    /// The temperature at the tare, °C.
+    pub temperature_c: f32,
+}
+
+/// One taxel's baseline, or none when the taxel is not tared.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TaxelBaselineWire {
+    /// The taxel, 0..=3.
+    pub taxel_index: u8,
+    /// Its baseline, `None` when it is not tared.
+    pub baseline: Option<BaselineWire>,
 }
 
 /// The answer to one request.
@@ -165,6 +191,12 @@ pub enum DeviceEvent {
     },
     /// At boot the calibration in flash failed its integrity check; defaults are in use.
     CalibrationFlashCorrupt,
+    /// The baselines changed: a tare finished (at boot, on command) or baselines were restored
+    /// after a reset. Samples after this event use the new baselines (added within version 2).
+    TareFinished {
+        /// Bit n set: taxel n has a baseline now.
+        tared_mask: u8,
+    },
 }
 
 /// An asynchronous device event with the time it happened.

@@ -32,8 +32,8 @@ pub use command::{
     CALIBRATION_POINTS_MAX, COMMAND_COUNT,
 };
 pub use device::{
-    CalibrationSource, CountersFrame, DeviceEvent, DeviceFrame, EventFrame, FirmwareVersion,
-    InfoFrame, ReplyFrame, ReplyPayload,
+    BaselineWire, CalibrationSource, CountersFrame, DeviceEvent, DeviceFrame, EventFrame,
+    FirmwareVersion, InfoFrame, ReplyFrame, ReplyPayload, TaxelBaselineWire,
 };
 pub use error::{DecodeError, EncodeError};
 pub use frame::{

@@ -55,6 +55,7 @@ fn command_discriminants_are_the_documented_ones() {
         Command::SaveCalibration,
         Command::RestoreDefaults,
         Command::SetTextMode { enabled: true },
+        Command::ReadBaseline { taxel_index: 0 },
     ];
     assert_eq!(commands.len() as u32, COMMAND_COUNT);
     for (discriminant, command) in commands.into_iter().enumerate() {

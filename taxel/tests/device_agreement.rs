@@ -1,0 +1,130 @@
+//! Device and host agree: a recording of the simulated device, converted with the defaults,
+//! gives the device's own pressures, because the recording carries the calibration, tier and
+//! baselines the device used (`rec.csv.device.json`).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Largest pressure difference allowed between the device and `convert`, kPa. The device
+/// converts the converter's raw code split in two exact f32 parts; the recording holds their
+/// sum rounded to f32 (half an ulp at 6 pF is 2.4e-7 pF, 5e-8 in dC/C0), which the flattest part
+/// of a curve (0.002 per kPa at its top) turns into 2.5e-5 kPa; the rest of the arithmetic is
+/// the same code in the same order.
+const AGREEMENT_KPA: f64 = 2.0e-4;
+
+fn taxel() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_taxel"))
+}
+
+/// `taxel sim` in the background; its port path once it is ready. The caller kills and waits.
+#[allow(clippy::zombie_processes)]
+fn start_simulator(directory: &Path) -> (Child, String) {
+    let path_file = directory.join("port");
+    let mut child = taxel()
+        .args(["sim", "--speed", "10", "--duration", "60", "--path-file"])
+        .arg(&path_file)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        if let Ok(path) = std::fs::read_to_string(&path_file) {
+            if !path.trim().is_empty() {
+                return (child, path.trim().to_owned());
+            }
+        }
+        if Instant::now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("the simulator did not start");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn read_rows(path: &PathBuf) -> (Vec<String>, Vec<Vec<String>>) {
+    let mut reader = csv::Reader::from_path(path).unwrap();
+    let header = reader
+        .headers()
+        .unwrap()
+        .iter()
+        .map(str::to_owned)
+        .collect();
+    let rows = reader
+        .records()
+        .map(|record| record.unwrap().iter().map(str::to_owned).collect())
+        .collect();
+    (header, rows)
+}
+
+#[test]
+fn a_recording_converted_with_the_defaults_gives_the_device_pressures() {
+    let directory = tempfile::tempdir().unwrap();
+    let (mut simulator, port) = start_simulator(directory.path());
+    // The simulator streams before anybody listens: let it buffer stale data first.
+    std::thread::sleep(Duration::from_millis(500));
+    let recording = directory.path().join("rec.csv");
+    let output = taxel()
+        .args(["record", &port, "--samples", "1500", "-o"])
+        .arg(&recording)
+        .output()
+        .unwrap();
+    let record_messages = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(output.status.success(), "{record_messages}");
+    assert!(
+        record_messages.contains("0 lost on the link"),
+        "{record_messages}"
+    );
+    assert!(directory.path().join("rec.csv.device.json").exists());
+
+    let converted = directory.path().join("converted.csv");
+    let output = taxel()
+        .arg("convert")
+        .arg(&recording)
+        .arg("-o")
+        .arg(&converted)
+        .output()
+        .unwrap();
+    let messages = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{messages}");
+    assert!(
+        messages.contains("the device's calibration recorded with it"),
+        "convert says which calibration it used: {messages}"
+    );
+    let _ = simulator.kill();
+    let _ = simulator.wait();
+
+    let (recorded_header, recorded) = read_rows(&recording);
+    let (converted_header, converted) = read_rows(&converted);
+    assert_eq!(recorded.len(), 1500);
+    assert_eq!(converted.len(), recorded.len());
+    let column = |header: &[String], name: &str| header.iter().position(|h| h == name).unwrap();
+    let mut compared = 0u64;
+    let mut worst_kpa = 0.0f64;
+    for (row, (device, host)) in recorded.iter().zip(&converted).enumerate() {
+        for name in ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"] {
+            let device_cell = &device[column(&recorded_header, name)];
+            let host_cell = &host[column(&converted_header, name)];
+            match (device_cell.parse::<f64>(), host_cell.parse::<f64>()) {
+                (Ok(device_kpa), Ok(host_kpa)) => {
+                    worst_kpa = worst_kpa.max((device_kpa - host_kpa).abs());
+                    compared += 1;
+                }
+                _ => assert_eq!(
+                    device_cell.is_empty(),
+                    host_cell.is_empty(),
+                    "row {row} {name}: device '{device_cell}', host '{host_cell}'"
+                ),
+            }
+        }
+    }
+    eprintln!("{compared} pressures compared; largest difference {worst_kpa:e} kPa");
+    assert!(compared > 4 * 1000, "{compared} pressures compared");
+    assert!(
+        worst_kpa <= AGREEMENT_KPA,
+        "device and convert differ by up to {worst_kpa} kPa"
+    );
+}
