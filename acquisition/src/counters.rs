@@ -3,7 +3,7 @@
 
 use fdc1004::Error;
 
-/// Counts since start; every counter wraps at 2^32.
+/// Counts since start; every counter saturates at 2^32 - 1 (a count never restarts from 0).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Counters {
@@ -37,11 +37,35 @@ impl Counters {
             | Error::ResetTimeout
             | Error::InvalidConfig => &mut self.converter_check_failures,
         };
-        *counter = counter.wrapping_add(1);
+        *counter = counter.saturating_add(1);
+    }
+
+    /// Adds one to a counter, saturating.
+    pub(crate) fn bump(counter: &mut u32) {
+        *counter = counter.saturating_add(1);
     }
 
     /// Converter re-initialisations after an error (initialisations after the first one).
     pub fn converter_reinits(&self) -> u32 {
         self.converter_inits.saturating_sub(1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counters_saturate_instead_of_wrapping() {
+        let mut counters = Counters {
+            i2c_errors: u32::MAX,
+            ..Counters::default()
+        };
+        counters.count_converter_error::<()>(&Error::I2c(()));
+        assert_eq!(counters.i2c_errors, u32::MAX);
+        let mut count = u32::MAX - 1;
+        Counters::bump(&mut count);
+        Counters::bump(&mut count);
+        assert_eq!(count, u32::MAX);
     }
 }

@@ -203,6 +203,10 @@ where
     /// cycle; that one is a requested reconfiguration, not a recovery, so it is not counted in
     /// [`Counters::converter_inits`] (unless the converter was waiting for a recovery anyway).
     pub fn set_rate(&mut self, rate: Rate) {
+        if self.rate() == rate {
+            // Nothing to apply: the converter keeps running as it is.
+            return;
+        }
         let config = self.converter.config().with_rate(rate);
         self.converter.set_config(config);
         if self.converter_ready {
@@ -213,7 +217,7 @@ where
 
     /// Counts a sample set the consumer could not take.
     pub fn count_dropped(&mut self) {
-        self.counters.dropped_sets = self.counters.dropped_sets.wrapping_add(1);
+        Counters::bump(&mut self.counters.dropped_sets);
     }
 
     /// Runs cycles forever, handing each to `sink` without waiting for it (a full sink drops the
@@ -246,7 +250,7 @@ where
                     }
                 }
                 if stuck.iter().any(|is_stuck| *is_stuck) {
-                    self.counters.stuck_events = self.counters.stuck_events.wrapping_add(1);
+                    Counters::bump(&mut self.counters.stuck_events);
                     self.converter_ready = false;
                 }
                 let mut readings = [TaxelReading::Unavailable; TAXEL_COUNT];
@@ -289,7 +293,7 @@ where
     async fn read_converter(&mut self) -> Option<[i32; TAXEL_COUNT]> {
         if !self.converter_ready {
             if !core::mem::take(&mut self.reconfiguration_requested) {
-                self.counters.converter_inits = self.counters.converter_inits.wrapping_add(1);
+                Counters::bump(&mut self.counters.converter_inits);
             }
             if let Err(error) = self.converter.init().await {
                 self.counters.count_converter_error(&error);
@@ -303,7 +307,7 @@ where
         }
         match self.converter.read_measurements().await {
             Ok(measurements) if measurements.all_zero() => {
-                self.counters.zero_reads = self.counters.zero_reads.wrapping_add(1);
+                Counters::bump(&mut self.counters.zero_reads);
                 self.converter_ready = false;
                 None
             }
@@ -353,8 +357,7 @@ where
                     return (Some(temperature_c), TemperatureOrigin::Primary);
                 }
                 _ => {
-                    self.counters.temperature_errors =
-                        self.counters.temperature_errors.wrapping_add(1);
+                    Counters::bump(&mut self.counters.temperature_errors);
                     self.primary_failing_cycles = Some(0);
                 }
             }
@@ -367,7 +370,7 @@ where
                 TemperatureOrigin::Fallback,
             ),
             _ => {
-                self.counters.temperature_errors = self.counters.temperature_errors.wrapping_add(1);
+                Counters::bump(&mut self.counters.temperature_errors);
                 (None, TemperatureOrigin::None)
             }
         }

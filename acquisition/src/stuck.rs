@@ -1,5 +1,6 @@
-//! Detects a converter channel that repeats one code while the others move: the "bouncing
-//! values / locked channel" failure users of the FDC1004 report in repeat mode.
+//! Detects a converter channel that repeats one code for many consecutive cycles, whatever the
+//! other channels do: the "bouncing values / locked channel" failure users of the FDC1004 report
+//! in repeat mode (one channel frozen, or the whole converter returning stale results).
 
 use model_core::reading::{SATURATED_HIGH_CODE, SATURATED_LOW_CODE};
 use model_core::TAXEL_COUNT;

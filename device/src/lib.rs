@@ -248,11 +248,11 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 }
                 HostInputEvent::Rejected => {
                     self.host_counters.host_frames_rejected =
-                        self.host_counters.host_frames_rejected.wrapping_add(1);
+                        self.host_counters.host_frames_rejected.saturating_add(1);
                 }
                 HostInputEvent::UnsupportedVersion => {
                     self.host_counters.host_frames_rejected =
-                        self.host_counters.host_frames_rejected.wrapping_add(1);
+                        self.host_counters.host_frames_rejected.saturating_add(1);
                     self.send(host, Outgoing::Frame(DeviceFrame::Info(self.info())));
                 }
                 HostInputEvent::LeaveTextMode => self.text_mode = false,
@@ -363,7 +363,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
     fn send<H: HostPort>(&mut self, host: &mut H, outgoing: Outgoing) {
         if !self.host_connected || host.try_send(outgoing).is_err() {
             self.host_counters.frames_dropped_no_host =
-                self.host_counters.frames_dropped_no_host.wrapping_add(1);
+                self.host_counters.frames_dropped_no_host.saturating_add(1);
         }
     }
 

@@ -32,7 +32,9 @@ bitflags! {
         const NOT_TARED = 1 << 7;
         /// Fault: the converter read failed, timed out, returned all zeros or is being re-initialised.
         const CONVERTER_ERROR = 1 << 8;
-        /// Fault: the channel repeats the same code while the others move (stuck converter channel).
+        /// Fault: the channel repeated one converter code for many consecutive cycles (a live
+        /// channel's noise changes the code every few cycles): a frozen channel, or a converter
+        /// returning stale results.
         const STUCK = 1 << 9;
         /// Fault: the input value is not a finite capacitance.
         const INVALID_INPUT = 1 << 10;

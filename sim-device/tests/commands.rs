@@ -144,6 +144,40 @@ fn the_rate_changes_and_a_bad_rate_is_refused() {
     );
 }
 
+/// A rate change (or setting the same rate) is not an error recovery: no re-initialisation is
+/// counted and no ConverterReinitialised event is sent.
+#[test]
+fn setting_a_rate_is_not_counted_as_a_converter_reinitialisation() {
+    let mut host = Host::new();
+    let reinits = |host: &mut Host| match host.request(Command::ReadCounters) {
+        Ok(ReplyPayload::Counters(counters)) => counters.converter_reinits,
+        other => panic!("{other:?}"),
+    };
+    let before = reinits(&mut host);
+    let mut events = 0;
+    for rate_sps in [400, 400, 200, 200, 400] {
+        assert_eq!(
+            host.request(Command::SetRate { rate_sps }),
+            Ok(ReplyPayload::Ack)
+        );
+        events += host
+            .steps(10)
+            .iter()
+            .filter(|frame| {
+                matches!(
+                    frame,
+                    DeviceFrame::Event(EventFrame {
+                        event: DeviceEvent::ConverterReinitialised { .. },
+                        ..
+                    })
+                )
+            })
+            .count();
+    }
+    assert_eq!(reinits(&mut host), before);
+    assert_eq!(events, 0);
+}
+
 /// Sample sets streamed at each rate after the change.
 const SETS_PER_RATE: usize = 60;
 

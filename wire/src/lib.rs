@@ -45,7 +45,7 @@ pub use text::{
     format_csv_line, CsvLineTooLong, TextCommand, TextCommandParser, CSV_HEADER, CSV_LINE_MAX_LEN,
     TEXT_COMMAND_LINE_MAX_LEN,
 };
-pub use usb::{needs_zero_length_packet, USB_FULL_SPEED_PACKET_LEN};
+pub use usb::{needs_zero_length_packet, usb_packets, USB_FULL_SPEED_PACKET_LEN};
 
 #[cfg(feature = "std")]
 pub use frame::encode_frame_to_vec;

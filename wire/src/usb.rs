@@ -14,9 +14,33 @@ pub const fn needs_zero_length_packet(len: usize) -> bool {
     len != 0 && len.is_multiple_of(USB_FULL_SPEED_PACKET_LEN)
 }
 
+/// The USB packets of one write, in order: 64-byte packets, the last one shorter, and after an
+/// exact multiple of 64 bytes the zero-length packet that ends the transfer.
+pub fn usb_packets(bytes: &[u8]) -> impl Iterator<Item = &[u8]> {
+    let end_of_transfer: Option<&[u8]> = needs_zero_length_packet(bytes.len()).then_some(&[]);
+    bytes
+        .chunks(USB_FULL_SPEED_PACKET_LEN)
+        .chain(end_of_transfer)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_write_of_a_multiple_of_64_bytes_ends_with_a_zero_length_packet() {
+        let lengths = |len: usize| {
+            let bytes = [1u8; 200];
+            usb_packets(&bytes[..len])
+                .map(<[u8]>::len)
+                .collect::<heapless::Vec<usize, 8>>()
+        };
+        assert_eq!(lengths(63), [63]);
+        assert_eq!(lengths(64), [64, 0]);
+        assert_eq!(lengths(65), [64, 1]);
+        assert_eq!(lengths(128), [64, 64, 0]);
+        assert!(lengths(0).is_empty());
+    }
 
     #[test]
     fn zero_length_packet_only_after_full_last_packet() {
