@@ -394,6 +394,9 @@ fn a_missing_temperature_sensor_degrades_to_the_fallback_and_comes_back() {
         assert_eq!(pair[1].sequence, pair[0].sequence + 1);
     }
     assert!(acquisition.counters().temperature_errors > 0);
+    // The temperature sensor's failed transfers are its own errors, not the converter's
+    // (PROTOCOL.md 5.3: i2c_errors counts transfers to the converter).
+    assert_eq!(acquisition.counters().i2c_errors, 0);
     // The die reads 2 °C warm; the offset learned while the TMP117 worked corrects it, and every
     // set on the fallback says so.
     let offset_c = acquisition.fallback_offset_c().unwrap();

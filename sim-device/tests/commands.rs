@@ -680,3 +680,23 @@ fn baselines_are_read_back_and_every_tare_is_announced() {
     let after = baselines(&mut host);
     assert_ne!(after, boot, "a new tare gives new baselines");
 }
+
+/// A calibration has one id: every WriteCalibration replaces it, Info reports it, and
+/// ReadCalibration returns it for every taxel (PROTOCOL.md 5.1).
+#[test]
+fn the_calibration_id_is_the_last_one_written_for_every_taxel() {
+    let mut host = Host::new();
+    let mut records = calibration_records(&mut host);
+    records[0].calibration_id = 5;
+    records[1].calibration_id = 6;
+    for record in &records[..2] {
+        assert_eq!(
+            host.request(Command::WriteCalibration(record.clone())),
+            Ok(ReplyPayload::Ack)
+        );
+    }
+    assert_eq!(host.info().calibration_id, 6);
+    for record in calibration_records(&mut host) {
+        assert_eq!(record.calibration_id, 6);
+    }
+}

@@ -165,10 +165,11 @@ impl ReplyFrame {
     pub const MAX_BODY_LEN: usize = 3 + 1 + 1 + TaxelCalibrationRecord::MAX_LEN;
     /// The largest encoded frame, delimiter included (more than one USB packet).
     pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
-    /// The largest encoded frame of every reply except calibration replies with more than
-    /// [`ReplyFrame::CALIBRATION_POINTS_IN_ONE_PACKET`] points: a reply carrying an info frame.
+    /// The largest encoded frame of every reply except calibration replies: a reply carrying
+    /// a counters frame (its body, 30 bytes, is the largest of Info, Counters, ModelTier and
+    /// Baseline).
     pub const MAX_ENCODED_LEN_WITHOUT_CALIBRATION: usize =
-        crate::frame_encoded_len_bound(3 + 1 + 1 + InfoFrame::MAX_BODY_LEN);
+        crate::frame_encoded_len_bound(3 + 1 + 1 + CountersFrame::MAX_BODY_LEN);
     /// The most calibration points a calibration reply can carry and still fit one 63-byte
     /// frame in the worst case of its other fields (an unloaded capacitance included).
     pub const CALIBRATION_POINTS_IN_ONE_PACKET: usize = 4;

@@ -38,15 +38,25 @@ fn worst_case_of_every_frame_has_the_documented_length() {
     assert_eq!(reply.len(), DeviceFrame::MAX_ENCODED_LEN);
     assert_eq!(reply.len(), 155);
 
-    let info_reply = encode(&DeviceFrame::Reply(ReplyFrame {
-        request_id: u16::MAX,
-        result: Ok(ReplyPayload::Info(worst_case_info())),
-    }));
+    let reply_len = |payload: ReplyPayload| {
+        encode(&DeviceFrame::Reply(ReplyFrame {
+            request_id: u16::MAX,
+            result: Ok(payload),
+        }))
+        .len()
+    };
+    let other_replies = [
+        reply_len(ReplyPayload::Ack),
+        reply_len(ReplyPayload::Info(worst_case_info())),
+        reply_len(ReplyPayload::Counters(worst_case_counters())),
+        reply_len(ReplyPayload::ModelTier(u8::MAX)),
+        reply_len(ReplyPayload::Baseline(worst_case_baseline())),
+    ];
+    assert_eq!(other_replies[2], 41, "the counters reply is the longest");
     assert_eq!(
-        info_reply.len(),
-        ReplyFrame::MAX_ENCODED_LEN_WITHOUT_CALIBRATION
+        other_replies.iter().max(),
+        Some(&ReplyFrame::MAX_ENCODED_LEN_WITHOUT_CALIBRATION)
     );
-    assert_eq!(info_reply.len(), 39);
 
     let request = encode(&worst_case_request());
     assert_eq!(request.len(), Request::MAX_ENCODED_LEN);
@@ -69,6 +79,14 @@ fn device_frames_fit_one_short_usb_packet_except_long_calibration_replies() {
         DeviceFrame::Reply(ReplyFrame {
             request_id: u16::MAX,
             result: Ok(ReplyPayload::Info(worst_case_info())),
+        }),
+        DeviceFrame::Reply(ReplyFrame {
+            request_id: u16::MAX,
+            result: Ok(ReplyPayload::Counters(worst_case_counters())),
+        }),
+        DeviceFrame::Reply(ReplyFrame {
+            request_id: u16::MAX,
+            result: Ok(ReplyPayload::Baseline(worst_case_baseline())),
         }),
     ] {
         let len = encode(&frame).len();

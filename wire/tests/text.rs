@@ -16,7 +16,7 @@ fn csv_line_has_the_header_columns() {
     format_csv_line(&example_sample(), &mut line).unwrap();
     assert_eq!(
         line.as_str(),
-        "1234,5.000250,23.500,12.500,nan,0.000,-1.062,0,5,128,1\r\n"
+        "1234,5.000250,23.500,12.500,nan,nan,0.000,0,5,128,1\r\n"
     );
     assert_eq!(
         line.trim_end().split(',').count(),

@@ -377,6 +377,17 @@ pub fn worst_case_reply() -> ReplyFrame {
     }
 }
 
+pub fn worst_case_baseline() -> wire::TaxelBaselineWire {
+    wire::TaxelBaselineWire {
+        taxel_index: u8::MAX,
+        baseline: Some(wire::BaselineWire {
+            offset_pf: f32::MAX,
+            fine_pf: f32::MAX,
+            temperature_c: f32::MAX,
+        }),
+    }
+}
+
 pub fn worst_case_event() -> EventFrame {
     EventFrame {
         timestamp_us: u64::MAX,
@@ -451,12 +462,12 @@ pub fn example_sample() -> SampleFrame {
                 flags: wire::flags::SHORTED | wire::flags::BELOW_BASELINE,
             },
             TaxelSample {
-                pressure_kpa: Some(0.0),
+                pressure_kpa: None,
                 capacitance_pf: 4.5,
                 flags: wire::flags::NOT_TARED,
             },
             TaxelSample {
-                pressure_kpa: Some(-1.0625),
+                pressure_kpa: Some(0.0),
                 capacitance_pf: 4.25,
                 flags: wire::flags::BELOW_BASELINE,
             },
