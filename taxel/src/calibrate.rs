@@ -9,7 +9,6 @@
 //! per pressure level, and the averaged levels are the curve points.
 
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 use std::io::Read;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -530,106 +529,6 @@ pub fn cross_validate(points: &[CurvePoint]) -> Vec<TierFitError> {
         .collect()
 }
 
-fn cell(value: Option<f64>) -> String {
-    value.map_or_else(|| "n/a".to_owned(), |value| format!("{value:.4}"))
-}
-
-/// The cross-validation table, one line per taxel and tier:
-/// `taxel tier fit_max_kpa loo_max_kpa loo_rms_kpa folds`.
-pub fn cross_validation_table(results: &[Vec<TierFitError>; TAXEL_COUNT]) -> String {
-    let mut table = String::new();
-    let _ = writeln!(
-        table,
-        "{:<6} {:<21} {:>12} {:>12} {:>12} {:>6}",
-        "taxel", "tier", "fit_max_kpa", "loo_max_kpa", "loo_rms_kpa", "folds"
-    );
-    for (taxel, tiers) in results.iter().enumerate() {
-        for tier in tiers {
-            let folds = format!(
-                "{}/{}",
-                tier.leave_one_out_kpa.iter().flatten().count(),
-                tier.leave_one_out_kpa.len()
-            );
-            let _ = writeln!(
-                table,
-                "{:<6} {:<21} {:>12} {:>12} {:>12} {:>6}",
-                TAXEL_NAMES[taxel],
-                tier.tier.name(),
-                cell(tier.fit_max_kpa),
-                cell(tier.leave_one_out_max_kpa()),
-                cell(tier.leave_one_out_rms_kpa()),
-                folds
-            );
-        }
-    }
-    table
-}
-
-/// The averaged levels, one line per level: pressure, repeats and mean dC/C0 per taxel.
-pub fn levels_table(data: &ReferenceData) -> String {
-    let mut table = String::new();
-    let _ = writeln!(
-        table,
-        "{:>12} {:>7} {:>10} {:>10} {:>10} {:>10}",
-        "pressure_kpa", "repeats", "c11", "c12", "c21", "c22"
-    );
-    for level in &data.levels {
-        let _ = writeln!(
-            table,
-            "{:>12} {:>7} {:>10.6} {:>10.6} {:>10.6} {:>10.6}",
-            level.pressure_kpa,
-            level.repeats,
-            level.mean_relative_change[0],
-            level.mean_relative_change[1],
-            level.mean_relative_change[2],
-            level.mean_relative_change[3]
-        );
-    }
-    table
-}
-
-/// Per taxel and calibration interval, the rms pressure noise that the converter's 0.5 fF causes
-/// there (on the taxel's measured C0 - Cp), and one warning per interval above `budget_kpa`.
-pub fn conditioning_report(
-    calibration: &Calibration,
-    unloaded_sensor_pf: &[f64; TAXEL_COUNT],
-    budget_kpa: f32,
-) -> (String, Vec<String>) {
-    let mut table = String::new();
-    let mut warnings = Vec::new();
-    let _ = writeln!(
-        table,
-        "{:>6} {:>18} {:>14}",
-        "taxel", "interval_kpa", "noise_kpa"
-    );
-    for (taxel, (name, taxel_calibration)) in
-        TAXEL_NAMES.iter().zip(calibration.taxels()).enumerate()
-    {
-        let inverses = TaxelInverses::new(&taxel_calibration.curve);
-        let sensor_pf = unloaded_sensor_pf.get(taxel).copied().unwrap_or(f64::NAN) as f32;
-        for interval in model_core::conditioning::interval_noise(
-            inverses.monotone_cubic().forward(),
-            sensor_pf,
-            model_core::conditioning::CONVERTER_NOISE_PF,
-        ) {
-            let span = format!(
-                "{}..{}",
-                interval.pressure_low_kpa, interval.pressure_high_kpa
-            );
-            let _ = writeln!(table, "{name:>6} {span:>18} {:>14.4}", interval.noise_kpa);
-            if !(interval.noise_kpa <= budget_kpa) {
-                warnings.push(format!(
-                    "warning: taxel {name}, {span} kPa: 0.5 fF of converter noise moves the \
-                     pressure by {:.3} kPa rms, over the {budget_kpa} kPa budget (neighbouring \
-                     levels nearly equal in dC/C0: pressure is poorly determined there)",
-                    interval.noise_kpa
-                ));
-            }
-        }
-    }
-    (table, warnings)
-}
-
 /// Runs `taxel calibrate`. The calibration file is written (and uploaded) first and the
 /// report printed after, so a closed or full stdout never costs the result.
 pub fn run(args: &CalibrateArgs) -> anyhow::Result<ExitCode> {
@@ -661,7 +560,7 @@ pub fn run(args: &CalibrateArgs) -> anyhow::Result<ExitCode> {
                 calibration.id(),
                 output_path.display()
             );
-            report = fit_report(&data, &calibration, args.budget_kpa);
+            report = crate::calibrate_report::fit_report(&data, &calibration, args.budget_kpa);
             calibration
         }
         _ => bail!("give a load file and -o FILE, or --calibration FILE with --upload"),
@@ -683,42 +582,6 @@ pub fn run(args: &CalibrateArgs) -> anyhow::Result<ExitCode> {
     }
     crate::console::out(format_args!("{report}")).context("writing the report to stdout")?;
     Ok(ExitCode::SUCCESS)
-}
-
-/// The fit's report for people: levels, the tiers' cross-validated errors, conditioning.
-/// Conditioning warnings go to stderr.
-fn fit_report(data: &ReferenceData, calibration: &Calibration, budget_kpa: f32) -> String {
-    let mut text = format!(
-        "{} rows, {} levels; C0 - Cp per taxel (pF, at 25 °C): {}\n",
-        data.rows.len(),
-        data.levels.len(),
-        data.unloaded_sensor_pf
-            .iter()
-            .map(|pf| format!("{pf:.6}"))
-            .collect::<Vec<_>>()
-            .join(" ")
-    );
-    text.push_str("\nMean dC/C0 per level (the curve points):\n");
-    text.push_str(&levels_table(data));
-    let results: [Vec<TierFitError>; TAXEL_COUNT] =
-        std::array::from_fn(|taxel| cross_validate(&curve_points(data, taxel)));
-    text.push_str(
-        "\nPressure error per tier, kPa (predicted - applied): fit_max at the points with \
-         the full curve; loo = leave-one-out over the interior levels (folds = levels where \
-         the tier was available):\n",
-    );
-    text.push_str(&cross_validation_table(&results));
-    let (conditioning, warnings) =
-        conditioning_report(calibration, &data.unloaded_sensor_pf, budget_kpa);
-    text.push_str(
-        "\nConditioning: rms pressure noise from 0.5 fF of converter noise, worst point of \
-         each interval:\n",
-    );
-    text.push_str(&conditioning);
-    for warning in &warnings {
-        noteln!("{warning}");
-    }
-    text
 }
 
 #[cfg(test)]
@@ -800,7 +663,8 @@ mod tests {
         ])
         .unwrap();
         let calibration = Calibration::new(&spec).unwrap();
-        let (table, warnings) = conditioning_report(&calibration, &[4.5; 4], 0.5);
+        let (table, warnings) =
+            crate::calibrate_report::conditioning_report(&calibration, &[4.5; 4], 0.5);
         // The article's curve on c11: its first interval by hand, 0.5 fF / 4.5 pF over the
         // Fritsch-Carlson slope there (at least the 0.00738 /kPa end tangent): under 0.016 kPa.
         let first = table.lines().nth(1).unwrap();

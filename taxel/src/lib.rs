@@ -11,6 +11,7 @@
 #![deny(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod calibrate;
+pub mod calibrate_report;
 pub mod calibration_file;
 pub mod calibration_transfer;
 pub mod cli;

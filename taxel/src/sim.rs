@@ -221,16 +221,5 @@ pub fn run_demo(args: &DemoArgs) -> anyhow::Result<ExitCode> {
 
 /// The view's defaults on one port.
 fn view_args(port: String, once: bool) -> view::ViewArgs {
-    view::ViewArgs {
-        port: Some(port),
-        serial: None,
-        vid: crate::device_link::DEFAULT_VID,
-        pid: crate::device_link::DEFAULT_PID,
-        once,
-        width: 80,
-        height: 24,
-        tare_sets: 64,
-        full_scale_kpa: 50.0,
-        timeout_ms: 3000,
-    }
+    view::ViewArgs::for_port(port, once)
 }

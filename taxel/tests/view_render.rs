@@ -1,12 +1,16 @@
-//! The live view rendered into ratatui's TestBackend: kPa values, flag words, temperature and
-//! its source, frame rate and dropped frames, pause.
+//! The live view rendered into ratatui's TestBackend at the sizes people use (40x12, 80x24,
+//! 160x48): kPa values, flag words, faults, the colour scale, the time series, temperature and
+//! its source, rates with their units, honest accounting, recording and pause.
 // Helpers outside #[test] functions unwrap too: a failure there is a test failure.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod support;
 
+use std::time::Duration;
+
 use support::sample;
-use taxel::view::{render_to_string, ViewState};
+use taxel::device_link::DeviceLink;
+use taxel::view::{render_to_string, RecordingStatus, ViewState};
 use wire::{
     CalibrationSource, CountersFrame, DeviceFrame, FirmwareVersion, InfoFrame, ReplyFrame,
     ReplyPayload,
@@ -54,6 +58,188 @@ fn state_with_samples() -> ViewState {
     state
 }
 
+/// The 40x12, 80x24 and 160x48 layouts keep every taxel's pressure or fault and its flags
+/// visible, with units, and stay within the terminal.
+#[test]
+fn every_layout_keeps_pressures_faults_and_flags_visible() {
+    let state = state_with_samples();
+    for (width, height) in [(40, 12), (80, 24), (160, 48)] {
+        let text = render_to_string(&state, width, height);
+        println!("{width}x{height}:\n{text}");
+        for expected in [
+            "C11",
+            "C12",
+            "C21",
+            "C22",
+            "12.50 kPa",
+            "48.00 kPa",
+            "FAULT",
+        ] {
+            assert!(
+                text.contains(expected),
+                "{width}x{height}: '{expected}' missing in\n{text}"
+            );
+        }
+        for flag_words in ["shorted", "not tared", "over range"] {
+            assert!(
+                text.contains(flag_words),
+                "{width}x{height}: '{flag_words}' missing in\n{text}"
+            );
+        }
+        assert!(text.contains("°C"), "{width}x{height}\n{text}");
+        assert!(text.contains("sets/s"), "{width}x{height}\n{text}");
+        assert_eq!(text.lines().count(), usize::from(height));
+        assert!(text
+            .lines()
+            .all(|line| line.chars().count() <= usize::from(width)));
+    }
+    let wide = render_to_string(&state, 160, 48);
+    for words in [
+        "Device: firmware 0.3.1, protocol 1, board 000000000000000000000000",
+        "converter 200 conversions/s",
+        "= 50 sample",
+    ] {
+        assert!(wide.contains(words), "{words}\n{wide}");
+    }
+    let normal = render_to_string(&state, 80, 24);
+    for text in [&wide, &normal] {
+        assert!(text.contains("pressure (kPa), last 10 s"), "{text}");
+        assert!(text.contains("scale (kPa): 0"), "{text}");
+        assert!(text.contains("-10 s") && text.contains("now"), "{text}");
+    }
+    // Wide: the time series beside the heat map, not below it.
+    let row_of = |text: &str, needle: &str| text.lines().position(|line| line.contains(needle));
+    assert!(row_of(&wide, "pressure (kPa)") < row_of(&wide, " C21 "));
+    assert!(row_of(&normal, "pressure (kPa)") > row_of(&normal, " C21 "));
+}
+
+#[test]
+fn a_terminal_too_small_gets_a_notice() {
+    let text = render_to_string(&state_with_samples(), 30, 8);
+    assert!(
+        text.contains("terminal too small") && text.contains("40x12") && text.contains("30x8"),
+        "{text}"
+    );
+}
+
+#[test]
+fn the_time_series_shows_the_last_seconds_with_faults_as_gaps() {
+    let mut state = ViewState::new("series");
+    state.connected_to("series");
+    state.history_s = 2.0;
+    for index in 0..400u32 {
+        let pressure_kpa = (index % 50) as f32;
+        let c12 = if (100..200).contains(&index) {
+            None
+        } else {
+            Some(5.0)
+        };
+        state.apply_frame(&DeviceFrame::Sample(sample(
+            index,
+            u64::from(index) * 10_000,
+            [
+                (Some(pressure_kpa), 4.6, 0),
+                (c12, 4.6, if c12.is_none() { 0x0004 } else { 0 }),
+                (Some(0.0), 4.5, 0),
+                (Some(0.0), 4.5, 0),
+            ],
+        )));
+    }
+    let c11 = state.history_of(0);
+    assert_eq!(c11.len(), 201, "2 s of 10 ms sets, both ends included");
+    assert_eq!(c11.last().map(|point| point.0), Some(0.0));
+    assert!(c11.iter().all(|(age_s, _)| (-2.0..=0.0).contains(age_s)));
+    // C12 was faulted from set 100 to 199: none of those are in its series.
+    let c12 = state.history_of(1);
+    assert!(c12.iter().all(|(_, pressure_kpa)| *pressure_kpa == 5.0));
+}
+
+#[test]
+fn the_recording_shows_in_the_status_line() {
+    let mut state = state_with_samples();
+    state.recording = Some(RecordingStatus {
+        file: "taxel-20261123-231125.csv".to_owned(),
+        samples: 1988,
+        markers: 2,
+    });
+    for (width, height) in [(40, 12), (80, 24), (160, 48)] {
+        let text = render_to_string(&state, width, height);
+        assert!(text.contains("● REC"), "{width}x{height}\n{text}");
+    }
+    assert!(render_to_string(&state, 160, 48)
+        .contains("● REC taxel-20261123-231125.csv (1988 samples, 2 markers)"));
+}
+
+/// Counters are the device's since its boot: the view shows the growth since the connection,
+/// never the absolute count; gaps the device's drops explain are not link loss.
+#[test]
+fn device_drops_are_deltas_since_the_connection() {
+    let mut state = ViewState::new("counters");
+    state.connected_to("counters");
+    let counters = |dropped| {
+        DeviceFrame::Counters(CountersFrame {
+            frames_dropped_no_host: dropped,
+            ..CountersFrame::default()
+        })
+    };
+    state.apply_frame(&counters(91_843));
+    state.apply_frame(&DeviceFrame::Sample(sample(
+        1,
+        10_000,
+        [(Some(1.0), 4.6, 0); 4],
+    )));
+    state.apply_frame(&DeviceFrame::Sample(sample(
+        5,
+        50_000,
+        [(Some(1.0), 4.6, 0); 4],
+    )));
+    state.apply_frame(&counters(91_846));
+    let text = render_to_string(&state, 160, 48);
+    assert!(
+        text.contains("2 received, 0 lost on the link, 3 dropped by the device"),
+        "{text}"
+    );
+    assert!(!text.contains("91843") && !text.contains("91846"), "{text}");
+}
+
+/// A device that streamed before the connection leaves stale frames in the port: the view's
+/// connection discards everything before the Info reply, and counts it.
+#[test]
+fn stale_frames_at_connection_are_discarded() {
+    let mut device = support::FakeDevice::new(Box::new(|request| match request.command {
+        wire::Command::Info => vec![
+            DeviceFrame::Reply(ReplyFrame {
+                request_id: request.request_id,
+                result: Ok(ReplyPayload::Info(info())),
+            }),
+            DeviceFrame::Sample(sample(1218, 12_180_000, [(Some(1.0), 4.6, 0); 4])),
+        ],
+        _ => Vec::new(),
+    }));
+    for sequence in 0..50 {
+        device.send(&DeviceFrame::Sample(sample(
+            sequence,
+            u64::from(sequence) * 10_000,
+            [(Some(9.0), 4.6, 0); 4],
+        )));
+    }
+    let port = device;
+    let mut link = DeviceLink::new(port);
+    let (device_info, stale) = link.synchronise(Duration::from_millis(500)).unwrap();
+    assert_eq!(device_info, info());
+    assert_eq!(stale, 50);
+    let mut state = ViewState::new("stale");
+    state.connected_to("stale");
+    state.accounting.stale_discarded(stale);
+    while let Ok(Some(frame)) = link.next_frame() {
+        state.apply_frame(&frame);
+    }
+    assert_eq!(state.sample.map(|sample| sample.sequence), Some(1218));
+    assert_eq!(state.accounting.received(), 1);
+    assert_eq!(state.accounting.lost_on_link(), 0);
+    assert!(render_to_string(&state, 160, 48).contains("50 stale discarded"));
+}
+
 #[test]
 fn snapshot_shows_pressures_flags_temperature_and_rates() {
     let state = state_with_samples();
@@ -70,10 +256,13 @@ fn snapshot_shows_pressures_flags_temperature_and_rates() {
         "48.00 kPa",
         "over range",
         "Temperature: 23.50 °C (TMP117)",
-        "Frames: 133.3/s, 3 received, 3 dropped (gaps 1, device 2), 0 bad",
-        "Device: firmware 0.3.1, calibration 7 (Flash), tier monotone-cubic, 200/s",
+        "Samples: 133.3 sets/s",
+        "3 received, 1 lost on the link, 0 dropped by the device, 0 bad frames",
+        "Device: fw 0.3.1, cal. 7 (from flash), monotone-cubic, 200 conversions/s",
         "connected",
-        "keys: t tare   p pause   q quit",
+        "scale (kPa): 0",
+        "pressure (kPa), last 10 s",
+        "keys: t tare  p pause  r record  m marker  q quit",
     ] {
         assert!(text.contains(expected), "'{expected}' missing in\n{text}");
     }
@@ -119,7 +308,7 @@ fn pause_freezes_the_display_but_keeps_counting() {
     assert!(text.contains("12.50 kPa"));
     assert!(!text.contains("33.00 kPa"));
     assert!(text.contains("PAUSED"));
-    assert!(text.contains("4 received"));
+    assert!(text.contains("4 received,"));
     state.paused = false;
     state.apply_frame(&DeviceFrame::Sample(sample(
         15,
@@ -143,7 +332,11 @@ fn disconnection_is_shown_and_a_reconnect_restarts_sequence_tracking() {
         10,
         [(Some(1.0), 4.6, 0); 4],
     )));
-    assert_eq!(state.sequence_gap_samples, 1);
+    assert_eq!(
+        state.accounting.sequence_gap_sets(),
+        0,
+        "a new connection counts afresh"
+    );
     assert!(render_to_string(&state, 100, 30).contains("/dev/ttyACM1"));
 }
 
@@ -153,5 +346,6 @@ fn an_empty_view_renders_without_data() {
     let text = render_to_string(&state, 80, 24);
     assert!(text.contains("no data"));
     assert!(text.contains("Temperature: -"));
-    assert!(text.contains("Frames: -/s, 0 received"));
+    assert!(text.contains("Samples: - sets/s"));
+    assert!(text.contains("0 received, 0 lost on the link"));
 }

@@ -1,0 +1,711 @@
+//! `taxel view`: a live terminal view of the pad. The 2x2 taxels as a heat map with kPa, a
+//! colour scale, each taxel's pressure over the last seconds, flags in words, the temperature
+//! and its source, the sample-set rate and where every set went; keys t (tare), p (pause),
+//! r (record), m (marker), q (quit). It survives unplug and replug by looking for the board
+//! again by serial number.
+//!
+//! [`ViewState`] holds what is shown and [`draw`] renders it in the layout the terminal allows;
+//! [`render_to_string`] renders one frame into ratatui's `TestBackend`, which is how the view
+//! is tested and how `--once` prints a text snapshot.
+
+mod draw;
+mod state;
+
+pub use draw::{
+    draw, heat_colour, taxel_flag_words, KEYS_LINE, MIN_HEIGHT, MIN_WIDTH, WIDE_HEIGHT, WIDE_WIDTH,
+};
+pub use state::{RecordingStatus, ViewState};
+
+use std::collections::HashMap;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use anyhow::Context;
+use model_core::{BaselineRecord, TAXEL_COUNT};
+use ratatui::backend::TestBackend;
+use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
+use ratatui::layout::Rect;
+use ratatui::Terminal;
+use wire::{Command, DeviceEvent, DeviceFrame};
+
+use crate::calibration_transfer::pull_baselines;
+use crate::device_link::{self, attached_boards, choose_board, DeviceLink, LinkError};
+use crate::record::parse_hex_u16;
+use crate::recording::{read_device_state, BaselineChange, Recording, SampleSink};
+
+/// Samples `--once` collects (for a rate) before it prints, unless its timeout ends first.
+const SNAPSHOT_SAMPLES: u64 = 20;
+
+/// How long a request made from the view (device state, baselines) may wait for its reply.
+const VIEW_REQUEST_TIMEOUT: Duration = Duration::from_millis(1000);
+
+/// The long help of the subcommand.
+pub const LONG_ABOUT: &str = "Live terminal view of the pad: the 2x2 taxels as a heat map \
+with kPa and flags in words, a colour scale with its kPa range, each taxel's pressure over the \
+last seconds (faulted samples are gaps), the temperature and its source, and the rates with \
+their units: sample sets per second as received, and the converter's conversions per second \
+(four conversions make one set).\n\n\
+Sample sets are accounted for the connection: received, lost on the link (sequence gaps the \
+device's counters do not explain) and dropped by the device (its counters since the \
+connection). Frames waiting in the port from before the connection are discarded.\n\n\
+Keys: t = tare (keep the pad unloaded), p = pause (freeze the display), r = start/stop \
+recording to a file (taxel-YYYYMMDD-HHMMSS.csv in --record-dir, with its .device.json, as \
+`taxel record` writes), m = drop a marker into the recording, q = quit (a recording in progress \
+is finished).\n\n\
+Layouts: heat map and time series side by side from 120x32, stacked from 80x24, one line per \
+taxel from 40x12 (flags and faults stay visible); smaller terminals get a notice.\n\n\
+Unplugging is survived: the view waits for the board to come back (found again by its serial \
+number) and resumes.\n\n--once prints a single text snapshot and exits.\n\n\
+Examples:\n  taxel view /dev/ttyACM0\n  taxel view --once --width 80 --height 24 /dev/ttyACM0";
+
+/// Arguments of `taxel view`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ViewArgs {
+    /// Serial port of the device (default: the only attached board, or --serial).
+    #[arg(value_name = "PORT")]
+    pub port: Option<String>,
+    /// Choose the attached board with this USB serial number.
+    #[arg(long, value_name = "SN")]
+    pub serial: Option<String>,
+    /// USB vendor id of the board, for finding it.
+    #[arg(long, value_name = "VID", default_value = "0x1209", value_parser = parse_hex_u16)]
+    pub vid: u16,
+    /// USB product id of the board, for finding it.
+    #[arg(long, value_name = "PID", default_value = "0x0001", value_parser = parse_hex_u16)]
+    pub pid: u16,
+    /// Print one snapshot of the view as text and exit.
+    #[arg(long)]
+    pub once: bool,
+    /// Snapshot width in columns (--once).
+    #[arg(long, value_name = "COLUMNS", default_value_t = 80)]
+    pub width: u16,
+    /// Snapshot height in rows (--once).
+    #[arg(long, value_name = "ROWS", default_value_t = 24)]
+    pub height: u16,
+    /// Sample sets averaged by the tare key.
+    #[arg(long, value_name = "N", default_value_t = 64)]
+    pub tare_sets: u16,
+    /// Pressure shown as the hottest colour and the top of the time series, kPa.
+    #[arg(long, value_name = "KPA", default_value_t = 50.0)]
+    pub full_scale_kpa: f32,
+    /// Seconds of history in the time series.
+    #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
+    pub history_s: f64,
+    /// Directory the record key writes recordings to.
+    #[arg(long, value_name = "DIR", default_value = ".")]
+    pub record_dir: PathBuf,
+    /// How long --once waits for samples, ms.
+    #[arg(long, value_name = "MS", default_value_t = 3000)]
+    pub timeout_ms: u64,
+}
+
+impl ViewArgs {
+    /// The defaults on one port (what `taxel view PORT` gets).
+    pub fn for_port(port: String, once: bool) -> Self {
+        Self {
+            port: Some(port),
+            serial: None,
+            vid: device_link::DEFAULT_VID,
+            pid: device_link::DEFAULT_PID,
+            once,
+            width: 80,
+            height: 24,
+            tare_sets: 64,
+            full_scale_kpa: 50.0,
+            history_s: 10.0,
+            record_dir: PathBuf::from("."),
+            timeout_ms: 3000,
+        }
+    }
+}
+
+fn area_text(backend: &TestBackend) -> String {
+    let buffer = backend.buffer();
+    let area: Rect = buffer.area;
+    let mut text = String::new();
+    for y in area.top()..area.bottom() {
+        let mut line = String::new();
+        for x in area.left()..area.right() {
+            if let Some(cell) = buffer.cell((x, y)) {
+                line.push_str(cell.symbol());
+            }
+        }
+        text.push_str(line.trim_end());
+        text.push('\n');
+    }
+    text
+}
+
+/// Renders one frame of the view into a `width` x `height` text (what a terminal would show,
+/// without colours).
+pub fn render_to_string(state: &ViewState, width: u16, height: u16) -> String {
+    // The test backend cannot fail.
+    let Ok(mut terminal) = Terminal::new(TestBackend::new(width, height));
+    let Ok(_) = terminal.draw(|frame| draw(frame, state));
+    area_text(terminal.backend())
+}
+
+/// How to find the board again after an unplug.
+#[derive(Debug, Clone)]
+struct BoardTarget {
+    path: Option<String>,
+    serial_number: Option<String>,
+    vid: u16,
+    pid: u16,
+}
+
+impl BoardTarget {
+    fn new(args: &ViewArgs) -> Self {
+        let mut target = Self {
+            path: args.port.clone(),
+            serial_number: args.serial.clone(),
+            vid: args.vid,
+            pid: args.pid,
+        };
+        if target.serial_number.is_none() {
+            if let Some(path) = &target.path {
+                // Knowing the serial number lets a replugged board be found under a new name.
+                target.serial_number = attached_boards(args.vid, args.pid)
+                    .ok()
+                    .and_then(|boards| boards.into_iter().find(|board| &board.port_name == path))
+                    .and_then(|board| board.serial_number);
+            }
+        }
+        target
+    }
+
+    fn describe(&self) -> String {
+        match (&self.serial_number, &self.path) {
+            (Some(serial), _) => format!("board {serial}"),
+            (None, Some(path)) => path.clone(),
+            (None, None) => format!("a board {:04x}:{:04x}", self.vid, self.pid),
+        }
+    }
+
+    fn find(&mut self) -> Result<String, LinkError> {
+        if self.serial_number.is_some() || self.path.is_none() {
+            let boards = attached_boards(self.vid, self.pid)?;
+            match choose_board(&boards, self.serial_number.as_deref(), self.vid, self.pid) {
+                Ok(board) => {
+                    if self.serial_number.is_none() {
+                        self.serial_number = board.serial_number.clone();
+                    }
+                    return Ok(board.port_name);
+                }
+                Err(error) if self.path.is_none() => return Err(error),
+                Err(_) => {}
+            }
+        }
+        match &self.path {
+            Some(path) => {
+                device_link::check_is_serial_port(path)?;
+                Ok(path.clone())
+            }
+            None => Err(LinkError::NoBoard {
+                vid: self.vid,
+                pid: self.pid,
+            }),
+        }
+    }
+}
+
+type SerialLink = DeviceLink<Box<dyn serialport::SerialPort>>;
+
+/// An open link that knows the device and has asked it to stream, with the request id of the
+/// StartStreaming whose reply the loop waits for.
+struct Connection {
+    link: SerialLink,
+    start_request_id: u16,
+}
+
+/// Opens the port, discards what waited in it from before (stale samples), learns the device's
+/// identity and counters (the accounting's origin) and starts the stream.
+fn connect(
+    target: &mut BoardTarget,
+    read_timeout: Duration,
+    state: &mut ViewState,
+) -> anyhow::Result<Connection> {
+    let path = target.find()?;
+    // A pseudo-terminal has no DTR line; a real board that misses it shows up as silence.
+    let port = device_link::open_serial(&path, read_timeout)?.port;
+    let mut link = DeviceLink::new(port);
+    let (info, stale) = link
+        .synchronise(VIEW_REQUEST_TIMEOUT)
+        .with_context(|| format!("asking the device on {path} who it is"))?;
+    state.connected_to(format!("{path} ({})", target.describe()));
+    state.info = Some(info);
+    state.accounting.stale_discarded(stale);
+    link.send(Command::ReadCounters)?;
+    let start_request_id = link.send(Command::StartStreaming)?;
+    Ok(Connection {
+        link,
+        start_request_id,
+    })
+}
+
+/// What the loop sent and is waiting to hear about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Pending {
+    Tare,
+    StartStreaming,
+}
+
+fn handle_frame(state: &mut ViewState, pending: &mut HashMap<u16, Pending>, frame: &DeviceFrame) {
+    if let DeviceFrame::Reply(reply) = frame {
+        match (pending.remove(&reply.request_id), &reply.result) {
+            (Some(Pending::Tare), Ok(_)) => state.status = "tare done".to_owned(),
+            (Some(Pending::Tare), Err(code)) => state.status = format!("tare refused: {code:?}"),
+            (Some(Pending::StartStreaming), Err(code)) => {
+                state.status = format!("start streaming refused: {code:?}")
+            }
+            _ => {}
+        }
+    }
+    state.apply_frame(frame);
+}
+
+/// A recording started from the view.
+struct ViewRecording {
+    recording: Recording,
+    csv_path: PathBuf,
+    /// Baselines read after a TareFinished event, for the first sample that uses them.
+    new_baselines: Option<[Option<BaselineRecord>; TAXEL_COUNT]>,
+}
+
+/// The file name of a recording started now: taxel-YYYYMMDD-HHMMSS.csv (UTC).
+pub fn recording_file_name(since_epoch: Duration) -> String {
+    let seconds = since_epoch.as_secs();
+    let (days, second_of_day) = (seconds / 86_400, seconds % 86_400);
+    // Civil date from days since 1970-01-01 (Howard Hinnant's algorithm).
+    let z = days as i64 + 719_468;
+    let era = z.div_euclid(146_097);
+    let day_of_era = z.rem_euclid(146_097);
+    let year_of_era =
+        (day_of_era - day_of_era / 1460 + day_of_era / 36_524 - day_of_era / 146_096) / 365;
+    let day_of_year = day_of_era - (365 * year_of_era + year_of_era / 4 - year_of_era / 100);
+    let month_index = (5 * day_of_year + 2) / 153;
+    let day = day_of_year - (153 * month_index + 2) / 5 + 1;
+    let month = if month_index < 10 {
+        month_index + 3
+    } else {
+        month_index - 9
+    };
+    let year = year_of_era + era * 400 + i64::from(month <= 2);
+    format!(
+        "taxel-{year:04}{month:02}{day:02}-{:02}{:02}{:02}.csv",
+        second_of_day / 3600,
+        second_of_day / 60 % 60,
+        second_of_day % 60
+    )
+}
+
+fn start_recording<P: Read + Write>(
+    directory: &Path,
+    link: &mut DeviceLink<P>,
+    state: &mut ViewState,
+) -> anyhow::Result<ViewRecording> {
+    let since_epoch = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap_or_default();
+    let csv_path = directory.join(recording_file_name(since_epoch));
+    if csv_path.exists() {
+        anyhow::bail!(
+            "{} exists already; try again in a second",
+            csv_path.display()
+        );
+    }
+    let (mut recording, _) = Recording::create(&csv_path, None)?;
+    match state.info {
+        Some(info) => match read_device_state(link, &info, VIEW_REQUEST_TIMEOUT) {
+            Ok(device_state) => recording.set_device_state(device_state),
+            Err(error) => {
+                state.status = format!(
+                    "recording without the device's state ({})",
+                    crate::console::error_message(&error)
+                )
+            }
+        },
+        None => state.status = "recording without the device's state (no Info yet)".to_owned(),
+    }
+    state.recording = Some(RecordingStatus {
+        file: csv_path.display().to_string(),
+        samples: 0,
+        markers: 0,
+    });
+    Ok(ViewRecording {
+        recording,
+        csv_path,
+        new_baselines: None,
+    })
+}
+
+fn finish_recording(recording: ViewRecording, state: &mut ViewState) {
+    let path = recording.csv_path.display().to_string();
+    state.recording = None;
+    state.status = match recording.recording.finish(None) {
+        Ok(files) => format!(
+            "saved {path} ({} samples, {} markers)",
+            files.samples, files.markers
+        ),
+        Err(error) => format!(
+            "recording {path} failed: {}",
+            crate::console::error_message(&error)
+        ),
+    };
+}
+
+/// Feeds one frame to a recording in progress; an error stops it, keeping what it has.
+fn record_frame<P: Read + Write>(
+    active: &mut Option<ViewRecording>,
+    link: &mut DeviceLink<P>,
+    frame: &DeviceFrame,
+    state: &mut ViewState,
+) {
+    let Some(recording) = active.as_mut() else {
+        return;
+    };
+    let result = match frame {
+        DeviceFrame::Sample(sample) => {
+            if let Some(taxels) = recording.new_baselines.take() {
+                recording.recording.baselines_changed(BaselineChange {
+                    from_sequence: sample.sequence,
+                    taxels,
+                });
+            }
+            recording.recording.write_sample(sample)
+        }
+        DeviceFrame::Event(event) if matches!(event.event, DeviceEvent::TareFinished { .. }) => {
+            match pull_baselines(link, VIEW_REQUEST_TIMEOUT) {
+                Ok(taxels) => recording.new_baselines = Some(taxels),
+                Err(error) => {
+                    state.status = format!(
+                        "new baselines not recorded: {}",
+                        crate::console::error_message(&error)
+                    )
+                }
+            }
+            Ok(())
+        }
+        _ => Ok(()),
+    };
+    if let (Some(status), Some(recording)) = (state.recording.as_mut(), active.as_ref()) {
+        status.samples = recording.recording.samples();
+    }
+    if let Err(error) = result {
+        if let Some(failed) = active.take() {
+            let kept = failed.recording.abandon(None);
+            state.recording = None;
+            state.status = format!(
+                "recording stopped: {}; kept {}",
+                crate::console::error_message(&error),
+                kept.iter()
+                    .map(|path| path.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+    }
+}
+
+fn live_loop<B: ratatui::backend::Backend>(
+    terminal: &mut Terminal<B>,
+    args: &ViewArgs,
+) -> anyhow::Result<()>
+where
+    B::Error: std::error::Error + Send + Sync + 'static,
+{
+    let mut target = BoardTarget::new(args);
+    let mut state = ViewState::new(target.describe());
+    state.full_scale_kpa = args.full_scale_kpa;
+    state.history_s = args.history_s;
+    let mut link: Option<SerialLink> = None;
+    let mut pending: HashMap<u16, Pending> = HashMap::new();
+    let mut recording: Option<ViewRecording> = None;
+    let mut next_attempt = Instant::now();
+    let mut retry = true;
+    let mut last_counters_request = Instant::now();
+    loop {
+        if link.is_none() && retry && Instant::now() >= next_attempt {
+            match connect(&mut target, Duration::from_millis(20), &mut state) {
+                Ok(connection) => {
+                    pending.clear();
+                    pending.insert(connection.start_request_id, Pending::StartStreaming);
+                    link = Some(connection.link);
+                }
+                Err(error) => {
+                    let not_a_port = matches!(
+                        error.downcast_ref::<LinkError>(),
+                        Some(LinkError::NotSerialPort { .. })
+                    );
+                    let message = crate::console::error_message(&error);
+                    if not_a_port {
+                        // Waiting cannot turn a file into a port: say so once and stop trying.
+                        retry = false;
+                        state.connection_lost(format!("{message}; press q to quit"));
+                    } else {
+                        state.connection_lost(format!(
+                            "waiting for {} ({message})",
+                            target.describe()
+                        ));
+                    }
+                    next_attempt = Instant::now() + Duration::from_millis(500);
+                }
+            }
+        }
+        if let Some(active) = link.as_mut() {
+            let started = Instant::now();
+            let mut lost = None;
+            while started.elapsed() < Duration::from_millis(30) {
+                match active.next_frame() {
+                    Ok(Some(frame)) => {
+                        handle_frame(&mut state, &mut pending, &frame);
+                        record_frame(&mut recording, active, &frame, &mut state);
+                    }
+                    Ok(None) => break,
+                    Err(error) => {
+                        lost = Some(error);
+                        break;
+                    }
+                }
+            }
+            state.frames_rejected = active.statistics().frames_rejected;
+            if lost.is_none() && last_counters_request.elapsed() >= Duration::from_secs(1) {
+                last_counters_request = Instant::now();
+                if let Err(error) = active.send(Command::ReadCounters) {
+                    lost = Some(error);
+                }
+            }
+            if let Some(error) = lost {
+                if let Some(finished) = recording.take() {
+                    finish_recording(finished, &mut state);
+                }
+                state.connection_lost(format!(
+                    "connection lost ({error}); waiting for {}",
+                    target.describe()
+                ));
+                link = None;
+                next_attempt = Instant::now() + Duration::from_millis(200);
+            }
+        }
+        terminal.draw(|frame| draw(frame, &state))?;
+        let wait = if link.is_some() {
+            Duration::ZERO
+        } else {
+            Duration::from_millis(50)
+        };
+        if !event::poll(wait)? {
+            continue;
+        }
+        let Event::Key(key) = event::read()? else {
+            continue;
+        };
+        if key.kind != KeyEventKind::Press {
+            continue;
+        }
+        match key.code {
+            KeyCode::Char('q') | KeyCode::Esc => break,
+            KeyCode::Char('c') if key.modifiers.contains(KeyModifiers::CONTROL) => break,
+            KeyCode::Char('p') => state.paused = !state.paused,
+            KeyCode::Char('t') => match link.as_mut() {
+                Some(active) => match active.send(Command::Tare {
+                    sample_sets: args.tare_sets,
+                }) {
+                    Ok(request_id) => {
+                        pending.insert(request_id, Pending::Tare);
+                        state.status = format!(
+                            "tare running over {} sample sets: keep the pad unloaded",
+                            args.tare_sets
+                        );
+                    }
+                    Err(error) => state.status = format!("tare not sent: {error}"),
+                },
+                None => state.status = "tare needs a connected device".to_owned(),
+            },
+            KeyCode::Char('r') => match (recording.take(), link.as_mut()) {
+                (Some(finished), _) => finish_recording(finished, &mut state),
+                (None, Some(active)) => {
+                    match start_recording(&args.record_dir, active, &mut state) {
+                        Ok(started) => recording = Some(started),
+                        Err(error) => {
+                            state.status =
+                                format!("cannot record: {}", crate::console::error_message(&error))
+                        }
+                    }
+                }
+                (None, None) => state.status = "recording needs a connected device".to_owned(),
+            },
+            KeyCode::Char('m') => match (recording.as_mut(), state.recording.as_mut()) {
+                (Some(active), Some(status)) => {
+                    status.markers += 1;
+                    let label = format!("marker {}", status.markers);
+                    active.recording.mark(&label);
+                    state.status = format!("{label} dropped");
+                }
+                _ => state.status = "markers go into a recording: press r first".to_owned(),
+            },
+            _ => {}
+        }
+    }
+    if let Some(finished) = recording.take() {
+        finish_recording(finished, &mut state);
+    }
+    Ok(())
+}
+
+/// Reads from an open link until `samples_wanted` samples arrived (or `timeout`; the first
+/// sample is enough then) and returns the view state.
+pub fn snapshot_state<P: Read + Write>(
+    link: &mut DeviceLink<P>,
+    state: &mut ViewState,
+    samples_wanted: u64,
+    timeout: Duration,
+) {
+    let deadline = Instant::now() + timeout;
+    while state.accounting.received() < samples_wanted && Instant::now() < deadline {
+        match link.next_frame() {
+            Ok(Some(frame)) => state.apply_frame(&frame),
+            Ok(None) => {}
+            Err(error) => {
+                state.connection_lost(format!("connection lost ({error})"));
+                break;
+            }
+        }
+    }
+    state.frames_rejected = link.statistics().frames_rejected;
+    if state.sample.is_none() && state.connected {
+        state.status = format!("no sample within {} ms", timeout.as_millis());
+    }
+}
+
+/// Runs `taxel view`.
+pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
+    if args.once {
+        let mut target = BoardTarget::new(args);
+        let mut state = ViewState::new(target.describe());
+        state.full_scale_kpa = args.full_scale_kpa;
+        state.history_s = args.history_s;
+        let Connection { mut link, .. } =
+            connect(&mut target, Duration::from_millis(50), &mut state)?;
+        snapshot_state(
+            &mut link,
+            &mut state,
+            SNAPSHOT_SAMPLES,
+            Duration::from_millis(args.timeout_ms),
+        );
+        let _ = link.send(Command::StopStreaming);
+        let text = render_to_string(&state, args.width, args.height);
+        crate::console::out(format_args!("{text}")).context("writing the snapshot")?;
+        return Ok(if state.sample.is_some() {
+            ExitCode::SUCCESS
+        } else {
+            ExitCode::FAILURE
+        });
+    }
+    let mut terminal = ratatui::try_init()?;
+    let result = live_loop(&mut terminal, args);
+    ratatui::restore();
+    result.map(|()| ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ratatui::style::Color;
+    use wire::ReplyPayload;
+
+    #[test]
+    fn tare_replies_are_matched_by_request_id() {
+        let mut state = ViewState::new("test");
+        let mut pending = HashMap::from([(5, Pending::Tare), (6, Pending::Tare)]);
+        let reply =
+            |request_id, result| DeviceFrame::Reply(wire::ReplyFrame { request_id, result });
+        handle_frame(&mut state, &mut pending, &reply(9, Ok(ReplyPayload::Ack)));
+        assert_eq!(
+            state.status, "connecting",
+            "a reply nobody waits for changes nothing"
+        );
+        handle_frame(&mut state, &mut pending, &reply(5, Ok(ReplyPayload::Ack)));
+        assert_eq!(state.status, "tare done");
+        handle_frame(
+            &mut state,
+            &mut pending,
+            &reply(6, Err(wire::ErrorCode::Busy)),
+        );
+        assert_eq!(state.status, "tare refused: Busy");
+        assert!(pending.is_empty());
+    }
+
+    #[test]
+    fn heat_colour_runs_from_cold_to_hot_and_clamps() {
+        assert_eq!(heat_colour(0.0, 50.0), Color::Rgb(20, 40, 110));
+        assert_eq!(heat_colour(50.0, 50.0), Color::Rgb(210, 30, 30));
+        assert_eq!(heat_colour(500.0, 50.0), heat_colour(50.0, 50.0));
+        assert_eq!(heat_colour(-5.0, 50.0), heat_colour(0.0, 50.0));
+    }
+
+    #[test]
+    fn the_record_and_marker_keys_write_a_recording_with_markers() {
+        let directory = tempfile::tempdir().unwrap();
+        let mut link = DeviceLink::new(std::io::Cursor::new(Vec::new()));
+        let mut state = ViewState::new("test");
+        let mut active = Some(start_recording(directory.path(), &mut link, &mut state).unwrap());
+        let sample = |sequence| {
+            DeviceFrame::Sample(wire::SampleFrame {
+                sequence,
+                timestamp_us: u64::from(sequence) * 10_000,
+                temperature_c: Some(25.0),
+                temperature_source: wire::TemperatureSource::Tmp117,
+                taxels: [wire::TaxelSample {
+                    pressure_kpa: Some(1.5),
+                    capacitance_pf: 4.6,
+                    flags: 0,
+                }; 4],
+            })
+        };
+        record_frame(&mut active, &mut link, &sample(1), &mut state);
+        if let Some(recording) = active.as_mut() {
+            recording.recording.mark("marker 1");
+        }
+        record_frame(&mut active, &mut link, &sample(2), &mut state);
+        record_frame(&mut active, &mut link, &sample(3), &mut state);
+        assert_eq!(
+            state.recording.as_ref().map(|status| status.samples),
+            Some(3)
+        );
+        let path = active.as_ref().unwrap().csv_path.clone();
+        assert!(
+            !path.exists(),
+            "the file gets its name when the recording stops"
+        );
+        finish_recording(active.take().unwrap(), &mut state);
+        assert!(state.recording.is_none());
+        assert!(state.status.starts_with("saved "), "{}", state.status);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 4);
+        assert!(lines[0].ends_with(",marker"));
+        assert!(lines[1].ends_with(','));
+        assert!(lines[2].ends_with(",marker 1"), "{text}");
+        assert!(lines[3].ends_with(','));
+    }
+
+    #[test]
+    fn recording_names_are_utc_date_and_time() {
+        // 2026-11-23 23:11:25 UTC.
+        assert_eq!(
+            recording_file_name(Duration::from_secs(1_795_475_485)),
+            "taxel-20261123-231125.csv"
+        );
+        assert_eq!(
+            recording_file_name(Duration::ZERO),
+            "taxel-19700101-000000.csv"
+        );
+        // A leap day.
+        assert_eq!(
+            recording_file_name(Duration::from_secs(951_782_400)),
+            "taxel-20000229-000000.csv"
+        );
+    }
+}
