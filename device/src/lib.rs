@@ -308,10 +308,20 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 Outgoing::Frame(DeviceFrame::Reply(ReplyFrame { request_id, result })),
             );
         }
+        if self.streaming {
+            let frame = sample_frame(sample, self.control.pad());
+            let outgoing = if self.text_mode {
+                Outgoing::CsvLine(frame)
+            } else {
+                Outgoing::Frame(DeviceFrame::Sample(frame))
+            };
+            self.send(host, outgoing);
+        }
         let baselines = self.control.pad().baseline_records();
         if baselines != self.announced_baselines {
             // Whatever changed them (a tare at boot or on command, a restore after a reset), a
-            // recording host learns it before the first sample computed with them.
+            // recording host learns it after this cycle's sample (computed before the change)
+            // and before the first sample computed with them.
             self.announced_baselines = baselines;
             let tared_mask = (0u8..)
                 .zip(&baselines)
@@ -322,15 +332,6 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 sample.timestamp_us,
                 DeviceEvent::TareFinished { tared_mask },
             );
-        }
-        if self.streaming {
-            let frame = sample_frame(sample, self.control.pad());
-            let outgoing = if self.text_mode {
-                Outgoing::CsvLine(frame)
-            } else {
-                Outgoing::Frame(DeviceFrame::Sample(frame))
-            };
-            self.send(host, outgoing);
         }
         self.sets_since_counters = self.sets_since_counters.wrapping_add(1);
         if self.config.counters_every_sets != 0

@@ -11,14 +11,13 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use wire::{Command, DeviceEvent, DeviceFrame, ReplyPayload};
+use wire::{Command, DeviceFrame, ReplyPayload};
 
-use crate::calibration_transfer::pull_baselines;
 use crate::device_link::{self, DeviceLink, LinkError};
 use crate::device_words::{counters_words, event_words, info_words};
 use crate::noteln;
 use crate::recording::{
-    default_raw_path, read_device_state, BaselineChange, Recording, SampleSink,
+    default_raw_path, read_device_state, BaselineFollower, Recording, SampleSink,
 };
 use crate::stream_accounting::StreamAccounting;
 
@@ -177,9 +176,7 @@ fn record_until_stopped<P: Read + Write, S: SampleSink + ?Sized>(
 ) -> anyhow::Result<StopReason> {
     let mut last_flush = Instant::now();
     let received_before = accounting.received();
-    // Baselines read after a TareFinished event, waiting for the first sample that uses them.
-    let mut new_baselines: Option<[Option<model_core::BaselineRecord>; model_core::TAXEL_COUNT]> =
-        None;
+    let mut baselines = BaselineFollower::default();
     // The device repeats these unsolicited; only changes are worth a line.
     let mut last_info = None;
     let baseline_timeout = Duration::from_millis(1000);
@@ -192,12 +189,7 @@ fn record_until_stopped<P: Read + Write, S: SampleSink + ?Sized>(
         }
         match link.next_frame() {
             Ok(Some(DeviceFrame::Sample(sample))) => {
-                if let Some(taxels) = new_baselines.take() {
-                    sink.baselines_changed(BaselineChange {
-                        from_sequence: sample.sequence,
-                        taxels,
-                    });
-                }
+                baselines.before_sample(sink, &sample);
                 sink.write_sample(&sample).with_context(|| {
                     format!("writing the CSV after {} samples", accounting.received())
                 })?;
@@ -205,15 +197,11 @@ fn record_until_stopped<P: Read + Write, S: SampleSink + ?Sized>(
             }
             Ok(Some(DeviceFrame::Event(event))) => {
                 status(&event_words(&event));
-                if matches!(event.event, DeviceEvent::TareFinished { .. }) {
-                    // Frames that arrive while this waits stay queued, in order.
-                    match pull_baselines(link, baseline_timeout) {
-                        Ok(taxels) => new_baselines = Some(taxels),
-                        Err(error) => status(&format!(
-                            "warning: the device's new baselines could not be read ({}); `convert` will not reproduce the pressures after this point",
-                            crate::console::error_message(&error)
-                        )),
-                    }
+                if let Err(error) = baselines.on_event(link, &event, baseline_timeout) {
+                    status(&format!(
+                        "warning: the device's new baselines could not be read ({}); `convert` will not reproduce the pressures after this point",
+                        crate::console::error_message(&error)
+                    ));
                 }
             }
             Ok(Some(DeviceFrame::Info(info))) => {

@@ -214,6 +214,39 @@ pub fn read_device_state<P: std::io::Read + Write>(
     Ok(state)
 }
 
+/// Follows the device's baselines during a recording: after a TareFinished event it reads the
+/// new baselines (ReadBaseline), which apply from the next sample frame on.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BaselineFollower {
+    pending: Option<[Option<model_core::BaselineRecord>; TAXEL_COUNT]>,
+}
+
+impl BaselineFollower {
+    /// Takes a device event; on TareFinished reads the new baselines (frames that arrive
+    /// meanwhile stay queued in the link, in order).
+    pub fn on_event<P: std::io::Read + Write>(
+        &mut self,
+        link: &mut DeviceLink<P>,
+        event: &wire::EventFrame,
+        timeout: Duration,
+    ) -> anyhow::Result<()> {
+        if matches!(event.event, wire::DeviceEvent::TareFinished { .. }) {
+            self.pending = Some(crate::calibration_transfer::pull_baselines(link, timeout)?);
+        }
+        Ok(())
+    }
+
+    /// Before a sample is written: records the new baselines as applying from it.
+    pub fn before_sample<S: SampleSink + ?Sized>(&mut self, sink: &mut S, sample: &SampleFrame) {
+        if let Some(taxels) = self.pending.take() {
+            sink.baselines_changed(BaselineChange {
+                from_sequence: sample.sequence,
+                taxels,
+            });
+        }
+    }
+}
+
 /// Where recorded samples go: a [`Recording`], or any CSV writer (tests, pipes).
 pub trait SampleSink {
     /// Writes one sample row.

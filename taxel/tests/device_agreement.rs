@@ -128,3 +128,116 @@ fn a_recording_converted_with_the_defaults_gives_the_device_pressures() {
         "device and convert differ by up to {worst_kpa} kPa"
     );
 }
+
+/// A tare in the middle of a recording: the device announces it (TareFinished), the recorder
+/// reads the new baselines and notes from which sample they apply, and the conversion switches
+/// baselines there: it still gives the device's pressures, before and after.
+#[test]
+fn a_tare_during_a_recording_is_followed_by_the_conversion() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+
+    use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+    use taxel::device_link::{open_serial, DeviceLink};
+    use taxel::record::record_accounted;
+    use taxel::recording::{read_device_state, Recording};
+    use taxel::stream_accounting::StreamAccounting;
+
+    let directory = tempfile::tempdir().unwrap();
+    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
+        scene: SceneFile::default_scene().unwrap(),
+        seed: 5,
+        speed: Some(20.0),
+    })
+    .unwrap();
+    let mut port = PtyPort::open().unwrap();
+    let path = port.path().to_string_lossy().into_owned();
+    let device_stop = Arc::new(AtomicBool::new(false));
+    let device_thread = {
+        let stop = Arc::clone(&device_stop);
+        std::thread::spawn(move || device.run(&mut port, Some(60.0), &stop))
+    };
+    let mut link = DeviceLink::new(open_serial(&path, Duration::from_millis(100)).unwrap().port);
+    let timeout = Duration::from_secs(2);
+    let (info, _) = link.synchronise(timeout).unwrap();
+    let state = read_device_state(&mut link, &info, timeout).unwrap();
+    let csv_path = directory.path().join("tare.csv");
+    let (mut recording, _) = Recording::create(&csv_path, None).unwrap();
+    recording.set_device_state(state);
+    let mut accounting = StreamAccounting::new();
+    let stop = AtomicBool::new(false);
+    let flush = Duration::from_millis(200);
+    // The demo scene is still for its first 3 s: record 100 sets, tare, record 150 more.
+    record_accounted(
+        &mut link,
+        &mut recording,
+        &mut accounting,
+        &stop,
+        Some(100),
+        flush,
+        &mut |_| {},
+    )
+    .unwrap();
+    link.send(wire::Command::Tare { sample_sets: 8 }).unwrap();
+    record_accounted(
+        &mut link,
+        &mut recording,
+        &mut accounting,
+        &stop,
+        Some(150),
+        flush,
+        &mut |_| {},
+    )
+    .unwrap();
+    device_stop.store(true, Ordering::Relaxed);
+    device_thread.join().unwrap();
+    let files = recording.finish(None).unwrap();
+    let device_state =
+        taxel::recording::RecordedDeviceState::read(&files.device_state.unwrap()).unwrap();
+    // The recording may start before the boot tare ends (then that tare is a change too); the
+    // commanded tare is the last change, after sample 100.
+    let changes = &device_state.baselines;
+    assert!(changes.len() >= 2, "{changes:?}");
+    let last = &changes[changes.len() - 1];
+    assert!(last.from_sequence > changes[changes.len() - 2].from_sequence);
+    assert_ne!(last.taxels, changes[changes.len() - 2].taxels);
+    assert!(last.taxels.iter().all(Option::is_some));
+
+    let converted = directory.path().join("converted.csv");
+    let output = taxel()
+        .arg("convert")
+        .arg(&csv_path)
+        .arg("-o")
+        .arg(&converted)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let (recorded_header, recorded) = read_rows(&csv_path);
+    let (converted_header, converted) = read_rows(&converted);
+    assert_eq!(recorded.len(), 250);
+    let column = |header: &[String], name: &str| header.iter().position(|h| h == name).unwrap();
+    let mut compared = 0;
+    for (device, host) in recorded.iter().zip(&converted) {
+        for name in ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"] {
+            let device_cell = &device[column(&recorded_header, name)];
+            let host_cell = &host[column(&converted_header, name)];
+            if let (Ok(device_kpa), Ok(host_kpa)) =
+                (device_cell.parse::<f64>(), host_cell.parse::<f64>())
+            {
+                assert!((device_kpa - host_kpa).abs() <= AGREEMENT_KPA);
+                compared += 1;
+            } else {
+                assert_eq!(
+                    device_cell.is_empty(),
+                    host_cell.is_empty(),
+                    "{name}: device {device:?}, host {host:?}"
+                );
+            }
+        }
+    }
+    assert!(compared > 900, "{compared}");
+}

@@ -23,17 +23,15 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
-use model_core::{BaselineRecord, TAXEL_COUNT};
 use ratatui::backend::TestBackend;
 use ratatui::crossterm::event::{self, Event, KeyCode, KeyEventKind, KeyModifiers};
 use ratatui::layout::Rect;
 use ratatui::Terminal;
-use wire::{Command, DeviceEvent, DeviceFrame};
+use wire::{Command, DeviceFrame};
 
-use crate::calibration_transfer::pull_baselines;
 use crate::device_link::{self, attached_boards, choose_board, DeviceLink, LinkError};
 use crate::record::parse_hex_u16;
-use crate::recording::{read_device_state, BaselineChange, Recording, SampleSink};
+use crate::recording::{read_device_state, BaselineFollower, Recording};
 
 /// Samples `--once` collects (for a rate) before it prints, unless its timeout ends first.
 const SNAPSHOT_SAMPLES: u64 = 20;
@@ -270,8 +268,7 @@ fn handle_frame(state: &mut ViewState, pending: &mut HashMap<u16, Pending>, fram
 struct ViewRecording {
     recording: Recording,
     csv_path: PathBuf,
-    /// Baselines read after a TareFinished event, for the first sample that uses them.
-    new_baselines: Option<[Option<BaselineRecord>; TAXEL_COUNT]>,
+    baselines: BaselineFollower,
 }
 
 /// The file name of a recording started now: taxel-YYYYMMDD-HHMMSS.csv (UTC).
@@ -337,7 +334,7 @@ fn start_recording<P: Read + Write>(
     Ok(ViewRecording {
         recording,
         csv_path,
-        new_baselines: None,
+        baselines: BaselineFollower::default(),
     })
 }
 
@@ -368,23 +365,20 @@ fn record_frame<P: Read + Write>(
     };
     let result = match frame {
         DeviceFrame::Sample(sample) => {
-            if let Some(taxels) = recording.new_baselines.take() {
-                recording.recording.baselines_changed(BaselineChange {
-                    from_sequence: sample.sequence,
-                    taxels,
-                });
-            }
+            recording
+                .baselines
+                .before_sample(&mut recording.recording, sample);
             recording.recording.write_sample(sample)
         }
-        DeviceFrame::Event(event) if matches!(event.event, DeviceEvent::TareFinished { .. }) => {
-            match pull_baselines(link, VIEW_REQUEST_TIMEOUT) {
-                Ok(taxels) => recording.new_baselines = Some(taxels),
-                Err(error) => {
-                    state.status = format!(
-                        "new baselines not recorded: {}",
-                        crate::console::error_message(&error)
-                    )
-                }
+        DeviceFrame::Event(event) => {
+            if let Err(error) = recording
+                .baselines
+                .on_event(link, event, VIEW_REQUEST_TIMEOUT)
+            {
+                state.status = format!(
+                    "new baselines not recorded: {}",
+                    crate::console::error_message(&error)
+                );
             }
             Ok(())
         }
