@@ -451,6 +451,11 @@ impl<P: Read + Write> DeviceLink<P> {
         Ok(count)
     }
 
+    /// Takes every frame queued so far (received while requests waited, not yet taken).
+    pub fn take_queued(&mut self) -> Vec<DeviceFrame> {
+        self.frames.drain(..).collect()
+    }
+
     /// The next frame: a queued one, else whatever one read brings (`None` if it brought no
     /// complete frame).
     pub fn next_frame(&mut self) -> Result<Option<DeviceFrame>, LinkError> {

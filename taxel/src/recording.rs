@@ -199,7 +199,9 @@ impl RecordedDeviceState {
 }
 
 /// Reads the device's whole calibration and its baselines (four ReadCalibration and four
-/// ReadBaseline requests) as the state a recording starts with.
+/// ReadBaseline requests) as the state a recording starts with. Frames that arrived meanwhile
+/// are discarded: they were computed before the state was read, so the recording starts after
+/// them. If a tare finished meanwhile, the baselines are read again.
 pub fn read_device_state<P: std::io::Read + Write>(
     link: &mut DeviceLink<P>,
     info: &InfoFrame,
@@ -207,9 +209,26 @@ pub fn read_device_state<P: std::io::Read + Write>(
 ) -> anyhow::Result<RecordedDeviceState> {
     let calibration = crate::calibration_transfer::pull(link, info.calibration_id, timeout)?;
     let mut state = RecordedDeviceState::new(info, &calibration);
+    let mut attempts = 0;
+    let baselines = loop {
+        let baselines = crate::calibration_transfer::pull_baselines(link, timeout)?;
+        let tare_finished_meanwhile = link.take_queued().iter().any(|frame| {
+            matches!(
+                frame,
+                wire::DeviceFrame::Event(wire::EventFrame {
+                    event: wire::DeviceEvent::TareFinished { .. },
+                    ..
+                })
+            )
+        });
+        attempts += 1;
+        if !tare_finished_meanwhile || attempts == 3 {
+            break baselines;
+        }
+    };
     state.baselines.push(BaselineChange {
         from_sequence: 0,
-        taxels: crate::calibration_transfer::pull_baselines(link, timeout)?,
+        taxels: baselines,
     });
     Ok(state)
 }
