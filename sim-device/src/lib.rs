@@ -13,4 +13,5 @@ pub use pty::PtyPort;
 pub use scene_file::{FaultKind, SceneFault, SceneFile, SceneFileError, DEFAULT_SCENE_TOML};
 pub use simulated_device::{
     simulated_board_serial, SimulatedDevice, SimulatedDeviceConfig, SimulatedDeviceError,
+    FACTORY_CALIBRATION_ID,
 };

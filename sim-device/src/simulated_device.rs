@@ -32,6 +32,9 @@ pub type SimulatedFlash = RamFlash<FLASH_SIZE, FLASH_PAGE>;
 /// the loaded input (up to about 7 pF) well inside the converter's +-16 pF.
 const CAPDAC: [u8; 4] = [1; 4];
 
+/// The id of the simulated pad's factory calibration (0 is the built-in default's).
+pub const FACTORY_CALIBRATION_ID: u32 = 1;
+
 /// The converter's rate at boot, as the firmware's; the DONE timeout follows from it.
 const CONVERTER_RATE: Rate = Rate::Hz400;
 
@@ -191,7 +194,11 @@ impl SimulatedDevice {
                 .physics()
                 .matching_calibration()
                 .map_err(|error| SimulatedDeviceError::Simulation(format!("{error:?}")))?;
-            embassy_futures::block_on(store.save(&factory.to_spec()))
+            let spec = CalibrationSpec {
+                id: FACTORY_CALIBRATION_ID,
+                ..factory.to_spec()
+            };
+            embassy_futures::block_on(store.save(&spec))
                 .map_err(|_| SimulatedDeviceError::Storage)?;
         }
         let device = boot(

@@ -241,14 +241,14 @@ fn rate_text(state: &ViewState) -> String {
 fn accounting_line(state: &ViewState) -> String {
     let accounting = &state.accounting;
     let mut line = format!(
-        "{} received, {} lost on the link, {} dropped by the device, {} bad frames",
+        "{} received, {} lost on link, {} dropped by device, {} bad frames",
         accounting.received(),
         accounting.lost_on_link(),
         accounting.device_dropped(),
         state.frames_rejected
     );
     if accounting.stale_frames() > 0 {
-        line.push_str(&format!(", {} stale discarded", accounting.stale_frames()));
+        line.push_str(&format!(", {} stale", accounting.stale_frames()));
     }
     line
 }
@@ -393,7 +393,13 @@ pub fn draw(frame: &mut Frame, state: &ViewState) {
     let text_rows = text.len() as u16 + u16::from(wide);
     let [main_area, text_area] =
         Layout::vertical([Constraint::Min(9), Constraint::Length(text_rows)]).areas(inner);
-    frame.render_widget(Paragraph::new(text).wrap(Wrap { trim: true }), text_area);
+    let paragraph = if wide {
+        Paragraph::new(text).wrap(Wrap { trim: true })
+    } else {
+        // Cut, never wrapped: a wrapped line would push the keys out of the box.
+        Paragraph::new(text)
+    };
+    frame.render_widget(paragraph, text_area);
     if wide {
         let [left, right] =
             Layout::horizontal([Constraint::Ratio(1, 2), Constraint::Ratio(1, 2)]).areas(main_area);

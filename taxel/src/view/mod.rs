@@ -232,7 +232,12 @@ fn connect(
     let (info, stale) = link
         .synchronise(VIEW_REQUEST_TIMEOUT)
         .with_context(|| format!("asking the device on {path} who it is"))?;
-    state.connected_to(format!("{path} ({})", target.describe()));
+    let described = target.describe();
+    state.connected_to(if described == path {
+        path.clone()
+    } else {
+        format!("{path} ({described})")
+    });
     state.info = Some(info);
     state.accounting.stale_discarded(stale);
     link.send(Command::ReadCounters)?;
