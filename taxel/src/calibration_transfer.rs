@@ -13,10 +13,9 @@ use model_core::{BaselineRecord, Calibration, CalibrationSpec, TAXEL_COUNT, TAXE
 use wire::{Command, ReplyPayload};
 
 use crate::calibration_file::{self, describe_calibration_error};
-use crate::device_link::{self, DeviceLink, RequestError};
+use crate::device_link::{self, BoardArgs, DeviceLink, RequestError};
 use crate::device_words::{calibration_source_words, info_words};
 use crate::noteln;
-use crate::record::parse_hex_u16;
 
 /// The long help of the subcommand.
 pub const LONG_ABOUT: &str = "Read the calibration a device uses, or write one to it.\n\n\
@@ -38,18 +37,9 @@ pub struct CalibrationArgs {
 /// Where the device is.
 #[derive(Debug, Clone, clap::Args)]
 pub struct PortArgs {
-    /// Serial port of the device (default: the only attached board, or --serial).
-    #[arg(value_name = "PORT")]
-    pub port: Option<String>,
-    /// Choose the attached board with this USB serial number.
-    #[arg(long, value_name = "SN", conflicts_with = "port")]
-    pub serial: Option<String>,
-    /// USB vendor id of the board, for finding it.
-    #[arg(long, value_name = "VID", default_value = "0x1209", value_parser = parse_hex_u16)]
-    pub vid: u16,
-    /// USB product id of the board, for finding it.
-    #[arg(long, value_name = "PID", default_value = "0x0001", value_parser = parse_hex_u16)]
-    pub pid: u16,
+    /// The device.
+    #[command(flatten)]
+    pub board: BoardArgs,
     /// How long to wait for each reply from the device, ms.
     #[arg(long, value_name = "MS", default_value_t = 2000)]
     pub timeout_ms: u64,
@@ -165,12 +155,7 @@ pub fn upload<P: Read + Write>(
 }
 
 fn open(port: &PortArgs) -> anyhow::Result<(String, DeviceLink<Box<dyn serialport::SerialPort>>)> {
-    let path = device_link::select_port(
-        port.port.as_deref(),
-        port.serial.as_deref(),
-        port.vid,
-        port.pid,
-    )?;
+    let path = port.board.select_port()?;
     let opened = device_link::open_serial(&path, Duration::from_millis(50))?;
     Ok((path, DeviceLink::new(opened.port)))
 }

@@ -2,8 +2,8 @@
 
 use std::process::ExitCode;
 
+use crate::device_link::parse_hex_u16;
 use crate::device_link::{attached_boards, BoardPort, DEFAULT_PID, DEFAULT_VID};
-use crate::record::parse_hex_u16;
 
 /// The long help of the subcommand.
 pub const LONG_ABOUT: &str = "List the boards attached by USB with the pad's VID:PID: port, \

@@ -28,6 +28,24 @@ pub struct PendingRename {
     target: PathBuf,
 }
 
+/// A new temporary file in `target`'s directory, named `.NAME.XXXXXX.partial` and then
+/// `extension` (which image writers use to choose their format).
+fn temporary_beside(target: &Path, extension: &str) -> anyhow::Result<tempfile::NamedTempFile> {
+    let directory = match target.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = target
+        .file_name()
+        .map(|name| name.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    tempfile::Builder::new()
+        .prefix(&format!(".{name}."))
+        .suffix(&format!(".partial{extension}"))
+        .tempfile_in(&directory)
+        .with_context(|| format!("creating a file in {}", directory.display()))
+}
+
 /// Whether `target` exists as something other than a regular file or a directory: written in
 /// place, since replacing a device or a pipe by a file would be wrong.
 fn is_special_file(target: &Path) -> bool {
@@ -54,19 +72,7 @@ impl OutputFile {
                 },
             });
         }
-        let directory = match target.parent() {
-            Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        let name = target
-            .file_name()
-            .map(|name| name.to_string_lossy().into_owned())
-            .unwrap_or_default();
-        let file = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
-            .suffix(".partial")
-            .tempfile_in(&directory)
-            .with_context(|| format!("creating a file in {}", directory.display()))?;
+        let file = temporary_beside(target, "")?;
         let (file, temporary) = file.into_parts();
         Ok(Self {
             writer: BufWriter::new(file),
@@ -122,24 +128,11 @@ impl PendingRename {
                 target: target.to_path_buf(),
             });
         }
-        let directory = match target.parent() {
-            Some(parent) if !parent.as_os_str().is_empty() => parent.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        let name = target
-            .file_name()
-            .map(|name| name.to_string_lossy().into_owned())
-            .unwrap_or_default();
         let extension = target
             .extension()
             .map(|extension| format!(".{}", extension.to_string_lossy()))
             .unwrap_or_default();
-        let temporary = tempfile::Builder::new()
-            .prefix(&format!(".{name}."))
-            .suffix(&format!(".partial{extension}"))
-            .tempfile_in(&directory)
-            .with_context(|| format!("creating a file in {}", directory.display()))?
-            .into_temp_path();
+        let temporary = temporary_beside(target, &extension)?.into_temp_path();
         Ok(Self {
             temporary: Some(temporary),
             target: target.to_path_buf(),

@@ -13,7 +13,8 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use wire::{Command, DeviceFrame, ReplyPayload};
 
-use crate::device_link::{self, DeviceLink, LinkError};
+pub use crate::device_link::parse_hex_u16;
+use crate::device_link::{self, BoardArgs, DeviceLink, LinkError};
 use crate::device_words::{counters_words, event_words, info_words};
 use crate::noteln;
 use crate::recording::{
@@ -43,12 +44,9 @@ Example: taxel record /dev/ttyACM0 -o rec.csv --samples 1000";
 /// Arguments of `taxel record`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct RecordArgs {
-    /// Serial port of the device (default: the only attached board, or --serial).
-    #[arg(value_name = "PORT")]
-    pub port: Option<String>,
-    /// Choose the attached board with this USB serial number.
-    #[arg(long, value_name = "SN", conflicts_with = "port")]
-    pub serial: Option<String>,
+    /// The device.
+    #[command(flatten)]
+    pub board: BoardArgs,
     /// CSV file to write.
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
@@ -58,24 +56,9 @@ pub struct RecordArgs {
     /// Stop after this many sample frames.
     #[arg(long, value_name = "N")]
     pub samples: Option<u64>,
-    /// USB vendor id of the board, for finding it.
-    #[arg(long, value_name = "VID", default_value = "0x1209", value_parser = parse_hex_u16)]
-    pub vid: u16,
-    /// USB product id of the board, for finding it.
-    #[arg(long, value_name = "PID", default_value = "0x0001", value_parser = parse_hex_u16)]
-    pub pid: u16,
     /// How long to wait for each reply from the device, ms.
     #[arg(long, value_name = "MS", default_value_t = 2000)]
     pub timeout_ms: u64,
-}
-
-/// Parses a USB id written in hexadecimal, with or without `0x`.
-pub fn parse_hex_u16(text: &str) -> Result<u16, String> {
-    let digits = text
-        .trim()
-        .trim_start_matches("0x")
-        .trim_start_matches("0X");
-    u16::from_str_radix(digits, 16).map_err(|_| format!("'{text}' is not a 16-bit hex number"))
 }
 
 /// Why a recording ended.
@@ -236,12 +219,7 @@ fn record_until_stopped<P: Read + Write, S: SampleSink + ?Sized>(
 
 /// Runs `taxel record`.
 pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
-    let port_path = device_link::select_port(
-        args.port.as_deref(),
-        args.serial.as_deref(),
-        args.vid,
-        args.pid,
-    )?;
+    let port_path = args.board.select_port()?;
     let raw_path = args
         .raw
         .clone()

@@ -29,8 +29,7 @@ use ratatui::layout::Rect;
 use ratatui::Terminal;
 use wire::{Command, DeviceFrame};
 
-use crate::device_link::{self, attached_boards, choose_board, DeviceLink, LinkError};
-use crate::record::parse_hex_u16;
+use crate::device_link::{self, attached_boards, choose_board, BoardArgs, DeviceLink, LinkError};
 use crate::recording::{read_device_state, BaselineFollower, Recording};
 
 /// Samples `--once` collects (for a rate) before it prints, unless its timeout ends first.
@@ -61,18 +60,9 @@ Examples:\n  taxel view /dev/ttyACM0\n  taxel view --once --width 80 --height 24
 /// Arguments of `taxel view`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ViewArgs {
-    /// Serial port of the device (default: the only attached board, or --serial).
-    #[arg(value_name = "PORT")]
-    pub port: Option<String>,
-    /// Choose the attached board with this USB serial number.
-    #[arg(long, value_name = "SN")]
-    pub serial: Option<String>,
-    /// USB vendor id of the board, for finding it.
-    #[arg(long, value_name = "VID", default_value = "0x1209", value_parser = parse_hex_u16)]
-    pub vid: u16,
-    /// USB product id of the board, for finding it.
-    #[arg(long, value_name = "PID", default_value = "0x0001", value_parser = parse_hex_u16)]
-    pub pid: u16,
+    /// The device.
+    #[command(flatten)]
+    pub board: BoardArgs,
     /// Print one snapshot of the view as text and exit.
     #[arg(long)]
     pub once: bool,
@@ -103,10 +93,7 @@ impl ViewArgs {
     /// The defaults on one port (what `taxel view PORT` gets).
     pub fn for_port(port: String, once: bool) -> Self {
         Self {
-            port: Some(port),
-            serial: None,
-            vid: device_link::DEFAULT_VID,
-            pid: device_link::DEFAULT_PID,
+            board: BoardArgs::for_port(port),
             once,
             width: 80,
             height: 24,
@@ -156,16 +143,17 @@ struct BoardTarget {
 
 impl BoardTarget {
     fn new(args: &ViewArgs) -> Self {
+        let board = &args.board;
         let mut target = Self {
-            path: args.port.clone(),
-            serial_number: args.serial.clone(),
-            vid: args.vid,
-            pid: args.pid,
+            path: board.port.clone(),
+            serial_number: board.serial.clone(),
+            vid: board.vid,
+            pid: board.pid,
         };
         if target.serial_number.is_none() {
             if let Some(path) = &target.path {
                 // Knowing the serial number lets a replugged board be found under a new name.
-                target.serial_number = attached_boards(args.vid, args.pid)
+                target.serial_number = attached_boards(board.vid, board.pid)
                     .ok()
                     .and_then(|boards| boards.into_iter().find(|board| &board.port_name == path))
                     .and_then(|board| board.serial_number);
