@@ -304,7 +304,7 @@ impl TareWatch {
                         "taxel {} could not be tared ({}); it stays not_tared",
                         TAXEL_NAMES[taxel],
                         errors[taxel]
-                            .map(|error| format!("{error:?}"))
+                            .map(|error| crate::device_words::baseline_error_words(&error))
                             .unwrap_or_else(|| "no usable reading".to_owned())
                     ));
                 }

@@ -1,7 +1,7 @@
 //! Device frames in words for people: identity, counters and events as a person reads them
 //! (serial in hex, versions dotted, rates with their units), never as Rust struct dumps.
 
-use model_core::{Tier, TAXEL_NAMES};
+use model_core::{BaselineError, Tier, TAXEL_NAMES};
 use wire::{CalibrationSource, CountersFrame, DeviceEvent, EventFrame, InfoFrame};
 
 use crate::csv_format::{format_time_us, temperature_source_words};
@@ -23,6 +23,21 @@ pub fn calibration_source_words(source: CalibrationSource) -> &'static str {
             "built-in default (the flash copy was corrupt)"
         }
         CalibrationSource::Host => "written by the host, not saved",
+    }
+}
+
+/// Why a taxel could not be tared, in words.
+pub fn baseline_error_words(error: &BaselineError) -> String {
+    match error {
+        BaselineError::NotFinite => "its reading or temperature was not a number".to_owned(),
+        BaselineError::ImplausiblySmall => {
+            "its capacitance is too small for a taxel (open lead?)".to_owned()
+        }
+        BaselineError::TooFewSamples => "too few valid readings".to_owned(),
+        BaselineError::NotStill { spread_ff } => format!(
+            "the pad was not still: its readings spread by {spread_ff} fF, more than the {:.0} fF converter noise explains",
+            model_core::baseline::TARE_STILL_SPREAD_PF * 1000.0
+        ),
     }
 }
 

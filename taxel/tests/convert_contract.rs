@@ -210,7 +210,7 @@ fn a_tare_over_rows_that_are_not_still_is_refused_with_the_reason() {
     );
     let warning = stderr(&output);
     assert!(
-        warning.contains("c11") && warning.contains("NotStill"),
+        warning.contains("c11") && warning.contains("the pad was not still"),
         "{warning}"
     );
 }

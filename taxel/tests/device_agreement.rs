@@ -241,3 +241,38 @@ fn a_tare_during_a_recording_is_followed_by_the_conversion() {
     }
     assert!(compared > 900, "{compared}");
 }
+
+/// `taxel calibration pull` writes the calibration the simulated device uses (its factory
+/// calibration, from its flash) as a calibration file, and it is the simulated pad's own.
+#[test]
+fn calibration_pull_writes_the_device_calibration() {
+    let directory = tempfile::tempdir().unwrap();
+    let (mut simulator, port) = start_simulator(directory.path());
+    let pulled = directory.path().join("pulled.json");
+    let output = taxel()
+        .args(["calibration", "pull", &port, "-o"])
+        .arg(&pulled)
+        .output()
+        .unwrap();
+    let _ = simulator.kill();
+    let _ = simulator.wait();
+    let messages = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{messages}");
+    assert!(messages.contains("from flash"), "{messages}");
+    let calibration = taxel::calibration_file::read(&pulled).unwrap();
+    assert_eq!(calibration.id(), sim_device::FACTORY_CALIBRATION_ID);
+    let truth = sim_device::SimulatedDevice::new(sim_device::SimulatedDeviceConfig {
+        scene: sim_device::SceneFile::default_scene().unwrap(),
+        seed: 1,
+        speed: None,
+    })
+    .unwrap()
+    .simulation()
+    .physics()
+    .matching_calibration()
+    .unwrap();
+    for (pulled_taxel, true_taxel) in calibration.taxels().iter().zip(truth.taxels()) {
+        assert_eq!(pulled_taxel.curve.points(), true_taxel.curve.points());
+        assert_eq!(pulled_taxel.parasitic_pf, true_taxel.parasitic_pf);
+    }
+}
