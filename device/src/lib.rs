@@ -11,12 +11,14 @@
 #![deny(missing_docs)]
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
+mod boot;
 mod control;
 mod convert;
 mod host_input;
 mod persistence;
 mod retained;
 
+pub use boot::{boot, boot_calibration, BoardConfig, BoardParts, BootReport, BootedDevice, BOARD};
 pub use control::DeviceControl;
 pub use convert::{
     baseline_record, baseline_wire, calibration_record, converter_rate, counters_frame,

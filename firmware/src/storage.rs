@@ -9,8 +9,7 @@ use embassy_stm32::flash::{self, Flash, FLASH_BASE};
 use embassy_stm32::peripherals::FLASH;
 use embassy_stm32::Peri;
 use embedded_storage_async::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
-use model_core::{Calibration, CalibrationSpec};
-use wire::CalibrationSource;
+use model_core::CalibrationSpec;
 
 use crate::board::Irqs;
 use crate::watchdog;
@@ -51,44 +50,22 @@ impl FlashPersistence {
         }
     }
 
-    /// The calibration to start with and where it came from: the saved one if it is intact and
-    /// valid, otherwise the defaults (marked as replacing a corrupt copy when there was one).
-    pub async fn load_at_boot(&mut self) -> (Calibration, CalibrationSource) {
-        let Some(store) = self.store.as_mut() else {
-            return (Calibration::default(), CalibrationSource::Defaults);
-        };
-        match store.load().await {
-            LoadOutcome::Stored(spec) => match Calibration::new(&spec) {
-                Ok(calibration) => {
-                    info!("calibration {=u32} loaded from flash", calibration.id());
-                    (calibration, CalibrationSource::Flash)
-                }
-                Err(invalid) => {
-                    warn!(
-                        "stored calibration {=u32} is invalid ({}); using the defaults",
-                        spec.id, invalid
-                    );
-                    (
-                        Calibration::default(),
-                        CalibrationSource::DefaultsAfterCorruptFlash,
-                    )
-                }
-            },
-            LoadOutcome::Absent => {
-                info!("no calibration saved; using the defaults");
-                (Calibration::default(), CalibrationSource::Defaults)
-            }
+    /// What the flash holds, for the boot (`device::boot` chooses the calibration from it);
+    /// `None` when the region is unusable.
+    pub async fn load(&mut self) -> Option<LoadOutcome<flash::Error>> {
+        let store = self.store.as_mut()?;
+        let outcome = store.load().await;
+        match &outcome {
+            LoadOutcome::Stored(spec) => info!("calibration {=u32} found in flash", spec.id),
+            LoadOutcome::Absent => info!("no calibration saved; using the defaults"),
             LoadOutcome::Corrupt(reason) => {
                 warn!(
                     "stored calibration corrupt ({}); using the defaults",
                     reason
-                );
-                (
-                    Calibration::default(),
-                    CalibrationSource::DefaultsAfterCorruptFlash,
                 )
             }
         }
+        Some(outcome)
     }
 }
 

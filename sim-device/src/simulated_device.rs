@@ -4,19 +4,18 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use acquisition::{Acquisition, AcquisitionConfig, Clock, ProcessedSample};
-use calibration_store::{CalibrationStore, LoadOutcome, RamFlash};
+use acquisition::{Acquisition, Clock, ProcessedSample};
+use calibration_store::{CalibrationStore, RamFlash};
 use device::{
-    boot_plan, BootPlan, CalibrationPersistence, Device, DeviceConfig, DeviceIdentity, HostPort,
-    PersistenceFailed, ResetKind, RetainedState, RETAINED_LEN,
+    BoardParts, CalibrationPersistence, Device, DeviceIdentity, HostPort, PersistenceFailed,
+    ResetKind, RetainedState, BOARD, RETAINED_LEN,
 };
-use fdc1004::{Config, Fdc1004, Rate};
-use model_core::{Calibration, CalibrationSpec, PadModel};
+use model_core::CalibrationSpec;
 use sensor_sim::{
     Pacing, Scene, ScenePoint, SimDelay, SimI2c, Simulation, SimulationConfig, Window,
 };
 use tmp117::{Address, TemperatureSource, Tmp117};
-use wire::{CalibrationSource, FirmwareVersion};
+use wire::FirmwareVersion;
 
 use crate::scene_file::SceneFile;
 
@@ -28,18 +27,8 @@ const FLASH_PAGE: usize = 4096;
 /// The simulated flash.
 pub type SimulatedFlash = RamFlash<FLASH_SIZE, FLASH_PAGE>;
 
-/// The same CAPDAC on every channel: 3.125 pF under a 1.2 pF cable plus a 4.5 pF taxel keeps
-/// the loaded input (up to about 7 pF) well inside the converter's +-16 pF.
-const CAPDAC: [u8; 4] = [1; 4];
-
 /// The id of the simulated pad's factory calibration (0 is the built-in default's).
 pub const FACTORY_CALIBRATION_ID: u32 = 1;
-
-/// The converter's rate at boot, as the firmware's; the DONE timeout follows from it.
-const CONVERTER_RATE: Rate = Rate::Hz400;
-
-/// Sample sets averaged by the tare at power-on, as the firmware's.
-const TARE_SETS_AT_START: u16 = 16;
 
 /// The simulated clock.
 pub struct SimulatedClock(Simulation);
@@ -201,12 +190,13 @@ impl SimulatedDevice {
             embassy_futures::block_on(store.save(&spec))
                 .map_err(|_| SimulatedDeviceError::Storage)?;
         }
-        let device = boot(
+        let device = boot_simulated(
             &simulation,
             SimulatedPersistence(store),
             config.seed,
-            boot_plan(ResetKind::PowerOn, None, TARE_SETS_AT_START),
-        )?;
+            ResetKind::PowerOn,
+            None,
+        );
         Ok(Self {
             device,
             simulation,
@@ -229,17 +219,13 @@ impl SimulatedDevice {
         );
         let store = CalibrationStore::new(flash, 0..FLASH_SIZE as u32)
             .map_err(|_| SimulatedDeviceError::Storage)?;
-        let plan = boot_plan(
-            ResetKind::McuOnly,
-            RetainedState::decode(&self.retained_ram),
-            TARE_SETS_AT_START,
-        );
-        self.device = boot(
+        self.device = boot_simulated(
             &self.simulation,
             SimulatedPersistence(store),
             self.seed,
-            plan,
-        )?;
+            ResetKind::McuOnly,
+            RetainedState::decode(&self.retained_ram),
+        );
         Ok(())
     }
 
@@ -310,54 +296,28 @@ pub fn firmware_version() -> FirmwareVersion {
     }
 }
 
-/// The firmware's boot on the simulated board: calibration from flash (or defaults), converter,
-/// temperature sources, acquisition loop and device application.
-fn boot(
+/// The firmware's boot (`device::boot`, with the board's configuration `device::BOARD`) on the
+/// simulated board's parts: its I2C bus, clock, die sensor and flash.
+fn boot_simulated(
     simulation: &Simulation,
     mut persistence: SimulatedPersistence,
     seed: u64,
-    plan: BootPlan,
-) -> Result<Device<SimulatedAcquisition, SimulatedPersistence>, SimulatedDeviceError> {
-    {
-        // As the firmware: the built-in default whenever flash holds no valid calibration.
-        let defaults = Calibration::default();
-        let (calibration, source) = match embassy_futures::block_on(persistence.0.load()) {
-            LoadOutcome::Stored(spec) => match Calibration::new(&spec) {
-                Ok(calibration) => (calibration, CalibrationSource::Flash),
-                Err(_) => (defaults, CalibrationSource::DefaultsAfterCorruptFlash),
-            },
-            LoadOutcome::Absent => (defaults, CalibrationSource::Defaults),
-            LoadOutcome::Corrupt(_) => (defaults, CalibrationSource::DefaultsAfterCorruptFlash),
-        };
-        let converter = Fdc1004::new(
-            simulation.i2c(),
-            simulation.delay(),
-            Config::new(CONVERTER_RATE, CAPDAC),
-        );
-        let mut pad = PadModel::new(calibration);
-        plan.apply_to(&mut pad);
-        let acquisition = Acquisition::new(
-            converter,
-            Tmp117::new(simulation.i2c(), Address::Gnd),
-            SimulatedDieTemperature(simulation.clone()),
-            SimulatedClock(simulation.clone()),
-            pad,
-            AcquisitionConfig {
-                tare_sets_at_start: plan.tare_sets_at_start,
-                ..AcquisitionConfig::default()
-            },
-            simulation.delay(),
-        );
-        let identity = DeviceIdentity {
+    reset: ResetKind,
+    retained: Option<RetainedState>,
+) -> Device<SimulatedAcquisition, SimulatedPersistence> {
+    let stored = embassy_futures::block_on(persistence.0.load());
+    let parts = BoardParts {
+        converter_i2c: simulation.i2c(),
+        delay: simulation.delay(),
+        temperature: Tmp117::new(simulation.i2c(), Address::Gnd),
+        fallback_temperature: SimulatedDieTemperature(simulation.clone()),
+        clock: SimulatedClock(simulation.clone()),
+        persistence,
+        identity: DeviceIdentity {
             firmware_version: firmware_version(),
             board_serial: simulated_board_serial(seed),
-        };
-        Ok(Device::new(
-            acquisition,
-            persistence,
-            identity,
-            source,
-            DeviceConfig::default(),
-        ))
-    }
+        },
+    };
+    let (device, _) = device::boot(parts, &BOARD, Some(stored), reset, retained);
+    device
 }

@@ -1,0 +1,190 @@
+//! The device's boot, written once for the firmware and the simulated device: the board's
+//! configuration, the calibration to start with from what flash holds, and the assembly of the
+//! model, the acquisition loop and the device application around the board's parts. The board
+//! and the simulator differ only in the parts they pass in (real or simulated I2C, clock, flash).
+
+use acquisition::{Acquisition, AcquisitionConfig, Clock};
+use calibration_store::LoadOutcome;
+use embedded_hal_async::delay::DelayNs;
+use embedded_hal_async::i2c::I2c;
+use fdc1004::{Fdc1004, Rate};
+use model_core::{Calibration, PadModel};
+use tmp117::TemperatureSource;
+use wire::CalibrationSource;
+
+use crate::retained::{boot_plan, ResetKind, RetainedState};
+use crate::{CalibrationPersistence, Device, DeviceConfig, DeviceIdentity};
+
+/// How the board is set up: what the firmware runs, and what the simulated device runs unless a
+/// test asks for something else.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BoardConfig {
+    /// CAPDAC of each measurement (CIN1..CIN4), in 3.125 pF steps. A taxel is about 4.5 pF
+    /// unloaded and 26 % more at 50 kPa; with the cable shields driven the cable adds little,
+    /// so everything stays inside the ±15 pF input without an offset. Calibrations are valid
+    /// only for the CAPDAC they were taken with.
+    pub capdac: [u8; 4],
+    /// The converter's rate at boot (its DONE timeout follows from it): four conversions, one
+    /// per taxel, take about 10 ms at 400 S/s, so about 100 sample sets/s.
+    pub converter_rate: Rate,
+    /// Sample sets averaged by the tare a power-on takes (the pad is taken to be unloaded then).
+    pub tare_sets_at_power_on: u16,
+    /// The device application's settings.
+    pub device: DeviceConfig,
+}
+
+/// The board's configuration.
+pub const BOARD: BoardConfig = BoardConfig {
+    capdac: [0; 4],
+    converter_rate: Rate::Hz400,
+    tare_sets_at_power_on: 16,
+    device: DeviceConfig {
+        counters_every_sets: 100,
+        streaming_at_start: true,
+    },
+};
+
+impl BoardConfig {
+    /// The converter's configuration.
+    pub fn converter_config(&self) -> fdc1004::Config {
+        fdc1004::Config::new(self.converter_rate, self.capdac)
+    }
+}
+
+/// The calibration to boot with and where it came from: the saved one if it is intact and
+/// valid, otherwise the built-in default (marked as replacing a corrupt copy when there was
+/// one). `None` (no usable flash region) boots on the default.
+pub fn boot_calibration<E>(stored: Option<LoadOutcome<E>>) -> (Calibration, CalibrationSource) {
+    match stored {
+        Some(LoadOutcome::Stored(spec)) => match Calibration::new(&spec) {
+            Ok(calibration) => (calibration, CalibrationSource::Flash),
+            Err(_) => (
+                Calibration::default(),
+                CalibrationSource::DefaultsAfterCorruptFlash,
+            ),
+        },
+        Some(LoadOutcome::Corrupt(_)) => (
+            Calibration::default(),
+            CalibrationSource::DefaultsAfterCorruptFlash,
+        ),
+        Some(LoadOutcome::Absent) | None => (Calibration::default(), CalibrationSource::Defaults),
+    }
+}
+
+/// The board's parts the device runs on.
+pub struct BoardParts<I2C, D, T, F, K, P> {
+    /// The converter's I2C device.
+    pub converter_i2c: I2C,
+    /// A delay (the converter's waits and the loop's back-off).
+    pub delay: D,
+    /// The primary temperature source (the TMP117).
+    pub temperature: T,
+    /// The fallback temperature source (the MCU's die sensor).
+    pub fallback_temperature: F,
+    /// The clock of the sample timestamps.
+    pub clock: K,
+    /// Where a calibration is saved.
+    pub persistence: P,
+    /// Who the device is.
+    pub identity: DeviceIdentity,
+}
+
+/// What a boot did, for the log.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BootReport {
+    /// Where the calibration came from.
+    pub calibration_source: CalibrationSource,
+    /// Sample sets of the tare taken at start (0: none).
+    pub tare_sets_at_start: u16,
+    /// Taxels whose baseline was restored from the retained record (bit n = taxel n).
+    pub restored_mask: u8,
+    /// Whether an MCU-only reset found an intact retained record.
+    pub restored: bool,
+}
+
+/// The device application the firmware and the simulated device run.
+pub type BootedDevice<I2C, D, T, F, K, P> = Device<Acquisition<I2C, D, T, F, K>, P>;
+
+/// Boots: the calibration from what flash returned, the model with the retained baselines and
+/// tier restored after an MCU-only reset (a tare at start after a power-on), the acquisition
+/// loop and the device application.
+pub fn boot<I2C, D, T, F, K, P, E>(
+    parts: BoardParts<I2C, D, T, F, K, P>,
+    config: &BoardConfig,
+    stored: Option<LoadOutcome<E>>,
+    reset: ResetKind,
+    retained: Option<RetainedState>,
+) -> (BootedDevice<I2C, D, T, F, K, P>, BootReport)
+where
+    I2C: I2c,
+    D: DelayNs + Clone,
+    T: TemperatureSource,
+    F: TemperatureSource,
+    K: Clock,
+    P: CalibrationPersistence,
+{
+    let (calibration, calibration_source) = boot_calibration(stored);
+    let plan = boot_plan(reset, retained, config.tare_sets_at_power_on);
+    let mut pad = PadModel::new(calibration);
+    let restored_mask = plan.apply_to(&mut pad);
+    let acquisition = Acquisition::new(
+        Fdc1004::new(
+            parts.converter_i2c,
+            parts.delay.clone(),
+            config.converter_config(),
+        ),
+        parts.temperature,
+        parts.fallback_temperature,
+        parts.clock,
+        pad,
+        AcquisitionConfig {
+            tare_sets_at_start: plan.tare_sets_at_start,
+            ..AcquisitionConfig::default()
+        },
+        parts.delay,
+    );
+    let device = Device::new(
+        acquisition,
+        parts.persistence,
+        parts.identity,
+        calibration_source,
+        config.device,
+    );
+    let report = BootReport {
+        calibration_source,
+        tare_sets_at_start: plan.tare_sets_at_start,
+        restored_mask,
+        restored: plan.restore.is_some(),
+    };
+    (device, report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calibration_store::CorruptReason;
+
+    #[test]
+    fn flash_contents_choose_the_calibration() {
+        let (calibration, source) = boot_calibration::<()>(None);
+        assert_eq!((calibration.id(), source), (0, CalibrationSource::Defaults));
+        let (_, source) = boot_calibration(Some(LoadOutcome::<()>::Absent));
+        assert_eq!(source, CalibrationSource::Defaults);
+        let (_, source) = boot_calibration(Some(LoadOutcome::<()>::Corrupt(
+            CorruptReason::NoIntactRecord,
+        )));
+        assert_eq!(source, CalibrationSource::DefaultsAfterCorruptFlash);
+        let mut spec = Calibration::default().to_spec();
+        spec.id = 42;
+        let (calibration, source) = boot_calibration(Some(LoadOutcome::<()>::Stored(spec.clone())));
+        assert_eq!((calibration.id(), source), (42, CalibrationSource::Flash));
+        spec.taxels[0].points.truncate(1);
+        let (calibration, source) = boot_calibration(Some(LoadOutcome::<()>::Stored(spec)));
+        assert_eq!(
+            (calibration.id(), source),
+            (0, CalibrationSource::DefaultsAfterCorruptFlash)
+        );
+    }
+}
