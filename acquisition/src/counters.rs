@@ -7,8 +7,6 @@ use fdc1004::Error;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Counters {
-    /// Sample sets the consumer's queue could not take.
-    pub dropped_sets: u32,
     /// Converter initialisations: the first one and every one after an error (one that only
     /// applies a requested rate change is not counted).
     pub converter_inits: u32,

@@ -11,11 +11,9 @@
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 mod counters;
-mod sink;
 mod stuck;
 
 pub use counters::Counters;
-pub use sink::{SampleSink, SinkFull};
 pub use stuck::StuckDetector;
 
 use embedded_hal_async::delay::DelayNs;
@@ -212,28 +210,6 @@ where
         if self.converter_ready {
             self.reconfiguration_requested = true;
             self.converter_ready = false;
-        }
-    }
-
-    /// Counts a sample set the consumer could not take.
-    pub fn count_dropped(&mut self) {
-        Counters::bump(&mut self.counters.dropped_sets);
-    }
-
-    /// Runs cycles forever, handing each to `sink` without waiting for it (a full sink drops the
-    /// set and counts it). `between_cycles` runs after each cycle with the loop itself, for
-    /// commands and watchdog feeding.
-    pub async fn run<S: SampleSink>(
-        &mut self,
-        sink: &mut S,
-        mut between_cycles: impl FnMut(&mut Self),
-    ) -> ! {
-        loop {
-            let sample = self.cycle().await;
-            if sink.try_push(sample).is_err() {
-                self.count_dropped();
-            }
-            between_cycles(self);
         }
     }
 

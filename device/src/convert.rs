@@ -68,7 +68,7 @@ pub fn sample_frame(sample: &ProcessedSample, pad: &PadModel) -> SampleFrame {
 /// The counters frame.
 pub fn counters_frame(counters: &Counters, host: &HostCounters) -> CountersFrame {
     CountersFrame {
-        dropped_sample_sets: counters.dropped_sets,
+        dropped_sample_sets: host.sample_sets_dropped,
         converter_reinits: counters.converter_reinits(),
         i2c_errors: counters.i2c_errors,
         temperature_sensor_errors: counters.temperature_errors,

@@ -86,6 +86,9 @@ pub trait HostPort {
 pub struct HostCounters {
     /// Frames not sent because no host had the port open, or its queue was full.
     pub frames_dropped_no_host: u32,
+    /// Sample sets produced while streaming that were not sent (no host had the port open, or
+    /// its queue was full): among `frames_dropped_no_host`, the ones that were sample sets.
+    pub sample_sets_dropped: u32,
     /// Host frames that could not be decoded or were refused without a reply.
     pub host_frames_rejected: u32,
 }
@@ -317,7 +320,10 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             } else {
                 Outgoing::Frame(DeviceFrame::Sample(frame))
             };
-            self.send(host, outgoing);
+            if !self.send(host, outgoing) {
+                self.host_counters.sample_sets_dropped =
+                    self.host_counters.sample_sets_dropped.saturating_add(1);
+            }
         }
         let baselines = self.control.pad().baseline_records();
         if baselines != self.announced_baselines {
@@ -363,11 +369,14 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         }
     }
 
-    fn send<H: HostPort>(&mut self, host: &mut H, outgoing: Outgoing) {
-        if !self.host_connected || host.try_send(outgoing).is_err() {
+    /// Queues something for the host; `false` (and counted) when it was dropped.
+    fn send<H: HostPort>(&mut self, host: &mut H, outgoing: Outgoing) -> bool {
+        let sent = self.host_connected && host.try_send(outgoing).is_ok();
+        if !sent {
             self.host_counters.frames_dropped_no_host =
                 self.host_counters.frames_dropped_no_host.saturating_add(1);
         }
+        sent
     }
 
     /// Applies one request; `None` when the reply comes later (a tare).

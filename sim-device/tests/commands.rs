@@ -700,3 +700,41 @@ fn the_calibration_id_is_the_last_one_written_for_every_taxel() {
         assert_eq!(record.calibration_id, 6);
     }
 }
+
+/// `dropped_sample_sets` counts exactly the sample sets produced while streaming that were not
+/// sent (here: a host that never reads fills the output queue); frames of other kinds that were
+/// dropped are not in it.
+#[test]
+fn dropped_sample_sets_counts_the_sample_sets_that_were_not_sent() {
+    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
+        scene: SceneFile::default_scene().unwrap(),
+        seed: 4,
+        speed: None,
+    })
+    .unwrap();
+    let mut port = MemoryPort::new(2_000);
+    let steps = 300u32;
+    for _ in 0..steps {
+        device.step(&mut port);
+    }
+    let counters = device.device_mut().host_counters();
+    let bytes = port.take_for_host(usize::MAX);
+    let mut decoder = DeviceFrameDecoder::new();
+    let samples: Vec<SampleFrame> = decoder
+        .feed(&bytes)
+        .flatten()
+        .filter_map(|frame| match frame {
+            DeviceFrame::Sample(sample) => Some(sample),
+            _ => None,
+        })
+        .collect();
+    assert!(counters.sample_sets_dropped > 200, "{counters:?}");
+    assert_eq!(
+        samples.len() as u32 + counters.sample_sets_dropped,
+        steps,
+        "every set is either in the port or counted"
+    );
+    assert!(counters.frames_dropped_no_host > counters.sample_sets_dropped);
+    let frame = device::counters_frame(&device.device_mut().control().counters(), &counters);
+    assert_eq!(frame.dropped_sample_sets, counters.sample_sets_dropped);
+}

@@ -78,7 +78,7 @@ pub fn info_words(info: &InfoFrame) -> String {
 /// The device's health counters (since its boot) in words.
 pub fn counters_words(counters: &CountersFrame) -> String {
     format!(
-        "since boot: {} sample sets dropped by the acquisition, {} frames not sent (no host or queue full), {} converter re-initialisations, {} I2C errors, {} temperature-sensor errors, {} bad frames from the host",
+        "since boot: {} sample sets not sent, {} frames of any kind not sent (no host or queue full), {} converter re-initialisations, {} I2C errors, {} temperature-sensor errors, {} bad frames from the host",
         counters.dropped_sample_sets,
         counters.frames_dropped_no_host,
         counters.converter_reinits,

@@ -2,7 +2,8 @@
 //!
 //! - **received**: sample frames decoded;
 //! - **dropped by the device**: the growth of the device's `dropped_sample_sets` counter since
-//!   this connection's first counters (sets it acquired while streaming and could not send);
+//!   this connection's first counters (sample sets it produced while streaming and could not
+//!   send; a dropped event or counters frame is not a lost sample set);
 //! - **lost on the link**: sequence gaps between consecutive received samples of one stream
 //!   that the device's drops do not explain;
 //! - **stale**: frames that were waiting in the port's buffer from before this connection and
@@ -46,12 +47,10 @@ impl StreamAccounting {
 
     /// Takes the device's counters (a Counters reply or frame). The first one is the origin;
     /// a counter that went down means the device restarted, and its new value counts from 0.
-    /// The device's drops are the sets its acquisition queue refused plus the frames its
-    /// output queue could not send.
+    /// The device's drops are its `dropped_sample_sets`: sample sets it produced while
+    /// streaming and could not send (other frames it could not send are not sample sets).
     pub fn counters(&mut self, counters: &CountersFrame) {
-        let now = counters
-            .dropped_sample_sets
-            .saturating_add(counters.frames_dropped_no_host);
+        let now = counters.dropped_sample_sets;
         match self.device_dropped_origin {
             None => {
                 self.device_dropped_origin = Some(now);

@@ -178,7 +178,9 @@ fn device_drops_are_deltas_since_the_connection() {
     state.connected_to("counters");
     let counters = |dropped| {
         DeviceFrame::Counters(CountersFrame {
-            frames_dropped_no_host: dropped,
+            dropped_sample_sets: dropped,
+            // Frames of other kinds the device could not send are not lost sample sets.
+            frames_dropped_no_host: dropped * 2,
             ..CountersFrame::default()
         })
     };

@@ -154,7 +154,8 @@ pub struct FaultOutcome {
     pub frames_rejected: u64,
     /// Sample sets missing at the host (sequence gaps).
     pub sets_missing: u64,
-    /// Missing sets the device's counters account for (dropped for a full queue or no host).
+    /// Missing sets accounted for: sample sets the device counted as not sent (full queue or no
+    /// host), and frames the host rejected as damaged.
     pub sets_missing_accounted: u64,
     /// Flags seen during the runs.
     pub flags_seen: TaxelFlags,
@@ -299,7 +300,7 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
         result.sets_sent += 1;
         if drops_at_start.is_none() && now_us >= 1_000_000 {
             let counters = simulated.device_mut().host_counters();
-            drops_at_start = Some(u64::from(counters.frames_dropped_no_host));
+            drops_at_start = Some(u64::from(counters.sample_sets_dropped));
         }
         let _ = sample;
         // The host side: read what a host of this kind reads in one set's time.
@@ -352,12 +353,9 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
         }
     }
     let counters = simulated.device_mut().host_counters();
+    // Sample sets only: a dropped event or counters frame never explains a missing sample set.
     result.device_drops =
-        u64::from(counters.frames_dropped_no_host).saturating_sub(drops_at_start.unwrap_or(0));
-    let acquisition_drops = result
-        .last_counters
-        .map_or(0, |counters| u64::from(counters.dropped_sample_sets));
-    result.device_drops += acquisition_drops;
+        u64::from(counters.sample_sets_dropped).saturating_sub(drops_at_start.unwrap_or(0));
     Ok(result)
 }
 
