@@ -12,15 +12,16 @@
 
 mod counters;
 mod stuck;
+mod temperature;
 
 pub use counters::Counters;
 pub use stuck::StuckDetector;
+pub use temperature::TemperatureSource;
 
 use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;
 use fdc1004::{Fdc1004, Rate};
 use model_core::{PadModel, PadOutput, SampleInput, TaxelFlags, TaxelReading, TAXEL_COUNT};
-use tmp117::TemperatureSource;
 
 /// A monotonic clock in microseconds.
 pub trait Clock {

@@ -5,7 +5,9 @@
 // Test helpers outside #[test] functions may unwrap and panic: a failure is the test failing.
 #![allow(clippy::unwrap_used, clippy::panic, clippy::needless_range_loop)]
 
-use acquisition::{Acquisition, AcquisitionConfig, Clock, ProcessedSample, TemperatureOrigin};
+use acquisition::{
+    Acquisition, AcquisitionConfig, Clock, ProcessedSample, TemperatureOrigin, TemperatureSource,
+};
 use embassy_futures::block_on;
 use fdc1004::{Config, Fdc1004, Rate};
 use model_core::{PadModel, TaxelFlags};
@@ -13,7 +15,7 @@ use sensor_sim::{
     Device, Fault, Keyframe, ScenePoint, ScriptedScene, SimDelay, SimI2c, Simulation,
     SimulationConfig, Window,
 };
-use tmp117::{Address, TemperatureSource, Tmp117};
+use tmp117::{Address, Tmp117};
 
 /// Largest difference between a reported pressure and the scene, kPa. The scene is the
 /// simulator's own truth (its physics is independent of the model), converted with the simulated

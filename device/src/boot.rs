@@ -3,13 +3,12 @@
 //! model, the acquisition loop and the device application around the board's parts. The board
 //! and the simulator differ only in the parts they pass in (real or simulated I2C, clock, flash).
 
-use acquisition::{Acquisition, AcquisitionConfig, Clock};
+use acquisition::{Acquisition, AcquisitionConfig, Clock, TemperatureSource};
 use calibration_store::LoadOutcome;
 use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;
 use fdc1004::{Fdc1004, Rate};
 use model_core::{Calibration, PadModel};
-use tmp117::TemperatureSource;
 use wire::CalibrationSource;
 
 use crate::retained::{boot_plan, ResetKind, RetainedState};

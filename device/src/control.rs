@@ -1,11 +1,11 @@
 //! What the device application needs from the acquisition loop, so that it can be driven by the
 //! real loop (firmware, simulator) and stays testable.
 
+use acquisition::TemperatureSource;
 use acquisition::{Acquisition, Clock, Counters, ProcessedSample};
 use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;
 use model_core::PadModel;
-use tmp117::TemperatureSource;
 use wire::SampleRate;
 
 use crate::convert::{converter_rate, wire_sample_rate};

@@ -30,9 +30,7 @@ pub use persistence::{CalibrationPersistence, PersistenceFailed};
 pub use retained::{boot_plan, BootPlan, ResetKind, RetainedState, RETAINED_LEN};
 
 use acquisition::{ProcessedSample, TemperatureOrigin};
-use model_core::{
-    BaselineError, BaselineRecord, Calibration, TareStatus, Tier, UseCase, TAXEL_COUNT,
-};
+use model_core::{BaselineError, BaselineRecord, Calibration, TareStatus, Tier, TAXEL_COUNT};
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
     InfoFrame, ReplyFrame, ReplyPayload, Request, SampleFrame, SampleRate, TaxelBaselineWire,
@@ -431,12 +429,6 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 _ => Err(ErrorCode::NotSupported),
             },
             Command::SetUseCase(use_case) => {
-                let use_case = UseCase {
-                    pressure_max_kpa: use_case.pressure_max_kpa,
-                    temperature_min_c: use_case.temperature_min_c,
-                    temperature_max_c: use_case.temperature_max_c,
-                    error_budget_kpa: use_case.error_budget_kpa,
-                };
                 match self.control.pad_mut().apply_use_case(&use_case) {
                     Ok(choice) => Ok(ReplyPayload::ModelTier(choice.tier as u8)),
                     Err(_) => Err(ErrorCode::NotSupported),

@@ -8,12 +8,12 @@
 
 use core::ops::Range;
 
+use acquisition::TemperatureSource;
 use defmt::{info, warn};
 use embassy_stm32::adc::{Adc, SampleTime, Temperature, Vbat, VrefInt};
 use embassy_stm32::peripherals::ADC1;
 use embassy_stm32::Peri;
 use embassy_time::Timer;
-use tmp117::TemperatureSource;
 
 /// Factory calibration in system memory (STM32F411 datasheet, "Temperature sensor calibration
 /// values" and "Internal reference voltage calibration values"), all taken at VDDA = 3.3 V.

@@ -64,6 +64,19 @@ pub struct UseCase {
 }
 
 impl UseCase {
+    /// Whether the use case can be served: a finite positive pressure range and error budget,
+    /// and finite temperatures with the lowest below the highest. The one rule for the device's
+    /// argument check and the tier selection.
+    pub fn is_valid(&self) -> bool {
+        self.pressure_max_kpa.is_finite()
+            && self.pressure_max_kpa > 0.0
+            && self.temperature_min_c.is_finite()
+            && self.temperature_max_c.is_finite()
+            && self.temperature_min_c < self.temperature_max_c
+            && self.error_budget_kpa.is_finite()
+            && self.error_budget_kpa > 0.0
+    }
+
     /// Light touch: 0-10 kPa at room temperature, 0.1 kPa.
     pub const LIGHT_TOUCH: UseCase = UseCase {
         pressure_max_kpa: 10.0,
@@ -290,13 +303,7 @@ pub fn select_tier_for_taxels(
     law: &TemperatureLaw,
     use_case: &UseCase,
 ) -> Result<TierChoice, SelectionError> {
-    let valid = !taxels.is_empty()
-        && use_case.pressure_max_kpa > 0.0
-        && use_case.pressure_max_kpa.is_finite()
-        && use_case.temperature_min_c <= use_case.temperature_max_c
-        && use_case.error_budget_kpa > 0.0
-        && use_case.error_budget_kpa.is_finite();
-    if !valid {
+    if taxels.is_empty() || !use_case.is_valid() {
         return Err(SelectionError::InvalidUseCase);
     }
     let top_kpa = taxels

@@ -4,6 +4,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use acquisition::TemperatureSource;
 use acquisition::{Acquisition, Clock, ProcessedSample};
 use calibration_store::{CalibrationStore, RamFlash};
 use device::{
@@ -14,7 +15,7 @@ use model_core::CalibrationSpec;
 use sensor_sim::{
     Pacing, Scene, ScenePoint, SimDelay, SimI2c, Simulation, SimulationConfig, Window,
 };
-use tmp117::{Address, TemperatureSource, Tmp117};
+use tmp117::{Address, Tmp117};
 use wire::FirmwareVersion;
 
 use crate::scene_file::SceneFile;

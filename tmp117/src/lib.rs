@@ -1,6 +1,6 @@
 //! Async `no_std` driver for the TI TMP117 digital temperature sensor, generic over the
-//! `embedded-hal-async` I2C bus, and [`TemperatureSource`], the trait through which the rest of
-//! the system reads a temperature without knowing which sensor provides it.
+//! `embedded-hal-async` I2C bus. (The application reads temperatures through the acquisition
+//! crate's `TemperatureSource`, which this sensor implements there.)
 //!
 //! The pad uses the temperature to correct the dielectric drift of the taxels. The driver does
 //! not change the sensor's power-on configuration (continuous conversion); it checks the
@@ -9,7 +9,7 @@
 //!
 //! ```no_run
 //! # async fn example<I2C: embedded_hal_async::i2c::I2c>(i2c: I2C) -> Result<(), tmp117::Error<I2C::Error>> {
-//! use tmp117::{Address, TemperatureSource, Tmp117};
+//! use tmp117::{Address, Tmp117};
 //!
 //! let mut sensor = Tmp117::new(i2c, Address::Gnd);
 //! sensor.init().await?;
@@ -91,17 +91,6 @@ pub enum Error<E> {
     NotReady,
 }
 
-/// Anything that can measure a temperature in degrees Celsius (this sensor, the MCU's
-/// internal sensor, a simulation).
-#[allow(async_fn_in_trait)]
-pub trait TemperatureSource {
-    /// Why a reading failed.
-    type Error;
-
-    /// Reads the current temperature in degrees Celsius.
-    async fn read_temperature_c(&mut self) -> Result<f32, Self::Error>;
-}
-
 /// Converts a TEMP_RESULT value to degrees Celsius; `None` for the reset value 0x8000.
 pub fn temperature_c_from_register(temp_result: u16) -> Option<f32> {
     if temp_result == TEMP_RESULT_NOT_READY {
@@ -158,13 +147,5 @@ impl<I2C: I2c> Tmp117<I2C> {
             .await
             .map_err(Error::I2c)?;
         Ok(u16::from_be_bytes(buffer))
-    }
-}
-
-impl<I2C: I2c> TemperatureSource for Tmp117<I2C> {
-    type Error = Error<I2C::Error>;
-
-    async fn read_temperature_c(&mut self) -> Result<f32, Self::Error> {
-        Tmp117::read_temperature_c(self).await
     }
 }

@@ -4,7 +4,7 @@
 use embassy_futures::block_on;
 use embedded_hal_async::i2c::{ErrorKind, NoAcknowledgeSource};
 use embedded_hal_mock::eh1::i2c::{Mock as I2cMock, Transaction as I2cTransaction};
-use tmp117::{temperature_c_from_register, Address, Error, TemperatureSource, Tmp117};
+use tmp117::{temperature_c_from_register, Address, Error, Tmp117};
 
 const DEFAULT_ADDRESS: u8 = 0x48;
 
@@ -113,21 +113,6 @@ fn reset_value_is_not_ready_rather_than_minus_256_c() {
     assert_eq!(temperature_c_from_register(0x8000), None);
     // One LSB above the reset value is a (nonsensical but) real code, not "not ready".
     assert_eq!(temperature_c_from_register(0x8001), Some(-255.992_19));
-}
-
-#[test]
-fn temperature_source_trait_reads_through_the_driver() {
-    async fn read_any<S: TemperatureSource>(source: &mut S) -> Result<f32, S::Error> {
-        source.read_temperature_c().await
-    }
-    let result = with_sensor(
-        &[
-            read(DEFAULT_ADDRESS, TEMP_RESULT, 0x0C80),
-            read(DEFAULT_ADDRESS, TEMP_RESULT, 0x8000),
-        ],
-        async |sensor| (read_any(sensor).await, read_any(sensor).await),
-    );
-    assert_eq!(result, (Ok(25.0), Err(Error::NotReady)));
 }
 
 #[test]

@@ -73,19 +73,9 @@ impl SampleRate {
     }
 }
 
-/// The measurement task the host asks the device to choose a model tier for.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct UseCase {
-    /// The highest pressure to be measured, in kPa.
-    pub pressure_max_kpa: f32,
-    /// The lowest operating temperature, in °C.
-    pub temperature_min_c: f32,
-    /// The highest operating temperature, in °C.
-    pub temperature_max_c: f32,
-    /// The largest acceptable pressure error, in kPa.
-    pub error_budget_kpa: f32,
-}
+/// The measurement task the host asks the device to choose a model tier for: model-core's
+/// definition, carried as postcard encodes it (four f32 in field order).
+pub use model_core::UseCase;
 
 /// The calibration of one taxel: its loading curve, its parasitic capacitance and, if known, its
 /// unloaded sensor capacitance when it was calibrated.
@@ -220,19 +210,8 @@ impl Command {
                 None => Err(ErrorCode::InvalidArgument),
             },
             Command::Tare { sample_sets } if *sample_sets == 0 => Err(ErrorCode::InvalidArgument),
-            Command::SetUseCase(use_case) => {
-                let valid = use_case.pressure_max_kpa.is_finite()
-                    && use_case.pressure_max_kpa > 0.0
-                    && use_case.temperature_min_c.is_finite()
-                    && use_case.temperature_max_c.is_finite()
-                    && use_case.temperature_min_c < use_case.temperature_max_c
-                    && use_case.error_budget_kpa.is_finite()
-                    && use_case.error_budget_kpa > 0.0;
-                if valid {
-                    Ok(())
-                } else {
-                    Err(ErrorCode::InvalidArgument)
-                }
+            Command::SetUseCase(use_case) if !use_case.is_valid() => {
+                Err(ErrorCode::InvalidArgument)
             }
             Command::ReadCalibration { taxel_index } | Command::ReadBaseline { taxel_index }
                 if usize::from(*taxel_index) >= TAXEL_COUNT =>
