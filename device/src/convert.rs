@@ -97,7 +97,7 @@ pub fn calibration_record(
         .get(usize::from(taxel_index))
         .ok_or(CalibrationConversionError::NoSuchTaxel)?;
     let mut points = Vec::new();
-    for point in taxel.curve.points() {
+    for point in taxel.curve().points() {
         points
             .push((point.pressure_kpa, point.relative_change))
             .map_err(|_| CalibrationConversionError::TooManyPoints)?;
@@ -107,8 +107,8 @@ pub fn calibration_record(
         calibration_id: calibration.id(),
         calibration: TaxelCalibrationWire {
             points,
-            parasitic_pf: taxel.parasitic_pf,
-            unloaded_sensor_pf: taxel.unloaded_sensor_pf,
+            parasitic_pf: taxel.parasitic_pf(),
+            unloaded_sensor_pf: taxel.unloaded_sensor_pf(),
         },
     })
 }

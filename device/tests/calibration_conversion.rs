@@ -27,7 +27,7 @@ fn the_calibrated_c0_survives_the_wire_both_ways() {
         let record = calibration_record(&calibration, taxel as u8).unwrap();
         assert_eq!(
             record.calibration.unloaded_sensor_pf,
-            expected.unloaded_sensor_pf
+            expected.unloaded_sensor_pf()
         );
         assert_eq!(record.check(), Ok(()));
         assert_eq!(
@@ -35,7 +35,7 @@ fn the_calibrated_c0_survives_the_wire_both_ways() {
             Ok(expected.to_spec())
         );
     }
-    assert_eq!(calibration.taxels()[2].unloaded_sensor_pf, None);
+    assert_eq!(calibration.taxels()[2].unloaded_sensor_pf(), None);
     assert_eq!(
         calibration_record(&calibration, 4),
         Err(CalibrationConversionError::NoSuchTaxel)

@@ -172,7 +172,7 @@ fn instruction_mix_probe(header: &Header, taxel: &checks::GridTaxel) -> u32 {
     let capacitance_count = capacitance_inputs(single, &mut capacitances);
     let capacitances = &capacitances[..capacitance_count];
     let inverses = taxel.model.inverses();
-    let top_pressure_kpa = taxel.calibration.taxels()[0].curve.top().pressure_kpa;
+    let top_pressure_kpa = taxel.calibration.taxels()[0].curve().top().pressure_kpa;
     for tier in Tier::ALL {
         let mut probe = DirectProbe {
             baseline: context.baseline,
@@ -352,7 +352,7 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
     }
 
     let inverses = taxel.model.inverses();
-    let top_pressure_kpa = taxel.calibration.taxels()[0].curve.top().pressure_kpa;
+    let top_pressure_kpa = taxel.calibration.taxels()[0].curve().top().pressure_kpa;
     for tier in Tier::ALL {
         let mean = counter.per_call(
             grid_calls,

@@ -404,17 +404,31 @@ impl Default for CalibrationSpec {
 
 /// The validated calibration of one taxel.
 #[derive(Debug, Clone, PartialEq)]
+///
+/// Only [`TaxelCalibration::new`] builds one, so every value held is a validated one.
 pub struct TaxelCalibration {
-    /// The curve.
-    pub curve: CalibrationCurve,
-    /// Parasitic capacitance, pF (0 ..= 100).
-    pub parasitic_pf: f32,
-    /// Unloaded sensor capacitance C0 - Cp at 25 °C when calibrated, pF (finite, positive, within
-    /// the converter's reach), if known.
-    pub unloaded_sensor_pf: Option<f32>,
+    curve: CalibrationCurve,
+    parasitic_pf: f32,
+    unloaded_sensor_pf: Option<f32>,
 }
 
 impl TaxelCalibration {
+    /// The curve.
+    pub fn curve(&self) -> &CalibrationCurve {
+        &self.curve
+    }
+
+    /// Parasitic capacitance, pF (0 ..= 100).
+    pub fn parasitic_pf(&self) -> f32 {
+        self.parasitic_pf
+    }
+
+    /// Unloaded sensor capacitance C0 - Cp at 25 °C when calibrated, pF (finite, positive,
+    /// within the converter's reach), if known.
+    pub fn unloaded_sensor_pf(&self) -> Option<f32> {
+        self.unloaded_sensor_pf
+    }
+
     /// Validates one taxel's data.
     pub fn new(spec: &TaxelCalibrationSpec, taxel: u8) -> Result<Self, CalibrationError> {
         let curve = CalibrationCurve::new(&spec.points, taxel)?;

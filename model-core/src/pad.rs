@@ -175,7 +175,7 @@ impl PadModel {
     pub fn select_tier_for(&self, use_case: &UseCase) -> Result<TierChoice, SelectionError> {
         let mut evidence = self.taxels.each_ref().map(|taxel| TaxelEvidence {
             inverses: taxel.inverses(),
-            curve: &self.calibration.taxels()[0].curve,
+            curve: self.calibration.taxels()[0].curve(),
             sensor_pf: NOMINAL_SENSOR_PF,
         });
         for ((evidence, calibration), baseline) in evidence
@@ -183,7 +183,7 @@ impl PadModel {
             .zip(self.calibration.taxels())
             .zip(&self.baselines)
         {
-            evidence.curve = &calibration.curve;
+            evidence.curve = calibration.curve();
             evidence.sensor_pf = baseline
                 .as_ref()
                 .map_or(NOMINAL_SENSOR_PF, Baseline::sensor_pf);
@@ -275,7 +275,7 @@ impl PadModel {
             .calibration
             .taxels()
             .get(taxel)
-            .and_then(|calibration| calibration.unloaded_sensor_pf)
+            .and_then(|calibration| calibration.unloaded_sensor_pf())
             .is_some_and(|calibrated_pf| {
                 let law = self.calibration.temperature_law();
                 let tared_pf =

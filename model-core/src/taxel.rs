@@ -18,8 +18,14 @@ pub struct TaxelOutput {
 }
 
 impl TaxelOutput {
-    /// A faulted output: no pressure.
+    /// A faulted output: no pressure. `flags` should name the fault; when none of them is a
+    /// fault, INVALID_INPUT is added, so that a "fault" can never read as a pressure.
     pub fn fault(flags: TaxelFlags, capacitance_pf: Option<f32>) -> Self {
+        let flags = if flags.is_fault() {
+            flags
+        } else {
+            flags | TaxelFlags::INVALID_INPUT
+        };
         Self {
             pressure_kpa: 0.0,
             capacitance_pf,
@@ -72,10 +78,10 @@ pub struct TaxelModel {
 impl TaxelModel {
     /// Builds every tier for the taxel's curve.
     pub fn new(calibration: &TaxelCalibration) -> Self {
-        let top = calibration.curve.top();
+        let top = calibration.curve().top();
         Self {
-            inverses: TaxelInverses::new(&calibration.curve),
-            parasitic_pf: calibration.parasitic_pf,
+            inverses: TaxelInverses::new(calibration.curve()),
+            parasitic_pf: calibration.parasitic_pf(),
             top_relative_change: top.relative_change,
             top_pressure_kpa: top.pressure_kpa,
         }
@@ -144,5 +150,21 @@ impl TaxelModel {
             relative_change: Some(relative_change),
             flags,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_fault_without_a_fault_flag_still_has_no_pressure() {
+        let output = TaxelOutput::fault(TaxelFlags::BELOW_BASELINE, Some(4.5));
+        assert_eq!(output.pressure_kpa(), None);
+        assert!(output
+            .flags()
+            .contains(TaxelFlags::INVALID_INPUT | TaxelFlags::BELOW_BASELINE));
+        let shorted = TaxelOutput::fault(TaxelFlags::SHORTED, None);
+        assert_eq!(shorted.flags(), TaxelFlags::SHORTED);
     }
 }

@@ -248,8 +248,8 @@ fn the_factory_calibration_is_the_true_curve_every_5_kpa_with_the_pads_parasitic
         .unwrap();
     for taxel in 0..4 {
         let taxel_calibration = &calibration.taxels()[taxel];
-        assert_eq!(taxel_calibration.parasitic_pf, 1.2);
-        let points = taxel_calibration.curve.points();
+        assert_eq!(taxel_calibration.parasitic_pf(), 1.2);
+        let points = taxel_calibration.curve().points();
         assert_eq!(points.len(), 11);
         for (index, point) in points.iter().enumerate() {
             assert_eq!(point.pressure_kpa, 5.0 * index as f32);

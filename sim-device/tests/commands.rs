@@ -361,7 +361,7 @@ fn a_calibration_is_read_written_saved_kept_across_a_reboot_and_restored() {
         .physics()
         .matching_calibration()
         .unwrap();
-    let point_count = factory.taxels()[1].curve.points().len();
+    let point_count = factory.taxels()[1].curve().points().len();
     assert_eq!(record.calibration.points.len(), point_count);
     assert_eq!(
         host.request(Command::ReadCalibration { taxel_index: 9 }),

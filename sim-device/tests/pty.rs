@@ -108,7 +108,7 @@ fn a_client_on_the_terminal_end_gets_info_samples_and_replies() {
                 .physics()
                 .matching_calibration()
                 .unwrap();
-            let point_count = factory.taxels()[2].curve.points().len();
+            let point_count = factory.taxels()[2].curve().points().len();
             assert_eq!(record.calibration.points.len(), point_count);
         }
         other => panic!("unexpected {other:?}"),

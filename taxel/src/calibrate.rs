@@ -627,7 +627,7 @@ mod tests {
         let data = reference_data(&rows, [0.8; 4], &TemperatureLaw::article_default()).unwrap();
         let calibration = fit_calibration(&data, 3, 0.8).unwrap();
         for (taxel, expected_pf) in [4.5f32, 4.3, 4.7, 4.4].into_iter().enumerate() {
-            let unloaded_pf = calibration.taxels()[taxel].unloaded_sensor_pf.unwrap();
+            let unloaded_pf = calibration.taxels()[taxel].unloaded_sensor_pf().unwrap();
             assert!((unloaded_pf - expected_pf).abs() < 1e-5, "{unloaded_pf}");
             let record = device::calibration_record(&calibration, taxel as u8).unwrap();
             assert_eq!(record.calibration.unloaded_sensor_pf, Some(unloaded_pf));

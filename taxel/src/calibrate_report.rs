@@ -83,7 +83,7 @@ pub fn conditioning_report(
     for (taxel, (name, taxel_calibration)) in
         TAXEL_NAMES.iter().zip(calibration.taxels()).enumerate()
     {
-        let inverses = TaxelInverses::new(&taxel_calibration.curve);
+        let inverses = TaxelInverses::new(taxel_calibration.curve());
         let sensor_pf = unloaded_sensor_pf.get(taxel).copied().unwrap_or(f64::NAN) as f32;
         for interval in model_core::conditioning::interval_noise(
             inverses.monotone_cubic().forward(),

@@ -204,7 +204,7 @@ mod tests {
         assert!(loaded
             .taxels()
             .iter()
-            .all(|taxel| taxel.unloaded_sensor_pf.is_none()));
+            .all(|taxel| taxel.unloaded_sensor_pf().is_none()));
     }
 
     #[test]

@@ -345,7 +345,7 @@ fn taxel_pictures(calibration: &Calibration, loads: Option<&ReferenceData>) -> V
         .iter()
         .enumerate()
         .map(|(taxel, taxel_calibration)| {
-            let curve = &taxel_calibration.curve;
+            let curve = taxel_calibration.curve();
             let inverses = TaxelInverses::new(curve);
             let top = curve.top();
             let measured: Vec<(f64, f64)> = loads
@@ -672,7 +672,7 @@ pub fn run(args: &PlotArgs) -> anyhow::Result<ExitCode> {
                     let rows = read_loads(BufReader::new(file))
                         .with_context(|| format!("reading {}", loads_path.display()))?;
                     let parasitic_pf: [f64; TAXEL_COUNT] = std::array::from_fn(|taxel| {
-                        f64::from(calibration.taxels()[taxel].parasitic_pf)
+                        f64::from(calibration.taxels()[taxel].parasitic_pf())
                     });
                     Some(reference_data(
                         &rows,

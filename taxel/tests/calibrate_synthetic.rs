@@ -113,8 +113,8 @@ fn recovers_the_known_curve_and_reports_leave_one_out_errors() {
     assert_eq!(calibration.id(), 7);
     let levels = levels_kpa();
     for (taxel, taxel_calibration) in calibration.taxels().iter().enumerate() {
-        assert_eq!(taxel_calibration.parasitic_pf, 0.8);
-        let points = taxel_calibration.curve.points();
+        assert_eq!(taxel_calibration.parasitic_pf(), 0.8);
+        let points = taxel_calibration.curve().points();
         assert_eq!(points.len(), levels.len());
         for (point, pressure_kpa) in points.iter().zip(&levels) {
             assert_eq!(f64::from(point.pressure_kpa), *pressure_kpa);
@@ -291,7 +291,7 @@ fn the_calibrated_c0_is_written_and_a_tare_far_from_it_is_flagged() {
             (written - UNLOADED_SENSOR_PF[taxel]).abs() < 1e-3,
             "taxel {taxel}: {written} pF"
         );
-        assert_eq!(taxel_calibration.unloaded_sensor_pf, Some(written as f32));
+        assert_eq!(taxel_calibration.unloaded_sensor_pf(), Some(written as f32));
     }
 
     // The upload carries each taxel's C0 in its WriteCalibration (through the wire encoder and
@@ -311,10 +311,10 @@ fn the_calibrated_c0_is_written_and_a_tare_far_from_it_is_flagged() {
         let WireCommand::WriteCalibration(record) = &request.command else {
             panic!("expected WriteCalibration, got {:?}", request.command);
         };
-        assert!(taxel_calibration.unloaded_sensor_pf.is_some());
+        assert!(taxel_calibration.unloaded_sensor_pf().is_some());
         assert_eq!(
             record.calibration.unloaded_sensor_pf,
-            taxel_calibration.unloaded_sensor_pf
+            taxel_calibration.unloaded_sensor_pf()
         );
     }
 

@@ -272,7 +272,7 @@ fn calibration_pull_writes_the_device_calibration() {
     .matching_calibration()
     .unwrap();
     for (pulled_taxel, true_taxel) in calibration.taxels().iter().zip(truth.taxels()) {
-        assert_eq!(pulled_taxel.curve.points(), true_taxel.curve.points());
-        assert_eq!(pulled_taxel.parasitic_pf, true_taxel.parasitic_pf);
+        assert_eq!(pulled_taxel.curve().points(), true_taxel.curve().points());
+        assert_eq!(pulled_taxel.parasitic_pf(), true_taxel.parasitic_pf());
     }
 }

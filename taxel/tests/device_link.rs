@@ -223,7 +223,7 @@ fn upload_writes_every_taxel_then_saves() {
         assert_eq!(record.calibration_id, 42);
         assert_eq!(record.check(), Ok(()));
         let expected: Vec<(f32, f32)> = calibration.taxels()[taxel]
-            .curve
+            .curve()
             .points()
             .iter()
             .map(|point| (point.pressure_kpa, point.relative_change))
