@@ -180,8 +180,31 @@ fn a_calibration_uploaded_and_saved_over_the_serial_path_survives_a_reboot() {
         (before.calibration_id, before.calibration_source),
         (4242, CalibrationSource::Flash)
     );
+    // Something only RAM holds: a calibration written but not saved. A reboot must lose it.
+    let mut unsaved = device::calibration_record(&calibration, 0).unwrap();
+    unsaved.calibration_id = 999;
+    assert_eq!(
+        link.request(Command::WriteCalibration(unsaved), timeout)
+            .ok(),
+        Some(ReplyPayload::Ack)
+    );
+    assert_eq!(info(&mut link).calibration_id, 999);
+    let last_sequence_before = latest_sequence(&mut link);
     reboot.store(true, Ordering::Relaxed);
-    thread::sleep(Duration::from_millis(200));
+    // The reboot restarts the acquisition's numbering: wait for a sample numbered below the
+    // last one seen before it.
+    let deadline = std::time::Instant::now() + timeout;
+    loop {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "no sample from after a reboot"
+        );
+        if let Ok(Some(wire::DeviceFrame::Sample(sample))) = link.next_frame() {
+            if sample.sequence < last_sequence_before {
+                break;
+            }
+        }
+    }
     let after = info(&mut link);
     assert_eq!(
         (after.calibration_id, after.calibration_source),
@@ -195,4 +218,17 @@ fn a_calibration_uploaded_and_saved_over_the_serial_path_survives_a_reboot() {
     }
     stop.store(true, Ordering::Relaxed);
     device_thread.join().unwrap();
+}
+
+/// The sequence number of the newest sample frame the link has or receives next.
+fn latest_sequence<P: std::io::Read + std::io::Write>(link: &mut DeviceLink<P>) -> u32 {
+    let mut latest = None;
+    for _ in 0..10_000 {
+        match link.next_frame() {
+            Ok(Some(wire::DeviceFrame::Sample(sample))) => latest = Some(sample.sequence),
+            Ok(None) if latest.is_some() => break,
+            _ => {}
+        }
+    }
+    latest.unwrap()
 }
