@@ -3,11 +3,13 @@
 //! served on a pseudo-terminal so that any serial program connects to it as to the board.
 #![deny(missing_docs)]
 
+pub mod flash;
 pub mod memory_port;
 pub mod pty;
 pub mod scene_file;
 pub mod simulated_device;
 
+pub use flash::{SimulatedFlash, FLASH_REGION_LEN, FLASH_SECTOR_LEN};
 pub use memory_port::MemoryPort;
 pub use pty::PtyPort;
 pub use scene_file::{FaultKind, SceneFault, SceneFile, SceneFileError, DEFAULT_SCENE_TOML};

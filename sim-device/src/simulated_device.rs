@@ -6,7 +6,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use acquisition::TemperatureSource;
 use acquisition::{Acquisition, Clock, ProcessedSample};
-use calibration_store::{CalibrationStore, RamFlash};
+use calibration_store::CalibrationStore;
+
+use crate::flash::{SimulatedFlash, FLASH_REGION_LEN};
 use device::{
     BoardParts, CalibrationPersistence, Device, DeviceIdentity, HostPort, PersistenceFailed,
     ResetKind, RetainedState, BOARD, RETAINED_LEN,
@@ -19,14 +21,6 @@ use tmp117::{Address, Tmp117};
 use wire::FirmwareVersion;
 
 use crate::scene_file::SceneFile;
-
-/// Size of the simulated calibration flash region: two 4 KiB pages.
-const FLASH_SIZE: usize = 8192;
-/// Erase page of the simulated flash.
-const FLASH_PAGE: usize = 4096;
-
-/// The simulated flash.
-pub type SimulatedFlash = RamFlash<FLASH_SIZE, FLASH_PAGE>;
 
 /// The id of the simulated pad's factory calibration (0 is the built-in default's).
 pub const FACTORY_CALIBRATION_ID: u32 = 1;
@@ -177,7 +171,7 @@ impl SimulatedDevice {
                 .set_pacing(Pacing::RealTime { speed })
                 .map_err(|error| SimulatedDeviceError::Simulation(error.to_string()))?;
         }
-        let mut store = CalibrationStore::new(SimulatedFlash::new(), 0..FLASH_SIZE as u32)
+        let mut store = CalibrationStore::new(SimulatedFlash::new(), 0..FLASH_REGION_LEN as u32)
             .map_err(|_| SimulatedDeviceError::Storage)?;
         if factory_calibrated {
             let factory = simulation
@@ -218,7 +212,7 @@ impl SimulatedDevice {
             self.device.persistence_mut().store_mut().flash(),
             SimulatedFlash::new(),
         );
-        let store = CalibrationStore::new(flash, 0..FLASH_SIZE as u32)
+        let store = CalibrationStore::new(flash, 0..FLASH_REGION_LEN as u32)
             .map_err(|_| SimulatedDeviceError::Storage)?;
         self.device = boot_simulated(
             &self.simulation,

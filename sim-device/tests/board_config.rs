@@ -50,3 +50,20 @@ fn the_simulated_converter_is_configured_as_the_board() {
     assert_eq!(rate_sps, BOARD.converter_rate.samples_per_second());
     assert_eq!(u32::from(device.device_mut().info().rate_sps), rate_sps);
 }
+
+/// The simulated calibration flash has the board's geometry: the region of sectors 6 and 7 of
+/// the STM32F411CE (RM0383: 128 KiB each), erased a sector at a time.
+#[test]
+fn the_simulated_flash_has_the_board_sectors() {
+    use embedded_storage_async::nor_flash::NorFlash;
+    assert_eq!(sim_device::FLASH_SECTOR_LEN, 128 * 1024);
+    assert_eq!(sim_device::FLASH_REGION_LEN, 2 * 128 * 1024);
+    assert_eq!(
+        <sim_device::SimulatedFlash as NorFlash>::ERASE_SIZE,
+        128 * 1024
+    );
+    assert_eq!(
+        calibration_store::STM32F411_CALIBRATION_RANGE.len(),
+        sim_device::FLASH_REGION_LEN
+    );
+}
