@@ -208,10 +208,7 @@ impl SimulatedDevice {
     /// sensor keep running with the state they had.
     pub fn restart_mcu(&mut self) -> Result<(), SimulatedDeviceError> {
         self.simulation.simulate_mcu_only_reset();
-        let flash = std::mem::replace(
-            self.device.persistence_mut().store_mut().flash(),
-            SimulatedFlash::new(),
-        );
+        let flash = std::mem::take(self.device.persistence_mut().store_mut().flash());
         let store = CalibrationStore::new(flash, 0..FLASH_REGION_LEN as u32)
             .map_err(|_| SimulatedDeviceError::Storage)?;
         self.device = boot_simulated(
