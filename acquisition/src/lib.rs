@@ -11,6 +11,7 @@
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 mod counters;
+pub mod die_sensor;
 mod stuck;
 mod temperature;
 

@@ -21,12 +21,14 @@
 #![deny(missing_docs)]
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
+mod erase_hook;
 mod page_view;
 #[cfg(feature = "ram-flash")]
 mod ram_flash;
 mod record;
 mod store;
 
+pub use erase_hook::EraseHook;
 #[cfg(feature = "ram-flash")]
 pub use ram_flash::{
     OperationKind, PowerLossReport, RamFlash, RamFlashError, Tear, RAM_FLASH_WORD_SIZE,

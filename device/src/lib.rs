@@ -17,6 +17,7 @@ mod convert;
 mod host_input;
 mod persistence;
 mod retained;
+mod supervisor;
 
 pub use boot::{boot, boot_calibration, BoardConfig, BoardParts, BootReport, BootedDevice, BOARD};
 pub use control::DeviceControl;
@@ -28,6 +29,7 @@ pub use convert::{
 pub use host_input::{HostInput, HostInputEvent};
 pub use persistence::{CalibrationPersistence, PersistenceFailed};
 pub use retained::{boot_plan, BootPlan, ResetKind, RetainedState, RETAINED_LEN};
+pub use supervisor::{Supervisor, SupervisorAction};
 
 use acquisition::{ProcessedSample, TemperatureOrigin};
 use model_core::{BaselineError, BaselineRecord, Calibration, TareStatus, Tier, TAXEL_COUNT};

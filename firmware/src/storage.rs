@@ -1,21 +1,20 @@
 //! The calibration in flash for the device application: [`FlashPersistence`] loads it at boot and
-//! implements `device::CalibrationPersistence` over `taxel-calibration-store`, in sectors 6 and 7
-//! through [`WatchdogFedFlash`].
+//! implements `device::CalibrationPersistence` over `taxel-calibration-store`, in sectors 6 and 7,
+//! feeding the watchdog between sector erases.
 
-use calibration_store::{CalibrationStore, LoadOutcome, STM32F411_CALIBRATION_RANGE};
+use calibration_store::{CalibrationStore, EraseHook, LoadOutcome, STM32F411_CALIBRATION_RANGE};
 use defmt::{error, info, warn};
 use device::{CalibrationPersistence, PersistenceFailed};
 use embassy_stm32::flash::{self, Flash, FLASH_BASE};
 use embassy_stm32::peripherals::FLASH;
 use embassy_stm32::Peri;
-use embedded_storage_async::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use model_core::CalibrationSpec;
 
 use crate::board::Irqs;
 use crate::watchdog;
 
 /// The flash under the calibration store.
-pub type CalibrationFlash = WatchdogFedFlash<Flash<'static, flash::Async>>;
+pub type CalibrationFlash = EraseHook<Flash<'static, flash::Async>, fn()>;
 
 extern "C" {
     static __calibration_start: u8;
@@ -35,9 +34,8 @@ impl FlashPersistence {
             error!("the calibration range does not match memory.x; calibration storage disabled");
             return Self { store: None };
         }
-        let flash = WatchdogFedFlash {
-            flash: Flash::new(flash, Irqs),
-        };
+        // Single-bank flash: a sector erase stalls the watchdog's supervisor; feed it between.
+        let flash = EraseHook::new(Flash::new(flash, Irqs), watchdog::feed as fn());
         match CalibrationStore::new(flash, STM32F411_CALIBRATION_RANGE) {
             Ok(store) => Self { store: Some(store) },
             Err(region_error) => {
@@ -91,48 +89,4 @@ fn calibration_range_matches_linker_script() -> bool {
     let end = &raw const __calibration_end as usize;
     start == FLASH_BASE + STM32F411_CALIBRATION_RANGE.start as usize
         && end == FLASH_BASE + STM32F411_CALIBRATION_RANGE.end as usize
-}
-
-/// A NOR flash that feeds the watchdog before every sector erase: the F411 has one flash bank,
-/// so an erase stalls every instruction fetch, and with it the watchdog's supervisor, for up to
-/// 2 s per 128 KiB sector.
-pub struct WatchdogFedFlash<F> {
-    flash: F,
-}
-
-impl<F: ErrorType> ErrorType for WatchdogFedFlash<F> {
-    type Error = F::Error;
-}
-
-impl<F: ReadNorFlash> ReadNorFlash for WatchdogFedFlash<F> {
-    const READ_SIZE: usize = F::READ_SIZE;
-
-    async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-        self.flash.read(offset, bytes).await
-    }
-
-    fn capacity(&self) -> usize {
-        self.flash.capacity()
-    }
-}
-
-impl<F: NorFlash> NorFlash for WatchdogFedFlash<F> {
-    const WRITE_SIZE: usize = F::WRITE_SIZE;
-    const ERASE_SIZE: usize = F::ERASE_SIZE;
-
-    async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
-        self.flash.write(offset, bytes).await
-    }
-
-    async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
-        let mut sector_start = from;
-        while sector_start < to {
-            let sector_end = sector_start.saturating_add(Self::ERASE_SIZE as u32).min(to);
-            watchdog::feed();
-            self.flash.erase(sector_start, sector_end).await?;
-            sector_start = sector_end;
-        }
-        watchdog::feed();
-        Ok(())
-    }
 }

@@ -6,7 +6,7 @@
 
 use core::cell::RefCell;
 use core::sync::atomic::{AtomicU32, Ordering};
-use device::ResetKind;
+use device::{ResetKind, Supervisor, SupervisorAction};
 
 use defmt::{error, info, warn};
 use embassy_stm32::gpio::Output;
@@ -96,24 +96,23 @@ pub fn heartbeat() {
 
 /// Feeds the watchdog while the heartbeat advances and blinks the LED meanwhile; never returns.
 pub async fn supervise(mut led: Output<'static>) -> ! {
-    let mut last_heartbeat = HEARTBEAT.load(Ordering::Relaxed);
-    let mut stalled_periods: u32 = 0;
+    let mut supervisor = Supervisor::new(
+        HEARTBEAT.load(Ordering::Relaxed),
+        MAX_STALLED_SUPERVISOR_PERIODS,
+    );
     loop {
         // Timer, not Ticker: after a CPU stall (flash erase) a Ticker fires the missed periods
         // back to back, which would count as a stall; each wake-up here is one real chance to run.
         Timer::after(SUPERVISOR_PERIOD).await;
-        let heartbeat = HEARTBEAT.load(Ordering::Relaxed);
-        if heartbeat != last_heartbeat {
-            last_heartbeat = heartbeat;
-            stalled_periods = 0;
-        } else {
-            stalled_periods = stalled_periods.saturating_add(1);
-        }
-        if stalled_periods < MAX_STALLED_SUPERVISOR_PERIODS {
-            feed();
-            led.toggle();
-        } else if stalled_periods == MAX_STALLED_SUPERVISOR_PERIODS {
-            error!("acquisition loop stalled; letting the watchdog reset the MCU");
+        match supervisor.wake(HEARTBEAT.load(Ordering::Relaxed)) {
+            SupervisorAction::Feed => {
+                feed();
+                led.toggle();
+            }
+            SupervisorAction::GiveUp => {
+                error!("acquisition loop stalled; letting the watchdog reset the MCU")
+            }
+            SupervisorAction::Wait => {}
         }
     }
 }
