@@ -47,7 +47,7 @@ fuzz_target!(|bytes: &[u8]| {
     let top_kpa = calibration
         .taxels()
         .iter()
-        .map(|taxel| taxel.curve.top().pressure_kpa)
+        .map(|taxel| taxel.curve().top().pressure_kpa)
         .fold(0.0f32, f32::max);
     let mut pad = PadModel::new(calibration);
     let mut chunks = bytes.chunks_exact(25);
