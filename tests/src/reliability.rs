@@ -122,6 +122,7 @@ struct RunResult {
     max_error_kpa: f32,
     frames_rejected: u64,
     sets_missing: u64,
+    sets_missing_in_damaged_gaps: u64,
     device_drops: u64,
     recovery_us: Option<u64>,
     flags_seen: u16,
@@ -155,8 +156,13 @@ pub struct FaultOutcome {
     /// Sample sets missing at the host (sequence gaps).
     pub sets_missing: u64,
     /// Missing sets accounted for: sample sets the device counted as not sent (full queue or no
-    /// host), and frames the host rejected as damaged.
+    /// host), and at most one set per frame the host rejected as damaged within the same
+    /// sequence gap.
     pub sets_missing_accounted: u64,
+    /// Sample sets the device counted as not sent (no host or a full queue).
+    pub sets_dropped_by_device: u64,
+    /// Missing sets explained by a damaged frame in their own sequence gap.
+    pub sets_damaged_in_transit: u64,
     /// Flags seen during the runs.
     pub flags_seen: TaxelFlags,
     /// Recovery time after the fault ends, per repetition, µs of simulated time.
@@ -260,6 +266,7 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
     let mut next_noise_us = start_us;
     let mut drops_at_start: Option<u64> = None;
     let mut sequence_base = 0u64;
+    let mut rejected_since_sample = 0u64;
     let end_of_run_us = (RUN_S * 1e6) as u64;
     while simulation.now_us() < end_of_run_us {
         let now_us = simulation.now_us();
@@ -317,12 +324,18 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
             match decoded {
                 Ok(DeviceFrame::Sample(frame)) => {
                     result.sets_received += 1;
-                    if let Some(previous) = previous_sequence {
-                        result.sets_missing +=
-                            u64::from(frame.sequence.wrapping_sub(previous).saturating_sub(1));
+                    let gap = if let Some(previous) = previous_sequence {
+                        u64::from(frame.sequence.wrapping_sub(previous).saturating_sub(1))
                     } else if sequence_base > 0 {
-                        result.sets_missing += u64::from(frame.sequence);
-                    }
+                        u64::from(frame.sequence)
+                    } else {
+                        0
+                    };
+                    result.sets_missing += gap;
+                    // A damaged frame explains at most one set, and only a set missing from
+                    // the gap it arrived in: damage elsewhere in the run explains nothing here.
+                    result.sets_missing_in_damaged_gaps += gap.min(rejected_since_sample);
+                    rejected_since_sample = 0;
                     previous_sequence = Some(frame.sequence);
                     check_sample(&frame, &truth, &mut result);
                     if frame.timestamp_us >= end_us
@@ -348,7 +361,10 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
                 }
                 Ok(DeviceFrame::Counters(counters)) => result.last_counters = Some(counters),
                 Ok(_) => {}
-                Err(_) => result.frames_rejected += 1,
+                Err(_) => {
+                    result.frames_rejected += 1;
+                    rejected_since_sample += 1;
+                }
             }
         }
     }
@@ -405,6 +421,8 @@ pub fn run_fault(kind: FaultKind, repetitions: u32) -> Result<FaultOutcome, Stri
         frames_rejected: 0,
         sets_missing: 0,
         sets_missing_accounted: 0,
+        sets_dropped_by_device: 0,
+        sets_damaged_in_transit: 0,
         flags_seen: TaxelFlags::empty(),
         recovery_us: Vec::new(),
         notes: String::new(),
@@ -422,10 +440,13 @@ pub fn run_fault(kind: FaultKind, repetitions: u32) -> Result<FaultOutcome, Stri
         outcome.max_error_kpa = outcome.max_error_kpa.max(run.max_error_kpa);
         outcome.frames_rejected += run.frames_rejected;
         outcome.sets_missing += run.sets_missing;
-        // A set lost in transit is one the host rejected as a damaged frame; one the device
-        // could not send it counted.
-        outcome.sets_missing_accounted +=
-            run.sets_missing.min(run.device_drops + run.frames_rejected);
+        // A set the device could not send it counted as a sample set dropped; a set lost in
+        // transit left a damaged frame in its own sequence gap.
+        outcome.sets_missing_accounted += run
+            .sets_missing
+            .min(run.device_drops + run.sets_missing_in_damaged_gaps);
+        outcome.sets_dropped_by_device += run.device_drops;
+        outcome.sets_damaged_in_transit += run.sets_missing_in_damaged_gaps;
         outcome.flags_seen |= TaxelFlags::from_bits_truncate(run.flags_seen);
         if let Some(recovery_us) = run.recovery_us {
             outcome.recovery_us.push(recovery_us);
@@ -489,7 +510,9 @@ permittivity law) does not use the pressure model, and the device converts with 
 pad's factory calibration (that true curve sampled every 5 kPa). A reported pressure more than \
 {PRESSURE_TOLERANCE_KPA} kPa from the scene is a *wrong pressure*; the RMS and largest \
 difference of all the pressures checked are given too; a sample set missing at the host (sequence gap) must be counted by the device \
-(frames dropped for no host or a full queue) or arrive as a frame the host rejected; recovery is \
+as a sample set it did not send (no host or a full queue; dropped event and counters frames do \
+not count), or fall in a sequence gap in which the host rejected a damaged frame (one set per \
+damaged frame, only in its own gap); recovery is \
 the simulated time from the end of the fault to the first set with no fault flag (for the \
 temperature sensor: back on the TMP117).\n"
     );
@@ -501,7 +524,7 @@ temperature sensor: back on the TMP117).\n"
     for outcome in outcomes {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} / {} | {} | **{}** of {} | {:.3} / {:.3} kPa | **{}** ({} missing, {} accounted) | {} | {} | {} |",
+            "| {} | {} | {} | {} / {} | {} | **{}** of {} | {:.3} / {:.3} kPa | **{}** ({} missing; accounted: {} counted by the device, {} damaged in transit) | {} | {} | {} |",
             outcome.kind.name(),
             outcome.kind.how(),
             outcome.repetitions,
@@ -514,7 +537,8 @@ temperature sensor: back on the TMP117).\n"
             outcome.max_error_kpa,
             outcome.sets_lost_silently(),
             outcome.sets_missing,
-            outcome.sets_missing_accounted,
+            outcome.sets_dropped_by_device,
+            outcome.sets_damaged_in_transit,
             outcome.frames_rejected,
             outcome
                 .worst_recovery_ms()
