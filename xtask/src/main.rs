@@ -22,7 +22,7 @@ mod measured;
 mod mix;
 mod report;
 mod simulator;
-mod svg;
+mod speed_plot;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -411,11 +411,19 @@ fn report() -> Result<()> {
     };
     let docs = root.join("docs");
     std::fs::create_dir_all(&docs)?;
-    std::fs::write(docs.join("PERFORMANCE.md"), report::markdown(&data))?;
-    std::fs::write(
-        docs.join("speed-vs-error.svg"),
-        svg::render(&report::plot(&data)),
-    )?;
+    let svg = speed_plot::render_svg(&report::plot(&data))?;
+    write_whole_file(&docs.join("PERFORMANCE.md"), &report::markdown(&data))?;
+    write_whole_file(&docs.join("speed-vs-error.svg"), &svg)?;
     println!("wrote docs/PERFORMANCE.md and docs/speed-vs-error.svg");
+    Ok(())
+}
+
+/// Writes `text` to `path` through a temporary file renamed into place, so an interrupted run
+/// leaves the previous file, never half of a new one.
+fn write_whole_file(path: &Path, text: &str) -> Result<()> {
+    let mut file = taxel::output_file::OutputFile::create(path)?;
+    std::io::Write::write_all(&mut file, text.as_bytes())
+        .with_context(|| format!("writing {}", path.display()))?;
+    file.commit()?;
     Ok(())
 }

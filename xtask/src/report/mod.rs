@@ -8,13 +8,14 @@ use model_core::conditioning::{CONVERTER_NOISE_PF, NOMINAL_SENSOR_PF};
 use model_core::inverse::POLYNOMIAL_DEGREE;
 use model_core::use_case::MEASURED_INSTRUCTIONS;
 use model_core::{SelectionError, TaxelFlags, Tier, TierChoice};
+use plotters::style::RGBColor;
 
 use crate::bench_output::BenchRun;
 use crate::firmware::{Footprint, FLASH_BUDGET_BYTES, STATIC_RAM_BUDGET_BYTES};
 use crate::host::{HostTime, LeaveOneOut, UseCaseSelection};
 use crate::mix::{Mix, MixReport};
 use crate::simulator::{Latency, SimulatorFigures};
-use crate::svg::{Guide, Link, Plot, Point};
+use crate::speed_plot::{Guide, Link, Plot, Point};
 
 mod cases;
 mod gaps;
@@ -206,8 +207,15 @@ fn fastest_close(data: &ReportData, run: &BenchRun, measure: Measure) -> Option<
 
 /// The speed-vs-error picture.
 pub fn plot(data: &ReportData) -> Plot {
-    const COLOURS: [&str; 8] = [
-        "#7f7f7f", "#2ca02c", "#1f77b4", "#ff7f0e", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+    const COLOURS: [RGBColor; 8] = [
+        RGBColor(0x7f, 0x7f, 0x7f),
+        RGBColor(0x2c, 0xa0, 0x2c),
+        RGBColor(0x1f, 0x77, 0xb4),
+        RGBColor(0xff, 0x7f, 0x0e),
+        RGBColor(0xd6, 0x27, 0x28),
+        RGBColor(0x94, 0x67, 0xbd),
+        RGBColor(0x8c, 0x56, 0x4b),
+        RGBColor(0xe3, 0x77, 0xc2),
     ];
     let mut points = Vec::new();
     let mut links = Vec::new();
