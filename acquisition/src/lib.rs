@@ -14,10 +14,12 @@ mod counters;
 pub mod die_sensor;
 mod stuck;
 mod temperature;
+mod timeout_i2c;
 
 pub use counters::Counters;
 pub use stuck::StuckDetector;
 pub use temperature::TemperatureSource;
+pub use timeout_i2c::{TimeoutI2c, TimeoutI2cError};
 
 use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;

@@ -109,6 +109,9 @@ pub type BootedDevice<I2C, D, T, F, K, P> = Device<Acquisition<I2C, D, T, F, K>,
 /// Boots: the calibration from what flash returned, the model with the retained baselines and
 /// tier restored after an MCU-only reset (a tare at start after a power-on), the acquisition
 /// loop and the device application.
+// Not inlined into the caller's async body, so that the model exists once in the task's state,
+// not twice.
+#[inline(never)]
 pub fn boot<I2C, D, T, F, K, P, E>(
     parts: BoardParts<I2C, D, T, F, K, P>,
     config: &BoardConfig,

@@ -140,7 +140,8 @@ pub fn baseline_wire(record: &BaselineRecord) -> BaselineWire {
     }
 }
 
-/// A wire baseline as model-core's record (validated when the model installs it).
+/// A wire baseline as model-core's record (validated when the model installs it). The wire
+/// carries the tare only, so the record has no tracked drift (tracking is off by default).
 pub fn baseline_record(wire: &BaselineWire) -> BaselineRecord {
     BaselineRecord {
         capacitance: SplitCapacitance {
@@ -148,5 +149,6 @@ pub fn baseline_record(wire: &BaselineWire) -> BaselineRecord {
             fine_pf: wire.fine_pf,
         },
         temperature_c: wire.temperature_c,
+        tracked_drift_pf: 0.0,
     }
 }

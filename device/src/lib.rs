@@ -44,6 +44,29 @@ pub const MAX_OUTGOING_LEN: usize = 288;
 
 const _: () = assert!(wire::MAX_FRAME_ENCODED_LEN <= MAX_OUTGOING_LEN);
 
+/// The version of the device application, which the firmware and the simulated device both
+/// report: this package's version (every component must be below 255).
+pub const FIRMWARE_VERSION: FirmwareVersion = FirmwareVersion {
+    major: version_component(env!("CARGO_PKG_VERSION_MAJOR")),
+    minor: version_component(env!("CARGO_PKG_VERSION_MINOR")),
+    patch: version_component(env!("CARGO_PKG_VERSION_PATCH")),
+};
+
+const _: () = assert!(
+    FIRMWARE_VERSION.major != u8::MAX
+        && FIRMWARE_VERSION.minor != u8::MAX
+        && FIRMWARE_VERSION.patch != u8::MAX,
+    "every component of the package version must be below 255"
+);
+
+/// A version component, or `u8::MAX` (refused at compile time above) when it is not a `u8`.
+const fn version_component(text: &str) -> u8 {
+    match u8::from_str_radix(text, 10) {
+        Ok(component) => component,
+        Err(_) => u8::MAX,
+    }
+}
+
 /// Who the device is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -130,6 +153,7 @@ pub struct Device<A, P> {
     announce_flash_corrupt: bool,
     retained_written: Option<RetainedState>,
     announced_baselines: [Option<BaselineRecord>; TAXEL_COUNT],
+    announced_generation: Option<u32>,
 }
 
 impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
@@ -160,6 +184,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 == CalibrationSource::DefaultsAfterCorruptFlash,
             retained_written: None,
             announced_baselines: [None; TAXEL_COUNT],
+            announced_generation: None,
         }
     }
 
@@ -325,21 +350,27 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                     self.host_counters.sample_sets_dropped.saturating_add(1);
             }
         }
-        let baselines = self.control.pad().baseline_records();
-        if baselines != self.announced_baselines {
-            // Whatever changed them (a tare at boot or on command, a restore after a reset), a
-            // recording host learns it after this cycle's sample (computed before the change)
-            // and before the first sample computed with them.
-            self.announced_baselines = baselines;
-            let tared_mask = (0u8..)
-                .zip(&baselines)
-                .filter(|(_, baseline)| baseline.is_some())
-                .fold(0u8, |mask, (taxel, _)| mask | (1 << taxel));
-            self.send_event(
-                host,
-                sample.timestamp_us,
-                DeviceEvent::TareFinished { tared_mask },
-            );
+        // Only a tare, a restore or a new calibration changes the generation, so the records
+        // are built and compared only then, not every cycle.
+        let generation = self.control.pad().baseline_generation();
+        if self.announced_generation != Some(generation) {
+            self.announced_generation = Some(generation);
+            let baselines = self.control.pad().baseline_records();
+            if baselines != self.announced_baselines {
+                // Whatever changed them (a tare at boot or on command, a restore after a
+                // reset), a recording host learns it after this cycle's sample (computed
+                // before the change) and before the first sample computed with them.
+                self.announced_baselines = baselines;
+                let tared_mask = (0u8..)
+                    .zip(&baselines)
+                    .filter(|(_, baseline)| baseline.is_some())
+                    .fold(0u8, |mask, (taxel, _)| mask | (1 << taxel));
+                self.send_event(
+                    host,
+                    sample.timestamp_us,
+                    DeviceEvent::TareFinished { tared_mask },
+                );
+            }
         }
         self.sets_since_counters = self.sets_since_counters.wrapping_add(1);
         if self.config.counters_every_sets != 0

@@ -7,104 +7,65 @@
 //! from before the reset are restored when their record is intact, and otherwise every taxel
 //! stays `not_tared` (a fault) until the host sends a tare.
 //!
-//! Record: magic "TXRS", format version, per taxel a presence byte and the tared capacitance
-//! (CAPDAC part, code part, pF) and tare temperature (°C) as f32 LE, the tier id, and a
-//! CRC-32/ISO-HDLC of everything before it, LE.
+//! Record: postcard of [`RetainedRecord`] (magic "TXRS", format version, the state) followed by
+//! postcard's CRC-32/ISO-HDLC of those bytes, in a buffer of [`RETAINED_LEN`] bytes.
 
 use crc::{Crc, CRC_32_ISO_HDLC};
-use model_core::{BaselineRecord, PadModel, SplitCapacitance, Tier, TAXEL_COUNT};
+use model_core::{BaselineRecord, PadModel, Tier, TAXEL_COUNT};
+use serde::{Deserialize, Serialize};
 
-/// Bytes of the record.
-pub const RETAINED_LEN: usize = CRC_AT + 4;
+/// Bytes kept for the record: the largest encoding (every taxel tared) is 4 + 1 + 4 × 17 + 1 +
+/// 4 = 78 bytes; a test checks that it fits. The bytes after the CRC must be 0.
+pub const RETAINED_LEN: usize = 80;
 
 const MAGIC: [u8; 4] = *b"TXRS";
-const FORMAT_VERSION: u8 = 1;
+const FORMAT_VERSION: u8 = 2;
 const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
 
-// Where each part of the record starts. The record is an array of constant length, so every
-// index below is a constant the compiler checks against it.
-const VERSION_AT: usize = MAGIC.len();
-const SLOTS_AT: usize = VERSION_AT + 1;
-/// Bytes of one taxel's slot: presence, offset pF, fine pF, temperature °C.
-const SLOT_LEN: usize = 13;
-const TIER_AT: usize = SLOTS_AT + TAXEL_COUNT * SLOT_LEN;
-const CRC_AT: usize = TIER_AT + 1;
-
 /// What survives an MCU-only reset.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct RetainedState {
-    /// Per taxel, the baseline in force before the reset.
+    /// Per taxel, the baseline in force before the reset (with its tracked drift).
     pub baselines: [Option<BaselineRecord>; TAXEL_COUNT],
     /// The tier in force before the reset.
     pub tier: Tier,
 }
 
+/// The record as encoded: the magic and version make a record of another layout unreadable
+/// rather than misread.
+#[derive(Serialize, Deserialize)]
+struct RetainedRecord {
+    magic: [u8; 4],
+    format_version: u8,
+    state: RetainedState,
+}
+
 impl RetainedState {
-    /// The record's bytes.
+    /// The record's bytes (unused bytes after the CRC are 0).
     pub fn encode(&self) -> [u8; RETAINED_LEN] {
         let mut bytes = [0u8; RETAINED_LEN];
-        bytes[..VERSION_AT].copy_from_slice(&MAGIC);
-        bytes[VERSION_AT] = FORMAT_VERSION;
-        let (slots, _) = bytes[SLOTS_AT..TIER_AT].as_chunks_mut::<SLOT_LEN>();
-        for (slot, baseline) in slots.iter_mut().zip(&self.baselines) {
-            if let Some(record) = baseline {
-                *slot = encode_slot(record);
-            }
+        let record = RetainedRecord {
+            magic: MAGIC,
+            format_version: FORMAT_VERSION,
+            state: *self,
+        };
+        // Cannot fail: the largest encoding fits (tested); should it ever not, the zeroed buffer
+        // is refused at the next boot, which then leaves the taxels untared.
+        if postcard::to_slice_crc32(&record, &mut bytes, CRC.digest()).is_err() {
+            bytes = [0u8; RETAINED_LEN];
         }
-        bytes[TIER_AT] = self.tier as u8;
-        let checksum = CRC.checksum(&bytes[..CRC_AT]);
-        bytes[CRC_AT..].copy_from_slice(&checksum.to_le_bytes());
         bytes
     }
 
     /// The state in a record, or `None` when the bytes are not an intact record (RAM after a
     /// power-on holds noise; a torn write fails the CRC).
     pub fn decode(bytes: &[u8; RETAINED_LEN]) -> Option<Self> {
-        let stored = u32::from_le_bytes([
-            bytes[CRC_AT],
-            bytes[CRC_AT + 1],
-            bytes[CRC_AT + 2],
-            bytes[CRC_AT + 3],
-        ]);
-        if bytes[..VERSION_AT] != MAGIC
-            || bytes[VERSION_AT] != FORMAT_VERSION
-            || CRC.checksum(&bytes[..CRC_AT]) != stored
-        {
-            return None;
-        }
-        let mut baselines = [None; TAXEL_COUNT];
-        let (slots, _) = bytes[SLOTS_AT..TIER_AT].as_chunks::<SLOT_LEN>();
-        for (baseline, slot) in baselines.iter_mut().zip(slots) {
-            *baseline = decode_slot(slot)?;
-        }
-        Some(Self {
-            baselines,
-            tier: Tier::from_id(bytes[TIER_AT])?,
-        })
-    }
-}
-
-/// One taxel's slot holding `record`: presence 1, then the three values as f32 LE.
-fn encode_slot(record: &BaselineRecord) -> [u8; SLOT_LEN] {
-    let [o0, o1, o2, o3] = record.capacitance.offset_pf.to_le_bytes();
-    let [f0, f1, f2, f3] = record.capacitance.fine_pf.to_le_bytes();
-    let [t0, t1, t2, t3] = record.temperature_c.to_le_bytes();
-    [1, o0, o1, o2, o3, f0, f1, f2, f3, t0, t1, t2, t3]
-}
-
-/// The baseline in a slot (`Some(None)` for an empty one), `None` for a bad presence byte.
-fn decode_slot(slot: &[u8; SLOT_LEN]) -> Option<Option<BaselineRecord>> {
-    let [present, o0, o1, o2, o3, f0, f1, f2, f3, t0, t1, t2, t3] = *slot;
-    match present {
-        0 => Some(None),
-        1 => Some(Some(BaselineRecord {
-            capacitance: SplitCapacitance {
-                offset_pf: f32::from_le_bytes([o0, o1, o2, o3]),
-                fine_pf: f32::from_le_bytes([f0, f1, f2, f3]),
-            },
-            temperature_c: f32::from_le_bytes([t0, t1, t2, t3]),
-        })),
-        _ => None,
+        let (record, unused): (RetainedRecord, _) =
+            postcard::take_from_bytes_crc32(bytes, CRC.digest()).ok()?;
+        let intact = record.magic == MAGIC
+            && record.format_version == FORMAT_VERSION
+            && unused.iter().all(|&byte| byte == 0);
+        intact.then_some(record.state)
     }
 }
 
@@ -158,6 +119,7 @@ pub fn boot_plan(reset: ResetKind, retained: Option<RetainedState>, tare_sets: u
 #[cfg(test)]
 mod tests {
     use super::*;
+    use model_core::SplitCapacitance;
 
     fn state() -> RetainedState {
         RetainedState {
@@ -168,6 +130,7 @@ mod tests {
                         fine_pf: 2.5625,
                     },
                     temperature_c: 27.5,
+                    tracked_drift_pf: -0.003,
                 }),
                 None,
                 Some(BaselineRecord {
@@ -176,6 +139,7 @@ mod tests {
                         fine_pf: 5.7,
                     },
                     temperature_c: 31.0,
+                    tracked_drift_pf: 0.0,
                 }),
                 None,
             ],
@@ -186,6 +150,36 @@ mod tests {
     #[test]
     fn a_record_round_trips() {
         assert_eq!(RetainedState::decode(&state().encode()), Some(state()));
+    }
+
+    #[test]
+    fn the_largest_record_fits() {
+        let mut full = state();
+        full.baselines = [full.baselines[0]; TAXEL_COUNT];
+        full.baselines[3] = Some(BaselineRecord {
+            capacitance: SplitCapacitance {
+                offset_pf: f32::MAX,
+                fine_pf: f32::MIN,
+            },
+            temperature_c: f32::NAN,
+            tracked_drift_pf: f32::INFINITY,
+        });
+        full.tier = Tier::ALL[Tier::ALL.len() - 1];
+        let decoded = RetainedState::decode(&full.encode());
+        // NaN != NaN, so compare the bits of the odd one.
+        let bits = |state: &RetainedState| {
+            state.baselines.map(|record| {
+                record.map(|record| {
+                    [
+                        record.capacitance.offset_pf.to_bits(),
+                        record.capacitance.fine_pf.to_bits(),
+                        record.temperature_c.to_bits(),
+                        record.tracked_drift_pf.to_bits(),
+                    ]
+                })
+            })
+        };
+        assert_eq!(decoded.as_ref().map(bits), Some(bits(&full)));
     }
 
     #[test]

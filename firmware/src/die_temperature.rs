@@ -95,11 +95,9 @@ impl TemperatureSource for DieTemperature {
     async fn read_temperature_c(&mut self) -> Result<f32, Self::Error> {
         let channel = self.channel.ok_or(DieTemperatureUnavailable)?;
         let temperature_c = self.convert_c(channel);
-        if PLAUSIBLE_DIE_TEMPERATURE_C.contains(&temperature_c) {
-            Ok(temperature_c)
-        } else {
-            Err(DieTemperatureUnavailable)
-        }
+        (PLAUSIBLE_DIE_TEMPERATURE_C.contains(&temperature_c))
+            .then_some(temperature_c)
+            .ok_or(DieTemperatureUnavailable)
     }
 }
 

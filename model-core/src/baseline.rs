@@ -20,8 +20,9 @@ pub struct Baseline {
     temperature_c: f32,
 }
 
-/// What a baseline is made from: the tared capacitance and the temperature at the tare (what
-/// is kept across an MCU reset; the rest is derived again from the calibration).
+/// What a baseline is made from: the tared capacitance, the temperature at the tare and how far
+/// tracking has moved it since (what is kept across an MCU reset; the rest is derived again from
+/// the calibration).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -30,6 +31,10 @@ pub struct BaselineRecord {
     pub capacitance: SplitCapacitance,
     /// Temperature at the tare, °C.
     pub temperature_c: f32,
+    /// How far baseline tracking has moved the baseline from the tare, pF (0 without tracking;
+    /// absent from files written before it existed).
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub tracked_drift_pf: f32,
 }
 
 /// Why a baseline was refused.
@@ -89,6 +94,42 @@ impl Baseline {
         })
     }
 
+    /// A baseline from its record: [`Baseline::new`] on the tared capacitance, then moved by the
+    /// record's tracked drift. A drift that is not finite, or that would leave no sensor
+    /// capacitance above the open-lead threshold, refuses the record.
+    pub fn from_record(
+        record: &BaselineRecord,
+        parasitic_pf: f32,
+        law: &TemperatureLaw,
+        thresholds: &FaultThresholds,
+    ) -> Result<Self, BaselineError> {
+        let mut baseline = Self::new(
+            record.capacitance,
+            parasitic_pf,
+            record.temperature_c,
+            law,
+            thresholds,
+        )?;
+        if !record.tracked_drift_pf.is_finite() {
+            return Err(BaselineError::NotFinite);
+        }
+        let sensor_pf = baseline.tared_sensor_pf + record.tracked_drift_pf;
+        if !(sensor_pf >= thresholds.open_below_pf) || !(sensor_pf > 0.0) {
+            return Err(BaselineError::ImplausiblySmall);
+        }
+        baseline.move_by_drift_pf(record.tracked_drift_pf);
+        Ok(baseline)
+    }
+
+    /// The record this baseline is made from.
+    pub fn record(&self) -> BaselineRecord {
+        BaselineRecord {
+            capacitance: self.tared_capacitance,
+            temperature_c: self.temperature_c,
+            tracked_drift_pf: self.tracked_drift_pf,
+        }
+    }
+
     /// The capacitance measured at the tare.
     pub fn tared_capacitance(&self) -> SplitCapacitance {
         self.tared_capacitance
@@ -133,10 +174,15 @@ impl Baseline {
         let limit_pf = tracking.max_drift_relative * self.tared_sensor_pf;
         let drift_pf = self.tracked_drift_pf + step_pf;
         let bounded_drift_pf = clamp_f32(drift_pf, -limit_pf, limit_pf);
-        self.tracked_drift_pf = bounded_drift_pf;
-        self.reference.fine_pf = self.tared_capacitance.fine_pf + bounded_drift_pf;
-        self.permittivity_ratio_per_sensor_pf = self.permittivity_ratio / self.sensor_pf();
+        self.move_by_drift_pf(bounded_drift_pf);
         bounded_drift_pf != drift_pf
+    }
+
+    /// Sets the tracked drift and what depends on it.
+    fn move_by_drift_pf(&mut self, drift_pf: f32) {
+        self.tracked_drift_pf = drift_pf;
+        self.reference.fine_pf = self.tared_capacitance.fine_pf + drift_pf;
+        self.permittivity_ratio_per_sensor_pf = self.permittivity_ratio / self.sensor_pf();
     }
 }
 

@@ -88,6 +88,7 @@ pub struct PadModel {
     baselines: [Option<Baseline>; TAXEL_COUNT],
     // BASELINE_FAR_FROM_CALIBRATION per taxel, set with the baseline (`set_baseline`).
     baseline_flags: [TaxelFlags; TAXEL_COUNT],
+    baseline_generation: u32,
     tier: Tier,
     tracking: BaselineTracking,
     temperature: TemperatureTracker,
@@ -110,6 +111,7 @@ impl PadModel {
             taxels,
             baselines: [None; TAXEL_COUNT],
             baseline_flags: [TaxelFlags::empty(); TAXEL_COUNT],
+            baseline_generation: 0,
             tier: Tier::default(),
             tracking: BaselineTracking::default(),
             temperature: TemperatureTracker::default(),
@@ -133,6 +135,7 @@ impl PadModel {
             tare: self.tare.take(),
             tare_status: self.tare_status,
             last_tare_errors: self.last_tare_errors,
+            baseline_generation: self.baseline_generation.wrapping_add(1),
             ..Self::new(calibration)
         };
         self.restore_baselines(&records);
@@ -232,6 +235,12 @@ impl PadModel {
         &self.baselines
     }
 
+    /// A number that changes (wrapping) whenever a baseline is installed or the calibration is
+    /// replaced, but not when tracking moves a baseline: a cheap "did the tare change" test.
+    pub fn baseline_generation(&self) -> u32 {
+        self.baseline_generation
+    }
+
     /// Restores baselines taken earlier (e.g. kept across an MCU reset): each is re-validated
     /// against this calibration's parasitic capacitance, temperature law and thresholds, and a
     /// taxel whose baseline does not validate stays untared. Returns which taxels were restored
@@ -243,10 +252,9 @@ impl PadModel {
             let Some(record) = record else {
                 continue;
             };
-            let restored = Baseline::new(
-                record.capacitance,
+            let restored = Baseline::from_record(
+                record,
                 parasitic_pf,
-                record.temperature_c,
                 self.calibration.temperature_law(),
                 self.calibration.thresholds(),
             );
@@ -260,12 +268,8 @@ impl PadModel {
 
     /// The baselines as plain records (to keep them across an MCU reset).
     pub fn baseline_records(&self) -> [Option<BaselineRecord>; TAXEL_COUNT] {
-        self.baselines.map(|baseline| {
-            baseline.map(|baseline| BaselineRecord {
-                capacitance: baseline.tared_capacitance(),
-                temperature_c: baseline.temperature_c(),
-            })
-        })
+        self.baselines
+            .map(|baseline| baseline.as_ref().map(Baseline::record))
     }
 
     /// Sets one taxel's baseline directly (e.g. restored from a recording).
@@ -287,6 +291,7 @@ impl PadModel {
             self.baseline_flags.get_mut(taxel),
         ) {
             *slot = Some(baseline);
+            self.baseline_generation = self.baseline_generation.wrapping_add(1);
             *flags = if far_from_calibration {
                 TaxelFlags::BASELINE_FAR_FROM_CALIBRATION
             } else {

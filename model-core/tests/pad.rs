@@ -317,6 +317,37 @@ fn tracking_follows_slow_drift_but_never_erases_a_long_static_contact() {
 }
 
 #[test]
+fn a_tracked_baseline_survives_its_record() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    pad.set_baseline_tracking(BaselineTracking {
+        enabled: true,
+        ..BaselineTracking::default()
+    });
+    for _ in 0..20_000 {
+        one_taxel(&mut pad, SENSOR_PF * 1.002, Some(25.0));
+    }
+    let records = pad.baseline_records();
+    let drift_pf = records[0].unwrap().tracked_drift_pf;
+    assert!(drift_pf > 0.5 * 0.002 * SENSOR_PF, "{drift_pf}");
+    // A model restored from the records (after an MCU reset) reads what the tracked one reads,
+    // not the drift again.
+    let mut restored = tared_pad(SENSOR_PF, 25.0);
+    restored.restore_baselines(&records);
+    assert_eq!(restored.baselines(), pad.baselines());
+    let tracked = one_taxel(&mut pad, SENSOR_PF * 1.002, Some(25.0));
+    let after_restore = one_taxel(&mut restored, SENSOR_PF * 1.002, Some(25.0));
+    assert_eq!(tracked.pressure_kpa(), after_restore.pressure_kpa());
+    assert!(after_restore.pressure_kpa().unwrap() < 0.05);
+    // A record whose drift is not finite is refused, not installed.
+    let mut bad = records;
+    if let Some(record) = bad[1].as_mut() {
+        record.tracked_drift_pf = f32::NAN;
+    }
+    let mut untrusting = PadModel::new(pad.calibration().clone());
+    assert_eq!(untrusting.restore_baselines(&bad) & 0b10, 0);
+}
+
+#[test]
 fn tracking_is_bounded_and_says_so() {
     let mut pad = tared_pad(SENSOR_PF, 25.0);
     pad.set_baseline_tracking(BaselineTracking {

@@ -18,7 +18,6 @@ use sensor_sim::{
     Pacing, Scene, ScenePoint, SimDelay, SimI2c, Simulation, SimulationConfig, Window,
 };
 use tmp117::{Address, Tmp117};
-use wire::FirmwareVersion;
 
 use crate::scene_file::SceneFile;
 
@@ -278,16 +277,6 @@ impl SimulatedDevice {
     }
 }
 
-/// This build's version as the device reports it.
-pub fn firmware_version() -> FirmwareVersion {
-    let part = |text: &str| text.parse::<u8>().unwrap_or(0);
-    FirmwareVersion {
-        major: part(env!("CARGO_PKG_VERSION_MAJOR")),
-        minor: part(env!("CARGO_PKG_VERSION_MINOR")),
-        patch: part(env!("CARGO_PKG_VERSION_PATCH")),
-    }
-}
-
 /// The firmware's boot (`device::boot`, with the board's configuration `device::BOARD`) on the
 /// simulated board's parts: its I2C bus, clock, die sensor and flash.
 fn boot_simulated(
@@ -306,7 +295,7 @@ fn boot_simulated(
         clock: SimulatedClock(simulation.clone()),
         persistence,
         identity: DeviceIdentity {
-            firmware_version: firmware_version(),
+            firmware_version: device::FIRMWARE_VERSION,
             board_serial: simulated_board_serial(seed),
         },
     };
