@@ -12,6 +12,8 @@
 
 mod counters;
 pub mod die_sensor;
+pub mod discovery;
+pub mod pad_bus;
 mod stuck;
 mod temperature;
 mod timeout_i2c;
