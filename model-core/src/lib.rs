@@ -34,10 +34,13 @@ pub mod baseline;
 mod bounds;
 pub mod calibration;
 pub mod conditioning;
+pub mod contact;
 pub mod flags;
 pub mod inverse;
 pub mod monotone_cubic;
 pub mod pad;
+pub mod pad_force;
+pub mod pad_geometry;
 pub mod reading;
 pub mod taxel;
 pub mod temperature;
@@ -50,9 +53,12 @@ pub use calibration::{
     PermittivityPoint, TaxelCalibration, TaxelCalibrationSpec, TemperatureLaw, ARTICLE_TABLE_1,
     TAXEL_COUNT, TAXEL_NAMES,
 };
+pub use contact::{ContactConfig, ContactConfigError, ContactDetector, ContactEvent};
 pub use flags::TaxelFlags;
 pub use inverse::{InverseCurve, TaxelInverses, Tier};
 pub use pad::{PadModel, PadOutput, SampleInput, TareStatus, TierUnavailable};
+pub use pad_force::{pad_force, pad_force_from_pressures, PadForce, PadForceFlags};
+pub use pad_geometry::{GeometryError, PadGeometry, TaxelGeometry};
 pub use reading::{ReadingValue, SplitCapacitance, TaxelReading};
 pub use taxel::{TaxelModel, TaxelOutput};
 pub use temperature::{TemperatureTracker, TemperatureUsed, REFERENCE_TEMPERATURE_C};
