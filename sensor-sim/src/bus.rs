@@ -1,6 +1,8 @@
 //! The simulated I2C bus: `embedded_hal_async::i2c::I2c` dispatching by 7-bit address to the
-//! FDC1004 (0x50) and the TMP117 (0x48); any other address, a device still powering up and an
-//! injected NACK fail with `NoAcknowledge(Address)`.
+//! devices on the wires: by default the FDC1004 (0x50) and the TMP117 (0x48); with a
+//! multiplexer, the multiplexer, the shared TMP117 and the devices behind its connected channels
+//! (see `Topology`). An address where no device answers (none there, a device still powering
+//! up, an unplugged pad, an injected NACK) fails with `NoAcknowledge(Address)`.
 //!
 //! A transaction takes bus time when a bus frequency is configured (default 400 kHz): a start
 //! or repeated start and 9 bits per byte (address included), plus a stop, so that a register

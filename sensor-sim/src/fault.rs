@@ -12,18 +12,52 @@
 //! | [`Fault::Shorted`] | a conversion of the taxel's input | the input is a (negative) capacitance |
 //! | [`Fault::OpenLead`] | a conversion of the taxel's input | the input is the lead alone |
 //! | [`Fault::TemperatureStuck`] | a TEMP_RESULT read | TEMP_RESULT reads a fixed value |
+//! | [`Fault::Unplugged`] | a transaction reaching the pad | the pad NACKs, then comes back reset |
+//! | [`Fault::MuxChannelStuck`] | a transaction on the bus | the switch ignores the register |
 //!
 //! A burst of NACKs is `Nack` with `Window::Next(n)`; a device that does not answer at all is
 //! `Nack` with `Window::From`. The "MCU-only reset" channel shift is not a windowed fault but a
 //! device state: see `Simulation::simulate_mcu_only_reset`.
+//!
+//! # Which devices a fault acts on
+//!
+//! Every fault is injected on a target: a pad (`Simulation::inject` is pad 0,
+//! `Simulation::inject_on_pad` any pad) or the main bus upstream of the multiplexer
+//! (`Simulation::inject_upstream`). A pad's faults act on that pad's FDC1004 and its own
+//! TMP117; upstream faults act on the shared TMP117 on the main bus. The multiplexer's faults
+//! ([`Fault::MuxChannelStuck`], `Fault::Nack(Device::Tca9548a)`) act on the multiplexer
+//! whichever target they are injected on. In the single-pad setup (no multiplexer) the FDC1004
+//! and the TMP117 on the bus are pad 0's.
+//!
+//! # Unplugged pad
+//!
+//! While [`Fault::Unplugged`] is active, the pad's board has no power: its FDC1004 and TMP117
+//! acknowledge nothing, never see a transaction and convert nothing. When the window ends (its
+//! end time, its last counted transaction, or the fault's removal), the board is plugged back
+//! in at that instant: both devices power on with every register at its reset value and, as
+//! after any power-on, do not acknowledge their address until their power-up time has passed.
+//! A pad unplugged with [`Window::UntilSoftwareReset`] stays unplugged until the fault is
+//! removed or the simulation is power-cycled (a software reset cannot reach it).
+//!
+//! # Stuck multiplexer channel
+//!
+//! [`Fault::MuxChannelStuck`] models a broken pass switch: with `closed`, the channel's
+//! downstream bus stays connected even when its bit in the control register is 0 (its devices
+//! keep answering, and may collide with the selected pad's at the same address); without
+//! `closed`, the channel stays disconnected even when its bit is 1 (its devices NACK as if
+//! absent). The control register itself is unaffected: it reads back what was written, so a
+//! driver's read-back check does not see the fault. A [`Window::Next`] count counts bus
+//! transactions, whatever their address.
 
-/// One of the two simulated devices.
+/// A kind of simulated device.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Device {
     /// The FDC1004 at 0x50.
     Fdc1004,
-    /// The TMP117 at 0x48.
+    /// The TMP117 (0x48 on a pad; 0x48..=0x4B when shared on the main bus).
     Tmp117,
+    /// The TCA9548A multiplexer (0x70..=0x77), when the topology has one.
+    Tca9548a,
 }
 
 /// Default capacitance of shorted electrodes, pF: conduction through the dielectric reads as a
@@ -70,6 +104,18 @@ pub enum Fault {
         /// The TEMP_RESULT value returned.
         temp_result: u16,
     },
+    /// The pad's board is unplugged: its FDC1004 and TMP117 NACK everything, and come back
+    /// powered on afresh, registers at reset, when the window ends (see the module
+    /// documentation).
+    Unplugged,
+    /// A multiplexer channel's switch stays closed (`closed`) or open whatever the control
+    /// register says (see the module documentation).
+    MuxChannelStuck {
+        /// Channel 0..8.
+        channel: u8,
+        /// Stuck connected rather than disconnected.
+        closed: bool,
+    },
 }
 
 impl Fault {
@@ -89,13 +135,24 @@ impl Fault {
         }
     }
 
-    /// The device the fault belongs to (whose reset ends a [`Window::UntilSoftwareReset`]).
+    /// The device the fault belongs to (whose reset ends a [`Window::UntilSoftwareReset`]);
+    /// [`Fault::Unplugged`] belongs to the pad's FDC1004, which cannot be reset while
+    /// unplugged.
     pub const fn device(&self) -> Device {
         match self {
             Fault::Nack(device) => *device,
             Fault::TemperatureStuck { .. } => Device::Tmp117,
+            Fault::MuxChannelStuck { .. } => Device::Tca9548a,
             _ => Device::Fdc1004,
         }
+    }
+
+    /// Whether the fault acts on the multiplexer, whatever target it is injected on.
+    pub(crate) const fn acts_on_multiplexer(&self) -> bool {
+        matches!(
+            self,
+            Fault::MuxChannelStuck { .. } | Fault::Nack(Device::Tca9548a)
+        )
     }
 }
 
@@ -125,9 +182,19 @@ pub enum Window {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct FaultId(pub(crate) u64);
 
+/// Where an injected fault acts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum FaultTarget {
+    /// The devices of pad `n` (its FDC1004 and its own TMP117).
+    Pad(usize),
+    /// The devices on the main bus: the multiplexer and the shared TMP117.
+    Upstream,
+}
+
 #[derive(Debug, Clone)]
 struct ScheduledFault {
     id: FaultId,
+    target: FaultTarget,
     fault: Fault,
     window: Window,
     remaining: u32,
@@ -152,7 +219,12 @@ pub(crate) struct FaultBook {
 }
 
 impl FaultBook {
-    pub(crate) fn inject(&mut self, fault: Fault, window: Window) -> FaultId {
+    pub(crate) fn inject(&mut self, target: FaultTarget, fault: Fault, window: Window) -> FaultId {
+        let target = if fault.acts_on_multiplexer() {
+            FaultTarget::Upstream
+        } else {
+            target
+        };
         let id = FaultId(self.next_id);
         self.next_id += 1;
         let remaining = match window {
@@ -161,6 +233,7 @@ impl FaultBook {
         };
         self.faults.push(ScheduledFault {
             id,
+            target,
             fault,
             window,
             remaining,
@@ -178,25 +251,73 @@ impl FaultBook {
         self.faults.clear();
     }
 
-    /// Ends the faults of `device` that last until its reset.
-    pub(crate) fn end_until_reset(&mut self, device: Device) {
+    /// Ends the faults on `target` of `device` that last until its reset.
+    pub(crate) fn end_until_reset(&mut self, target: FaultTarget, device: Device) {
         self.faults.retain(|scheduled| {
-            !(scheduled.window == Window::UntilSoftwareReset && scheduled.fault.device() == device)
+            !(scheduled.target == target
+                && scheduled.window == Window::UntilSoftwareReset
+                && scheduled.fault.device() == device)
         });
     }
 
-    /// The first active fault `select` accepts, for one event at `time_us`; consumes one count
-    /// of a [`Window::Next`] fault.
+    /// Ends every fault on any target that lasts until a reset (the whole board power-cycled).
+    pub(crate) fn end_all_until_reset(&mut self) {
+        self.faults
+            .retain(|scheduled| scheduled.window != Window::UntilSoftwareReset);
+    }
+
+    /// Whether any fault `select` accepts is injected, active or not, on any target.
+    pub(crate) fn contains(&self, select: impl Fn(&Fault) -> bool) -> bool {
+        self.faults.iter().any(|scheduled| select(&scheduled.fault))
+    }
+
+    /// Whether a fault on `target` that `select` accepts is active at `time_us` (consumes
+    /// nothing).
+    pub(crate) fn any_active(
+        &self,
+        time_us: u64,
+        target: FaultTarget,
+        select: impl Fn(&Fault) -> bool,
+    ) -> bool {
+        self.faults.iter().any(|scheduled| {
+            scheduled.target == target && scheduled.active_at(time_us) && select(&scheduled.fault)
+        })
+    }
+
+    /// The earliest start or end of a time window (µs) of a fault on `target` that `select`
+    /// accepts, after `after_us`.
+    pub(crate) fn next_boundary_us(
+        &self,
+        after_us: u64,
+        target: FaultTarget,
+        select: impl Fn(&Fault) -> bool,
+    ) -> Option<u64> {
+        self.faults
+            .iter()
+            .filter(|scheduled| scheduled.target == target && select(&scheduled.fault))
+            .flat_map(|scheduled| match scheduled.window {
+                Window::Between { start_us, end_us } => [Some(start_us), Some(end_us)],
+                Window::From { start_us } => [Some(start_us), None],
+                Window::Next(_) | Window::UntilSoftwareReset => [None, None],
+            })
+            .flatten()
+            .filter(|&boundary_us| boundary_us > after_us)
+            .min()
+    }
+
+    /// The first active fault on `target` that `select` accepts, for one event at `time_us`;
+    /// consumes one count of a [`Window::Next`] fault.
     pub(crate) fn take<T>(
         &mut self,
         time_us: u64,
+        target: FaultTarget,
         select: impl Fn(&Fault) -> Option<T>,
     ) -> Option<T> {
         let (index, value) = self
             .faults
             .iter()
             .enumerate()
-            .filter(|(_, scheduled)| scheduled.active_at(time_us))
+            .filter(|(_, scheduled)| scheduled.target == target && scheduled.active_at(time_us))
             .find_map(|(index, scheduled)| select(&scheduled.fault).map(|value| (index, value)))?;
         let scheduled = &mut self.faults[index];
         if let Window::Next(_) = scheduled.window {
@@ -206,5 +327,27 @@ impl FaultBook {
             }
         }
         Some(value)
+    }
+}
+
+/// The fault book as one device sees it: only the faults on its target.
+pub(crate) struct TargetFaults<'a> {
+    pub(crate) book: &'a mut FaultBook,
+    pub(crate) target: FaultTarget,
+}
+
+impl TargetFaults<'_> {
+    /// [`FaultBook::take`] on this target.
+    pub(crate) fn take<T>(
+        &mut self,
+        time_us: u64,
+        select: impl Fn(&Fault) -> Option<T>,
+    ) -> Option<T> {
+        self.book.take(time_us, self.target, select)
+    }
+
+    /// [`FaultBook::end_until_reset`] on this target.
+    pub(crate) fn end_until_reset(&mut self, device: Device) {
+        self.book.end_until_reset(self.target, device);
     }
 }

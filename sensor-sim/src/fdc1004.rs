@@ -185,6 +185,14 @@ impl Fdc1004Model {
         self.power_on_ns = now_ns;
     }
 
+    /// Power removed (the pad unplugged): everything at reset, nothing converts; the noise
+    /// stream continues. [`Self::power_cycle`] brings it back.
+    pub(crate) fn power_off(&mut self) {
+        self.restore_reset_values();
+        self.pointer = 0;
+        self.reset_until_ns = 0;
+    }
+
     pub(crate) fn simulate_mcu_only_reset(&mut self) {
         self.channel_shift = true;
     }
@@ -269,6 +277,9 @@ impl Fdc1004Model {
         self.done |= done_bit(measurement);
         environment.counters.conversions += 1;
         environment.counters.conversions_per_measurement[measurement] += 1;
+        if let Some(pad) = environment.pad_counters() {
+            pad.conversions += 1;
+        }
     }
 
     /// Handles the data bytes of one write operation.

@@ -1,4 +1,5 @@
-//! The simulated TI TMP117 at register level (address 0x48, ADD0 to ground).
+//! The simulated TI TMP117 at register level (address 0x48, ADD0 to ground; a TMP117 shared on
+//! the main bus of a multiplexed topology may be strapped to 0x48..=0x4B).
 //!
 //! Same pointer protocol as the FDC1004: `[pointer]` sets the pointer, `[pointer, msb, lsb]`
 //! writes, a read returns the big-endian register at the pointer.
@@ -138,6 +139,14 @@ impl Tmp117Model {
         self.restart(now_ns);
     }
 
+    /// Power removed (the pad unplugged): registers at reset, nothing converts;
+    /// [`Self::power_cycle`] brings it back.
+    pub(crate) fn power_off(&mut self) {
+        self.pointer = 0;
+        self.restart(self.power_on_ns);
+        self.next_conversion_ns = None;
+    }
+
     fn restart(&mut self, now_ns: u64) {
         self.configuration = CONFIGURATION_RESET;
         self.high_limit = THIGH_LIMIT_RESET;
@@ -171,6 +180,9 @@ impl Tmp117Model {
         self.temp_result = result_lsb.clamp(i16::MIN as f64, i16::MAX as f64) as i16 as u16;
         self.data_ready = true;
         environment.counters.temperature_conversions += 1;
+        if let Some(pad) = environment.pad_counters() {
+            pad.temperature_conversions += 1;
+        }
         self.next_conversion_ns = match self.mode() {
             MOD_SHUTDOWN => None,
             MOD_ONE_SHOT => {
