@@ -8,13 +8,16 @@
 //!   the body without the taxels' calibrated C0, which loads as none), refuses anything that is
 //!   not an intact record of a calibration that validates, with a typed [`RecordError`], and
 //!   never panics.
-//! - [`CalibrationStore`]: that record as the value of one key of a `sequential-storage` map over
-//!   a flash range of two erase pages. Loading returns the valid record with the highest save
-//!   counter, wherever it is; saving keeps the previous record readable until the new one reads
-//!   back. So bit flips, truncation or a power loss in the middle of a save leave the previous or
-//!   the new calibration, or the defaults with the corrupt flag ([`LoadOutcome::Corrupt`]): never
-//!   an older calibration, never an unsaved one, whichever way an interrupted page erase leaves
-//!   the page (from its start, from its end, or random bits).
+//! - [`CalibrationStore`]: that record as an item in a flash range of two erase pages, in the
+//!   on-flash format of the `sequential-storage` 8.0.2 map the earlier firmware used (read and
+//!   written by this crate: no sequential-storage code runs). Loading returns the valid record
+//!   with the highest save counter, wherever it is; saving appends beside an erased page or moves
+//!   to the other page, and erases nothing the newest record needs until the new one reads back.
+//!   So bit flips, truncation or a power loss in the middle of a save leave the previous or the
+//!   new calibration, or the defaults with the corrupt flag ([`LoadOutcome::Corrupt`]): never an
+//!   older calibration, never an unsaved one, whichever way an interrupted page erase leaves the
+//!   page (from its start, from its end, or random bits). The `store` module's documentation
+//!   gives the format and the power-loss argument.
 //!
 //! [`CalibrationSpec`]: model_core::CalibrationSpec
 #![no_std]
@@ -22,7 +25,6 @@
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 mod erase_hook;
-mod page_view;
 #[cfg(feature = "ram-flash")]
 mod ram_flash;
 mod record;

@@ -1,47 +1,82 @@
-//! [`CalibrationStore`]: the calibration record as one key of a `sequential-storage` map over two
-//! flash pages, with the load outcomes the firmware turns into a calibration source.
+//! [`CalibrationStore`]: the calibration record in a flash range of two erase pages, with the load
+//! outcomes the firmware turns into a calibration source.
 //!
-//! sequential-storage appends every save as a new item (header with a CRC-protected length and a
-//! CRC-32 of the data, then the data) and erases a page only after copying the newest item out of
-//! it. Its idea of "newest" is positional, and its page states come from marker bytes at both ends
-//! of each page, which it expects an interrupted erase to clear from the start of the page. An
-//! erase interrupted in another pattern (from the end, or random bits) can leave the half-erased
-//! page looking open, partially open or closed, with some older items intact; sequential-storage
-//! then takes an older item for the newest, and its repair may erase the page that holds the only
-//! copy of the newest record.
+//! # On flash
 //!
-//! The store therefore does not rely on position:
-//! - every record carries a save counter; [`CalibrationStore::load`] reads, without writing,
-//!   every item sequential-storage can see and returns the valid record with the highest counter;
-//! - [`CalibrationStore::save`] lets sequential-storage append only from a clean layout: one page
-//!   that, read alone, shows the newest record as its last item, and one erased page. Any other
-//!   layout is first cleaned by erasing the page that is not needed, which it tells by asking
-//!   sequential-storage what the other page alone shows (through `PageView`); if a clean layout
-//!   cannot be reached, or appending fails, the new record is written into an erased page on its
-//!   own and the other page is erased only once the new record reads back.
+//! The layout is the one sequential-storage 8.0.2's map wrote for the earlier firmware (a map
+//! whose only key is the zero-length [`CalibrationKey`]), so that firmware's flash loads with the
+//! same reader; this module reads and writes it itself. With `W` the flash word (the larger of
+//! its read and write sizes, at most 32 bytes):
+//! - a page in use starts with a marker word of zeros; its last word is kept free (for
+//!   sequential-storage's end marker). The reader ignores both markers;
+//! - from the second word on, items follow one another: an 8-byte header (the data CRC, u32 LE;
+//!   the data length, u16 LE; the length CRC, u16 LE) padded to `W`, then the data padded to `W`;
+//! - the data CRC is CRC-32C (reflected polynomial 0x82F6_3B78) from 0xEEEE_EEEE, inverted, then
+//!   written as 1 if it is 0, and with its lowest bit flipped if its first byte is 0x00 or 0xFF;
+//!   the length CRC is CRC-16 with reflected polynomial 0x1A2E from 0xFFFF, inverted, and written
+//!   as 0xFFFE if it is 0xFFFF (both as sequential-storage computes them);
+//! - the data of every item is one calibration record ([`crate::encode_record`]), which carries
+//!   its save counter and its own CRC-32.
 //!
-//! So at every step of a save some page holds the newest record (or the new one) in a state that
-//! sequential-storage reads, and a power loss anywhere leaves the old or the new calibration. The
-//! tests tear every operation of a save, with the interrupted erase leaving the page erased from
-//! its start, from its end or in random bits, and tear a second save after such a one. Only a
-//! layout that damage (not an interrupted operation of this store) produces can leave no page
-//! that shows the newest record alone; the save then still succeeds, but a power loss during it
-//! may bring back an older record.
+//! An item is intact when both its CRCs match. Reading a page goes from item to item and stops at
+//! a header slot that reads erased; a header whose length CRC fails (torn, damaged) hides where the
+//! next item starts, so the reader tries again one word further on. The item CRC is what tells a
+//! torn or damaged item (skipped) from an intact item whose record this firmware refuses
+//! (reported).
+//!
+//! # Loading
+//!
+//! [`CalibrationStore::load`] reads page 0 then page 1, each from its start, and returns the valid
+//! record with the highest save counter (of equal counters, the later). It returns
+//! [`CorruptReason::Record`] (or [`CorruptReason::Storage`] for an intact item longer than any
+//! record) instead when such an item comes after that record in this order: it may be newer than
+//! anything this firmware reads. Damage to the newest record (not a power loss) brings back the
+//! record before it when that one is still in flash, which is the case when the newest was
+//! appended.
+//!
+//! # Saving
+//!
+//! [`CalibrationStore::save`] gives the new record the highest save counter plus one, then:
+//! - if the other page is erased and the new item fits in erased space after the last item of
+//!   the page holding the newest record, appends it there; appending keeps sector erases rare (an
+//!   F411 128 KiB sector takes 1 to 2 s to erase, and wears out after 10 000 erases);
+//! - otherwise, or if the appended record does not read back, moves: erases the other page unless
+//!   it reads erased, writes the marker and the new item there, reads the new record back, and
+//!   only then erases the page it came from.
+//!
+//! So outside a save one page at most holds items; when both do (a save that did not complete, or
+//! damage), the next save moves, which cleans up.
+//!
+//! # Power loss
+//!
+//! Each flash operation of a save, interrupted, leaves the previous record intact (and still the
+//! highest counter) or the new record intact (with a higher counter):
+//! - an append writes only erased space after the newest record: a torn item there is skipped;
+//! - a move erases and writes only the page without the newest record, whatever an interrupted
+//!   erase leaves in it (erased from its start, from its end, or random bits), and a torn item
+//!   there is skipped;
+//! - the old page is erased only once the new record reads back: what an interrupted erase leaves
+//!   of it are records with lower counters, or items that are not intact.
+//!
+//! A torn item can pass for intact only by matching the length CRC, the data CRC and the record's
+//! CRC-32. A load never writes, so a power loss during a boot changes nothing.
 
 use core::fmt;
 use core::ops::Range;
 
-use embedded_storage_async::nor_flash::{ErrorType, NorFlash};
-use model_core::CalibrationSpec;
-use sequential_storage::cache::{Cache, Uncached};
-use sequential_storage::map::{Key, MapConfig, MapConfigError, MapStorage, SerializationError};
+use crc::{Algorithm, Crc};
 
-use crate::page_view::{PageView, View, ViewError};
+use embedded_storage_async::nor_flash::NorFlash;
+use model_core::CalibrationSpec;
+use sequential_storage::map::{Key, SerializationError};
+
 use crate::record::{
     decode_record, decode_saved_record, encode_record, RecordError, MAX_RECORD_LEN,
 };
 
-/// The map key of the calibration record, the only kind of item this store writes.
+/// The key of the earlier firmware's sequential-storage map, whose items are the ones this store
+/// reads and writes: with it, a sequential-storage map over the region writes items this store
+/// reads (the tests place arbitrary items that way).
 ///
 /// It serialises to no bytes. sequential-storage 8.0.2 slices an item's data by the key length
 /// without checking it against the item's (`data[..len][key_len..]` while iterating,
@@ -70,23 +105,23 @@ pub const CALIBRATION_KEY: CalibrationKey = CalibrationKey;
 pub const STM32F411_CALIBRATION_RANGE: Range<u32> = 0x0004_0000..0x0008_0000;
 
 /// The store works on exactly two pages: one holds the records, the other is erased, ready for
-/// the next page change.
+/// the next move.
 const PAGE_COUNT: u32 = 2;
 
-const KEY_LEN: usize = 0;
-/// sequential-storage supports flash words of up to 32 bytes and reads whole words into the
-/// buffer, so key + record rounded up to 32 fits every flash.
+/// The largest flash word the header and marker buffers hold (sequential-storage's limit too).
 const LARGEST_WORD_SIZE: usize = 32;
-const ITEM_BUFFER_LEN: usize = (KEY_LEN + MAX_RECORD_LEN).next_multiple_of(LARGEST_WORD_SIZE);
+/// Data CRC, length and length CRC, before padding to the flash word.
+const ITEM_HEADER_LEN: usize = 8;
+/// A whole number of words of every supported size that holds the longest record.
+const ITEM_BUFFER_LEN: usize = MAX_RECORD_LEN.next_multiple_of(LARGEST_WORD_SIZE);
 
-/// Item data is written to flash straight from this buffer; some flash drivers need word-aligned
-/// source buffers.
+/// Flash drivers may need word-aligned source buffers.
 #[repr(align(4))]
 struct ItemBuffer([u8; ITEM_BUFFER_LEN]);
 
-type Map<F> =
-    MapStorage<CalibrationKey, PageView<F>, Cache<Uncached, Uncached, Uncached, CalibrationKey>>;
-type MapError<F> = sequential_storage::Error<ViewError<<F as ErrorType>::Error>>;
+/// Header and marker words, written straight from here (see [`ItemBuffer`]).
+#[repr(align(4))]
+struct WordBuffer([u8; LARGEST_WORD_SIZE]);
 
 /// Why a flash range cannot hold the calibration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,15 +129,15 @@ type MapError<F> = sequential_storage::Error<ViewError<<F as ErrorType>::Error>>
 pub enum RegionError {
     /// The range does not start and end on erase-page boundaries.
     NotPageAligned,
-    /// The range has fewer than two erase pages (one is always kept erased for the next copy).
+    /// The range has fewer than two erase pages (one is always kept erased for the next move).
     TooFewPages,
     /// The range has more than two erase pages: the store's power-loss guarantees are worked out
     /// and tested for two.
     TooManyPages,
-    /// An erase page cannot hold two records of [`MAX_RECORD_LEN`] with their headers (the newest
-    /// record is copied into a fresh page before the next one is appended).
+    /// An erase page cannot hold its marker words and two items of [`MAX_RECORD_LEN`], the
+    /// minimum the earlier firmware's store required, so that both accept the same regions.
     PagesTooSmall,
-    /// The flash's write or read size is above the 32 bytes sequential-storage supports.
+    /// The flash's write or read size is above 32 bytes.
     WordSizeTooLarge,
     /// The range ends beyond the flash's capacity.
     BeyondFlash,
@@ -124,18 +159,6 @@ impl fmt::Display for RegionError {
 
 impl core::error::Error for RegionError {}
 
-impl From<MapConfigError> for RegionError {
-    fn from(error: MapConfigError) -> Self {
-        match error {
-            MapConfigError::StartRangeNotAtPageBoundary
-            | MapConfigError::EndRangeNotAtPageBoundary => RegionError::NotPageAligned,
-            MapConfigError::RangeTooSmall => RegionError::TooFewPages,
-            MapConfigError::PagesTooSmall => RegionError::PagesTooSmall,
-            MapConfigError::WordSizeTooLarge => RegionError::WordSizeTooLarge,
-        }
-    }
-}
-
 /// Why a save or an erase failed.
 #[derive(Debug, Clone, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -144,15 +167,8 @@ pub enum StoreError<E> {
     Record(RecordError),
     /// The flash driver reported an error.
     Flash(E),
-    /// sequential-storage found the region inconsistent and its repair did not help.
-    Layout,
-    /// The region cannot hold the record (cannot happen for a range [`CalibrationStore::new`]
-    /// accepted).
-    NoSpace,
     /// The record read back after writing is missing or differs from what was written.
     VerifyFailed,
-    /// sequential-storage failed for another reason (an internal error of that crate).
-    Storage,
 }
 
 impl<E: fmt::Debug> fmt::Display for StoreError<E> {
@@ -160,68 +176,27 @@ impl<E: fmt::Debug> fmt::Display for StoreError<E> {
         match self {
             StoreError::Record(error) => write!(formatter, "calibration record: {error}"),
             StoreError::Flash(error) => write!(formatter, "flash: {error:?}"),
-            StoreError::Layout => write!(formatter, "flash layout corrupt beyond repair"),
-            StoreError::NoSpace => write!(formatter, "flash region too small"),
             StoreError::VerifyFailed => write!(formatter, "read-back verification failed"),
-            StoreError::Storage => write!(formatter, "sequential-storage internal error"),
         }
     }
 }
 
 impl<E: fmt::Debug> core::error::Error for StoreError<E> {}
 
-impl<E> StoreError<E> {
-    fn from_map(error: sequential_storage::Error<ViewError<E>>) -> Self {
-        match error {
-            sequential_storage::Error::Storage {
-                value: ViewError::Flash(value),
-                ..
-            } => StoreError::Flash(value),
-            sequential_storage::Error::Corrupted { .. } => StoreError::Layout,
-            sequential_storage::Error::FullStorage | sequential_storage::Error::ItemTooBig => {
-                StoreError::NoSpace
-            }
-            _ => StoreError::Storage,
-        }
-    }
-}
-
 /// Why [`CalibrationStore::load`] found no usable calibration in a region that holds something.
 #[derive(Debug, Clone, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CorruptReason<E> {
     /// An intact item holds no acceptable record (unknown version, CRC, does not parse, does not
-    /// validate) and no valid record is newer than it.
+    /// validate) and no valid record follows it.
     Record(RecordError),
     /// The region holds written bytes but no intact record: a save torn before its record was
     /// complete, or the only record damaged.
     NoIntactRecord,
-    /// The region's layout is inconsistent and sequential-storage's repair did not fix it; the
-    /// next [`CalibrationStore::save`] rewrites the region.
-    Layout,
-    /// Reading (or repairing) the flash failed.
+    /// Reading the flash failed.
     Flash(E),
-    /// sequential-storage refused the region for another reason (for example an item longer than
-    /// any record).
+    /// An intact item longer than any record, with no valid record after it.
     Storage,
-}
-
-impl<E> CorruptReason<E> {
-    fn from_map(error: sequential_storage::Error<ViewError<E>>) -> Self {
-        match error {
-            sequential_storage::Error::Storage {
-                value: ViewError::Flash(value),
-                ..
-            } => CorruptReason::Flash(value),
-            // A refused write is sequential-storage trying to repair through the read-only view.
-            sequential_storage::Error::Corrupted { .. }
-            | sequential_storage::Error::Storage {
-                value: ViewError::Refused,
-                ..
-            } => CorruptReason::Layout,
-            _ => CorruptReason::Storage,
-        }
-    }
 }
 
 /// What [`CalibrationStore::load`] found. Whatever it is, the caller carries on: with the stored
@@ -272,60 +247,17 @@ impl<E: defmt::Format> defmt::Format for LoadOutcome<E> {
 struct NewestRecord {
     save_counter: u32,
     length: usize,
+    page: u32,
 }
 
-/// What one pass over every calibration item sequential-storage can see found, in its order
-/// (oldest page first, each page from its start).
-#[derive(Debug, Default)]
-struct Scan {
+/// What one pass over both pages (page 0 first, each from its start) found.
+struct Scan<E> {
     newest: Option<NewestRecord>,
-    /// No calibration item comes after the newest record: sequential-storage's own "latest item"
-    /// is that record, so the copy it makes when it changes pages is the newest record.
-    newest_is_last: bool,
-    /// Why an intact item after the newest record (or anywhere, without one) holds no acceptable
-    /// record: something newer than anything readable may be there.
-    refused_after_newest: Option<RecordError>,
-}
-
-impl Scan {
-    fn newest_counter(&self) -> Option<u32> {
-        self.newest.map(|newest| newest.save_counter)
-    }
-
-    /// Takes one item's value into account; a new newest record is copied into `newest_bytes`.
-    fn add(&mut self, value: &[u8], newest_bytes: &mut [u8; ITEM_BUFFER_LEN]) {
-        let decoded = decode_saved_record(value);
-        let slot = newest_bytes.get_mut(..value.len());
-        match (decoded, slot) {
-            (Ok(record), Some(slot))
-                if self
-                    .newest
-                    .is_none_or(|newest| record.save_counter >= newest.save_counter) =>
-            {
-                slot.copy_from_slice(value);
-                self.newest = Some(NewestRecord {
-                    save_counter: record.save_counter,
-                    length: value.len(),
-                });
-                self.newest_is_last = true;
-                self.refused_after_newest = None;
-            }
-            (Ok(_), _) => self.newest_is_last = false,
-            (Err(error), _) => {
-                self.newest_is_last = false;
-                self.refused_after_newest = Some(error);
-            }
-        }
-    }
-}
-
-/// The region after [`CalibrationStore::prune`].
-struct Pruned {
-    /// An erased page, if there is one.
-    erased_page: Option<u32>,
-    /// sequential-storage can append from here: both pages erased, or one erased and the other
-    /// showing, alone, the newest record as its last item.
-    clean: bool,
+    /// Why an intact item after the newest record (or anywhere, without one) is unusable:
+    /// something newer than anything readable may be there.
+    refused_after_newest: Option<CorruptReason<E>>,
+    /// Per page, where the next item would go: after the last item, or after damage.
+    free_start: [u32; PAGE_COUNT as usize],
 }
 
 /// The calibration in a flash range of two erase pages.
@@ -333,55 +265,66 @@ struct Pruned {
 /// `F` is any async NOR flash: embassy-stm32's `Flash` (directly, or blocking through
 /// `embassy_embedded_hal::adapter::BlockingAsync`), a `&mut` to one, or `RamFlash`.
 pub struct CalibrationStore<F: NorFlash> {
-    map: Map<F>,
-    item_buffer: ItemBuffer,
+    flash: F,
+    range: Range<u32>,
+    buffer: ItemBuffer,
     /// The newest record the last scan found.
     newest: ItemBuffer,
 }
 
 impl<F: NorFlash> CalibrationStore<F> {
+    const WORD_LEN: u32 = if F::WRITE_SIZE > F::READ_SIZE {
+        F::WRITE_SIZE
+    } else {
+        F::READ_SIZE
+    } as u32;
+    const PAGE_LEN: u32 = F::ERASE_SIZE as u32;
+    const HEADER_LEN: u32 = (ITEM_HEADER_LEN as u32).next_multiple_of(Self::WORD_LEN);
+
     /// A store over `range` (offsets in `flash`'s own address space), checked: page-aligned,
     /// exactly two pages, pages large enough for two records, inside the flash.
     pub fn new(flash: F, range: Range<u32>) -> Result<Self, RegionError> {
-        let config = MapConfig::<PageView<F>>::try_new(range.clone())?;
+        if !range.start.is_multiple_of(Self::PAGE_LEN) || !range.end.is_multiple_of(Self::PAGE_LEN)
+        {
+            return Err(RegionError::NotPageAligned);
+        }
+        if range.end.saturating_sub(range.start) < PAGE_COUNT * Self::PAGE_LEN {
+            return Err(RegionError::TooFewPages);
+        }
         if range.end as usize > flash.capacity() {
             return Err(RegionError::BeyondFlash);
         }
-        if range.end - range.start > PAGE_COUNT * F::ERASE_SIZE as u32 {
+        if range.end - range.start > PAGE_COUNT * Self::PAGE_LEN {
             return Err(RegionError::TooManyPages);
         }
-        let word_size = F::WRITE_SIZE.max(F::READ_SIZE);
-        let item_len = Map::<F>::item_overhead_size() as usize
-            + (KEY_LEN + MAX_RECORD_LEN).next_multiple_of(word_size);
-        let page_markers_len = 2 * word_size;
-        if F::ERASE_SIZE < page_markers_len + 2 * item_len {
+        if Self::WORD_LEN as usize > LARGEST_WORD_SIZE {
+            return Err(RegionError::WordSizeTooLarge);
+        }
+        if Self::PAGE_LEN < 2 * Self::WORD_LEN + 2 * Self::item_len(MAX_RECORD_LEN) {
             return Err(RegionError::PagesTooSmall);
         }
         Ok(Self {
-            map: MapStorage::new(
-                PageView::new(flash, range.start),
-                config,
-                Cache::new_uncached(),
-            ),
-            item_buffer: ItemBuffer([0; ITEM_BUFFER_LEN]),
+            flash,
+            range,
+            buffer: ItemBuffer([0; ITEM_BUFFER_LEN]),
             newest: ItemBuffer([0; ITEM_BUFFER_LEN]),
         })
     }
 
     /// The valid record with the highest save counter, or why there is none. Never fails: every
-    /// problem is an outcome. Never writes: a layout a power loss left behind is cleaned up by the
-    /// next save, so a power loss during a boot cannot change anything.
+    /// problem is an outcome. Never writes: the next save cleans up whatever a power loss left,
+    /// so a power loss during a boot cannot change anything.
     ///
     /// Corrupt rather than a valid record when an intact item after the newest valid record holds
-    /// a record this firmware refuses (it may be newer); Corrupt rather than Absent when the
+    /// something this firmware refuses (it may be newer); Corrupt rather than Absent when the
     /// region holds anything at all without an intact record (a torn save, a damaged record).
     pub async fn load(&mut self) -> LoadOutcome<F::Error> {
-        let scan = match self.scan_region().await {
+        let scan = match self.scan().await {
             Ok(scan) => scan,
-            Err(error) => return LoadOutcome::Corrupt(CorruptReason::from_map(error)),
+            Err(error) => return LoadOutcome::Corrupt(CorruptReason::Flash(error)),
         };
-        if let Some(error) = scan.refused_after_newest {
-            return LoadOutcome::Corrupt(CorruptReason::Record(error));
+        if let Some(reason) = scan.refused_after_newest {
+            return LoadOutcome::Corrupt(reason);
         }
         if let Some(newest) = scan.newest {
             let bytes = self.newest.0.get(..newest.length).unwrap_or_default();
@@ -392,7 +335,7 @@ impl<F: NorFlash> CalibrationStore<F> {
         }
         let mut blank = true;
         for page in 0..PAGE_COUNT {
-            match self.page_is_erased(page).await {
+            match self.is_erased(self.page_range(page)).await {
                 Ok(erased) => blank &= erased,
                 Err(error) => return LoadOutcome::Corrupt(CorruptReason::Flash(error)),
             }
@@ -404,243 +347,201 @@ impl<F: NorFlash> CalibrationStore<F> {
         }
     }
 
-    /// Saves `spec` with the next save counter (the highest in the region plus one, from 0;
-    /// it saturates at `u32::MAX`, where equal counters fall back to sequential-storage's order)
-    /// and reads it back.
-    ///
-    /// The page that does not hold the newest record is erased first if it is not erased yet.
-    /// From the clean layout (one page showing the newest record as its last item, one erased
-    /// page) sequential-storage appends the record. Otherwise, or if appending or the read-back
-    /// fails, the record is written alone into the erased page, and the page holding the previous
-    /// record is erased only after the new one reads back. A power loss at any point leaves the
-    /// previous or the new calibration.
+    /// Saves `spec` with the next save counter (the highest in the region plus one, from 0; it
+    /// saturates at `u32::MAX`, where the later of equal counters in a page wins) and reads it
+    /// back: appended after the newest record when the other page is erased and it fits,
+    /// otherwise (or if the appended record does not read back) moved into the other page, the
+    /// page of the older records being erased only once the new one reads back. A power loss at
+    /// any point leaves the previous or the new calibration.
     pub async fn save(&mut self, spec: &CalibrationSpec) -> Result<(), StoreError<F::Error>> {
+        // Scanning writes nothing, so a calibration the model refuses leaves the flash untouched.
+        let scan = self.scan().await.map_err(StoreError::Flash)?;
+        let save_counter = scan
+            .newest
+            .map_or(0, |newest| newest.save_counter.saturating_add(1));
         let mut record = [0u8; MAX_RECORD_LEN];
-        // Reading the newest counter writes nothing, so a calibration the model refuses leaves
-        // the flash untouched.
-        let newest = self.newest_counter().await?;
-        let save_counter = newest.map_or(0, |counter| counter.saturating_add(1));
         let record_len =
             encode_record(spec, save_counter, &mut record).map_err(StoreError::Record)?;
         let record = record
             .get(..record_len)
             .ok_or(StoreError::Record(RecordError::BufferTooSmall))?;
-        let pruned = self.prune(newest).await?;
-        if pruned.clean && self.append(record, save_counter).await {
-            return Ok(());
+        if let Some(newest) = scan.newest {
+            let page = newest.page;
+            let start = scan
+                .free_start
+                .get(page as usize)
+                .copied()
+                .unwrap_or(u32::MAX);
+            let end = start.saturating_add(Self::item_len(record_len));
+            if end <= self.items_end(page)
+                && self
+                    .is_erased(self.page_range(other_page(page)))
+                    .await
+                    .map_err(StoreError::Flash)?
+                && self
+                    .is_erased(start..end)
+                    .await
+                    .map_err(StoreError::Flash)?
+            {
+                self.write_item(start, record).await?;
+                if self.reads_back(record, save_counter).await? {
+                    return Ok(());
+                }
+            }
         }
-        self.write_into_erased_page(record, save_counter).await
+        let target = scan.newest.map_or(0, |newest| other_page(newest.page));
+        self.erase_if_written(target).await?;
+        let marker = WordBuffer([0; LARGEST_WORD_SIZE]);
+        let target_start = self.page_range(target).start;
+        write(&mut self.flash, target_start, &marker.0, Self::WORD_LEN).await?;
+        self.write_item(target_start + Self::WORD_LEN, record)
+            .await?;
+        if !self.reads_back(record, save_counter).await? {
+            return Err(StoreError::VerifyFailed);
+        }
+        self.erase_if_written(other_page(target)).await
     }
 
     /// Erases the whole region: the next [`Self::load`] gives [`LoadOutcome::Absent`].
     pub async fn erase_all(&mut self) -> Result<(), StoreError<F::Error>> {
-        self.set_view(View::Whole);
-        self.map.erase_all().await.map_err(StoreError::from_map)
+        self.flash
+            .erase(self.range.start, self.range.end)
+            .await
+            .map_err(StoreError::Flash)
     }
 
     /// The flash range in use.
     pub fn range(&self) -> Range<u32> {
-        self.map.flash_range()
+        self.range.clone()
     }
 
     /// The flash, for inspection. Changing its content under the store is allowed: the store
     /// keeps no cache.
     pub fn flash(&mut self) -> &mut F {
-        &mut self.map.flash().flash
+        &mut self.flash
     }
 
     /// Gives the flash back.
     pub fn into_flash(self) -> F {
-        self.map.destroy().0.flash
+        self.flash
     }
 
-    fn set_view(&mut self, view: View) {
-        self.map.flash().view = view;
+    /// Header and data of an item of `data_len` bytes, in bytes of flash.
+    const fn item_len(data_len: usize) -> u32 {
+        Self::HEADER_LEN + (data_len as u32).next_multiple_of(Self::WORD_LEN)
     }
 
-    /// Reads the region without writing: as a whole or, if sequential-storage cannot read it as a
-    /// whole (it would first repair a half-erased page), the page that shows the newest record
-    /// alone; the error if no page shows a valid record alone either. The newest record's bytes
-    /// are then in `self.newest`.
-    async fn scan_region(&mut self) -> Result<Scan, MapError<F>> {
-        self.set_view(View::ReadOnly);
-        let whole = self.scan().await;
-        self.set_view(View::Whole);
-        let error = match whole {
-            Ok(scan) => return Ok(scan),
-            Err(
-                error @ sequential_storage::Error::Storage {
-                    value: ViewError::Flash(_),
-                    ..
-                },
-            ) => return Err(error),
-            Err(error) => error,
+    fn page_range(&self, page: u32) -> Range<u32> {
+        let start = self.range.start + page * Self::PAGE_LEN;
+        start..start + Self::PAGE_LEN
+    }
+
+    /// Where items of `page` must end: before its last word (sequential-storage's end marker).
+    fn items_end(&self, page: u32) -> u32 {
+        self.page_range(page).end - Self::WORD_LEN
+    }
+
+    /// Reads every item of both pages, without writing.
+    async fn scan(&mut self) -> Result<Scan<F::Error>, F::Error> {
+        let mut scan = Scan {
+            newest: None,
+            refused_after_newest: None,
+            free_start: [0; PAGE_COUNT as usize],
         };
-        let mut best: Option<(u32, Scan)> = None;
         for page in 0..PAGE_COUNT {
-            if let Some(scan) = self.scan_one_page(page, 1).await {
-                if scan.newest.is_some()
-                    && best
-                        .as_ref()
-                        .is_none_or(|(_, best)| scan.newest_counter() > best.newest_counter())
-                {
-                    best = Some((page, scan));
+            let end = self.items_end(page);
+            let mut address = self.page_range(page).start + Self::WORD_LEN;
+            let mut header_buffer = WordBuffer([0; LARGEST_WORD_SIZE]);
+            while address + Self::HEADER_LEN <= end {
+                let Some(header) = header_buffer.0.get_mut(..Self::HEADER_LEN as usize) else {
+                    break;
+                };
+                self.flash.read(address, header).await?;
+                if header.iter().all(|&byte| byte == 0xFF) {
+                    break;
                 }
+                let [c0, c1, c2, c3, l0, l1, k0, k1, ..] = *header else {
+                    break;
+                };
+                let length = u16::from_le_bytes([l0, l1]);
+                let data_address = address + Self::HEADER_LEN;
+                let next = address + Self::item_len(length.into());
+                if length_crc(u16::from_le_bytes([l0, l1])) != u16::from_le_bytes([k0, k1])
+                    || next > end
+                {
+                    // A torn or damaged header hides where the next item starts.
+                    address += Self::WORD_LEN;
+                    continue;
+                }
+                let data_crc = u32::from_le_bytes([c0, c1, c2, c3]);
+                if self
+                    .data_intact(data_address, length.into(), data_crc)
+                    .await?
+                {
+                    self.add_item(&mut scan, page, length.into());
+                }
+                address = next;
             }
-        }
-        match best {
-            // The later scan of the other page may have replaced the record bytes.
-            Some((page, _)) if page + 1 < PAGE_COUNT => {
-                self.scan_one_page(page, 1).await.ok_or(error)
-            }
-            Some((_, scan)) => Ok(scan),
-            None => Err(error),
-        }
-    }
-
-    /// Reads every calibration item sequential-storage sees through the current view.
-    async fn scan(&mut self) -> Result<Scan, MapError<F>> {
-        let mut scan = Scan::default();
-        let mut items = self.map.fetch_all_items(&mut self.item_buffer.0).await?;
-        while let Some((key, value)) = items.next::<&[u8]>(&mut self.item_buffer.0).await? {
-            if key == CALIBRATION_KEY {
-                scan.add(value, &mut self.newest.0);
+            if let Some(free_start) = scan.free_start.get_mut(page as usize) {
+                *free_start = address;
             }
         }
         Ok(scan)
     }
 
-    /// What sequential-storage would see if page `kept` were alone at position `shown_as`, the
-    /// other page erased; nothing is written. None if it could not read it (or would have
-    /// repaired it).
-    async fn scan_one_page(&mut self, kept: u32, shown_as: u32) -> Option<Scan> {
-        self.set_view(View::OnePage {
-            kept,
-            shown_as,
-            writable: false,
-        });
-        let scan = self.scan().await;
-        self.set_view(View::Whole);
-        scan.ok()
-    }
-
-    /// The highest save counter of a valid record in the region; None also when nothing in it can
-    /// be read (then every page gets erased before the save).
-    async fn newest_counter(&mut self) -> Result<Option<u32>, StoreError<F::Error>> {
-        match self.scan_region().await.map_err(StoreError::from_map) {
-            Ok(scan) => Ok(scan.newest_counter()),
-            Err(StoreError::Flash(error)) => Err(StoreError::Flash(error)),
-            Err(_) => Ok(None),
-        }
-    }
-
-    /// Erases every page the newest record (save counter `newest`) does not need: a page is
-    /// erased only if the other page alone still shows a record at least that new. Without a
-    /// valid record, every written page is erased.
-    async fn prune(&mut self, newest: Option<u32>) -> Result<Pruned, StoreError<F::Error>> {
-        let mut erased = [false; PAGE_COUNT as usize];
-        for (page, page_erased) in (0..PAGE_COUNT).zip(erased.iter_mut()) {
-            *page_erased = self.page_is_erased(page).await.map_err(StoreError::Flash)?;
-        }
-        for (page, page_erased) in (0..PAGE_COUNT).zip(erased.iter_mut()) {
-            if *page_erased {
-                continue;
-            }
-            let other_keeps_newest = match newest {
-                None => true,
-                Some(counter) => self
-                    .scan_one_page(other_page(page), 1)
-                    .await
-                    .and_then(|scan| scan.newest_counter())
-                    .is_some_and(|found| found >= counter),
-            };
-            if other_keeps_newest {
-                self.erase_page(page).await?;
-                *page_erased = true;
-            }
-        }
-        let clean = match erased {
-            [true, true] => true,
-            [true, false] | [false, true] => {
-                let kept = if erased[0] { 1 } else { 0 };
-                self.scan_one_page(kept, 1).await.is_some_and(|scan| {
-                    scan.newest_is_last
-                        && scan.refused_after_newest.is_none()
-                        && scan.newest_counter() == newest
-                })
-            }
-            [false, false] => false,
-        };
-        Ok(Pruned {
-            erased_page: (0..PAGE_COUNT)
-                .zip(erased)
-                .find_map(|(page, page_erased)| page_erased.then_some(page)),
-            clean,
-        })
-    }
-
-    /// sequential-storage appends the record to a clean layout; true if it then reads back as the
-    /// newest record.
-    async fn append(&mut self, record: &[u8], save_counter: u32) -> bool {
-        self.set_view(View::Whole);
-        let stored = self
-            .map
-            .store_item(&mut self.item_buffer.0, &CALIBRATION_KEY, &record)
-            .await;
-        stored.is_ok() && matches!(self.reads_back(record, save_counter).await, Ok(true))
-    }
-
-    /// Writes the record alone into an erased page (erasing one first if neither is), reads it
-    /// back, and only then erases the other page.
-    async fn write_into_erased_page(
+    /// Whether the `length` bytes at `address` match `expected` (a header's data CRC); they stay
+    /// in `self.buffer` when they fit.
+    async fn data_intact(
         &mut self,
-        record: &[u8],
-        save_counter: u32,
-    ) -> Result<(), StoreError<F::Error>> {
-        let newest = self.newest_counter().await?;
-        let target = match self.prune(newest).await?.erased_page {
-            Some(page) => page,
-            None => {
-                let target = self.page_without(newest).await;
-                self.erase_page(target).await?;
-                target
-            }
-        };
-        // sequential-storage sees the erased target as the first page of an empty region and
-        // writes a page marker and the record there; the other page is out of its reach.
-        self.set_view(View::OnePage {
-            kept: target,
-            shown_as: 0,
-            writable: true,
-        });
-        let stored = self
-            .map
-            .store_item(&mut self.item_buffer.0, &CALIBRATION_KEY, &record)
-            .await;
-        self.set_view(View::Whole);
-        stored.map_err(StoreError::from_map)?;
-        if !self.reads_back(record, save_counter).await? {
-            return Err(StoreError::VerifyFailed);
+        address: u32,
+        length: usize,
+        expected: u32,
+    ) -> Result<bool, F::Error> {
+        let mut digest = ITEM_DATA_CRC.digest();
+        let mut done = 0;
+        while done < length {
+            let chunk_len = (length - done).min(ITEM_BUFFER_LEN);
+            let read_len = chunk_len.next_multiple_of(Self::WORD_LEN as usize);
+            let Some(chunk) = self.buffer.0.get_mut(..read_len) else {
+                return Ok(false);
+            };
+            self.flash.read(address + done as u32, chunk).await?;
+            digest.update(chunk.get(..chunk_len).unwrap_or_default());
+            done += chunk_len;
         }
-        self.prune(Some(save_counter)).await?;
-        Ok(())
+        Ok(adapted_crc32(digest.finalize()) == expected)
     }
 
-    /// The page to sacrifice when neither page can be erased without losing what the other
-    /// shows: the one that, alone, does not show the newest record. No interrupted operation of
-    /// this store leads here (every one leaves a page that shows the newest record alone); only
-    /// damage to the flash does.
-    async fn page_without(&mut self, newest: Option<u32>) -> u32 {
-        for page in 0..PAGE_COUNT {
-            let shows_newest = self
-                .scan_one_page(page, 0)
-                .await
-                .is_some_and(|scan| scan.newest_counter() >= newest);
-            if shows_newest {
-                return other_page(page);
+    /// Takes the intact item of `length` bytes in `self.buffer` into account.
+    fn add_item(&mut self, scan: &mut Scan<F::Error>, page: u32, length: usize) {
+        let Some(value) = self
+            .buffer
+            .0
+            .get(..length)
+            .filter(|_| length <= MAX_RECORD_LEN)
+        else {
+            scan.refused_after_newest = Some(CorruptReason::Storage);
+            return;
+        };
+        match decode_saved_record(value) {
+            Ok(record)
+                if scan
+                    .newest
+                    .is_none_or(|newest| record.save_counter >= newest.save_counter) =>
+            {
+                if let Some(newest) = self.newest.0.get_mut(..length) {
+                    newest.copy_from_slice(value);
+                }
+                scan.newest = Some(NewestRecord {
+                    save_counter: record.save_counter,
+                    length,
+                    page,
+                });
+                scan.refused_after_newest = None;
             }
+            Ok(_) => {}
+            Err(error) => scan.refused_after_newest = Some(CorruptReason::Record(error)),
         }
-        0
     }
 
     /// Whether the whole region now reads `record` (with `save_counter`) as the newest record.
@@ -649,41 +550,71 @@ impl<F: NorFlash> CalibrationStore<F> {
         record: &[u8],
         save_counter: u32,
     ) -> Result<bool, StoreError<F::Error>> {
-        let scan = self.scan_region().await.map_err(StoreError::from_map)?;
+        let scan = self.scan().await.map_err(StoreError::Flash)?;
         Ok(scan.newest.is_some_and(|newest| {
             newest.save_counter == save_counter
                 && self.newest.0.get(..newest.length) == Some(record)
         }))
     }
 
-    fn page_range(&self, page: u32) -> Range<u32> {
-        let start = self.map.flash_range().start + page * F::ERASE_SIZE as u32;
-        start..start + F::ERASE_SIZE as u32
+    /// Writes `record` as an item at `address`: header first, then the data.
+    async fn write_item(
+        &mut self,
+        address: u32,
+        record: &[u8],
+    ) -> Result<(), StoreError<F::Error>> {
+        let length = record.len() as u16;
+        let mut header = WordBuffer([0xFF; LARGEST_WORD_SIZE]);
+        for (byte, value) in header.0.iter_mut().zip(
+            adapted_crc32(ITEM_DATA_CRC.checksum(record))
+                .to_le_bytes()
+                .into_iter()
+                .chain(length.to_le_bytes())
+                .chain(length_crc(length).to_le_bytes()),
+        ) {
+            *byte = value;
+        }
+        write(&mut self.flash, address, &header.0, Self::HEADER_LEN).await?;
+        self.buffer.0.fill(0xFF);
+        if let Some(data) = self.buffer.0.get_mut(..record.len()) {
+            data.copy_from_slice(record);
+        }
+        let data_len = (record.len() as u32).next_multiple_of(Self::WORD_LEN);
+        write(
+            &mut self.flash,
+            address + Self::HEADER_LEN,
+            &self.buffer.0,
+            data_len,
+        )
+        .await
     }
 
-    async fn erase_page(&mut self, page: u32) -> Result<(), StoreError<F::Error>> {
+    async fn erase_if_written(&mut self, page: u32) -> Result<(), StoreError<F::Error>> {
         let range = self.page_range(page);
-        self.map
-            .flash()
-            .flash
+        if self
+            .is_erased(range.clone())
+            .await
+            .map_err(StoreError::Flash)?
+        {
+            return Ok(());
+        }
+        self.flash
             .erase(range.start, range.end)
             .await
             .map_err(StoreError::Flash)
     }
 
-    /// Whether every byte of `page` reads erased (0xFF).
-    async fn page_is_erased(&mut self, page: u32) -> Result<bool, F::Error> {
-        let range = self.page_range(page);
-        let chunk_len = ITEM_BUFFER_LEN - ITEM_BUFFER_LEN % F::READ_SIZE;
+    /// Whether every byte of `range` reads erased (0xFF).
+    async fn is_erased(&mut self, range: Range<u32>) -> Result<bool, F::Error> {
         let mut address = range.start;
         while address < range.end {
-            let length = chunk_len.min((range.end - address) as usize);
-            // `length` is at most `chunk_len`, which fits the buffer; were it not, the page would
-            // count as written, which costs only an erase.
-            let Some(chunk) = self.item_buffer.0.get_mut(..length) else {
+            let length = ITEM_BUFFER_LEN.min((range.end - address) as usize);
+            // `length` fits the buffer; were it not, the range would count as written, which
+            // costs only an erase or a move.
+            let Some(chunk) = self.buffer.0.get_mut(..length) else {
                 return Ok(false);
             };
-            self.map.flash().flash.read(address, chunk).await?;
+            self.flash.read(address, chunk).await?;
             if chunk.iter().any(|&byte| byte != 0xFF) {
                 return Ok(false);
             }
@@ -693,6 +624,62 @@ impl<F: NorFlash> CalibrationStore<F> {
     }
 }
 
+/// Writes the first `length` bytes of `bytes` at `address`.
+async fn write<F: NorFlash>(
+    flash: &mut F,
+    address: u32,
+    bytes: &[u8],
+    length: u32,
+) -> Result<(), StoreError<F::Error>> {
+    let bytes = bytes
+        .get(..length as usize)
+        .ok_or(StoreError::Record(RecordError::BufferTooSmall))?;
+    flash.write(address, bytes).await.map_err(StoreError::Flash)
+}
+
 fn other_page(page: u32) -> u32 {
     PAGE_COUNT - 1 - page
+}
+
+/// sequential-storage's data CRC: CRC-32C (Castagnoli, reflected) from 0xEEEE_EEEE, inverted.
+/// The `crc` crate takes a reflected algorithm's initial value bit-reversed.
+const ITEM_DATA_CRC: Crc<u32> = Crc::<u32>::new(&Algorithm {
+    width: 32,
+    poly: 0x1EDC_6F41,
+    init: 0xEEEE_EEEE_u32.reverse_bits(),
+    refin: true,
+    refout: true,
+    xorout: 0xFFFF_FFFF,
+    check: 0,
+    residue: 0,
+});
+
+/// sequential-storage's length CRC: polynomial 0x7458 (0x1A2E reflected) from 0xFFFF, inverted.
+const ITEM_LENGTH_CRC: Crc<u16> = Crc::<u16>::new(&Algorithm {
+    width: 16,
+    poly: 0x7458,
+    init: 0xFFFF,
+    refin: true,
+    refout: true,
+    xorout: 0xFFFF,
+    check: 0,
+    residue: 0,
+});
+
+/// The data CRC as sequential-storage writes it: never 0 (an item erased in place), and a first
+/// byte that is neither erased nor fully programmed, so a torn header cannot pass for one.
+fn adapted_crc32(crc: u32) -> u32 {
+    match crc {
+        0 => 1,
+        value if matches!(value.to_le_bytes(), [0x00 | 0xFF, ..]) => value ^ 1,
+        value => value,
+    }
+}
+
+/// The length CRC as sequential-storage writes it: never 0xFFFF (erased).
+fn length_crc(length: u16) -> u16 {
+    match ITEM_LENGTH_CRC.checksum(&length.to_le_bytes()) {
+        0xFFFF => 0xFFFE,
+        value => value,
+    }
 }
