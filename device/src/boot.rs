@@ -16,7 +16,7 @@ use crate::{CalibrationPersistence, Device, DeviceConfig, DeviceIdentity};
 
 /// How the board is set up: what the firmware runs, and what the simulated device runs unless a
 /// test asks for something else.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BoardConfig {
     /// CAPDAC of each measurement (CIN1..CIN4), in 3.125 pF steps. A taxel is about 4.5 pF
@@ -38,10 +38,7 @@ pub const BOARD: BoardConfig = BoardConfig {
     capdac: [0; 4],
     converter_rate: Rate::Hz400,
     tare_sets_at_power_on: 16,
-    device: DeviceConfig {
-        counters_every_sets: 100,
-        streaming_at_start: true,
-    },
+    device: DeviceConfig::DEFAULT,
 };
 
 impl BoardConfig {

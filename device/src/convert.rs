@@ -4,11 +4,12 @@ use acquisition::{Counters, ProcessedSample, TemperatureOrigin};
 use fdc1004::Rate;
 use heapless::Vec;
 use model_core::{
-    BaselineRecord, Calibration, CurvePoint, PadModel, SplitCapacitance, TaxelCalibrationSpec,
+    BaselineRecord, Calibration, CurvePoint, PadForce, PadForceFlags, PadModel, SplitCapacitance,
+    TaxelCalibrationSpec,
 };
 use wire::{
-    BaselineWire, CountersFrame, SampleFrame, SampleRate, TaxelCalibrationRecord,
-    TaxelCalibrationWire, TaxelSample, TemperatureSource,
+    BaselineWire, CountersFrame, PadIndex, PadSummary, SampleFrame, SampleRate,
+    TaxelCalibrationRecord, TaxelCalibrationWire, TaxelSample, TemperatureSource,
 };
 
 use crate::HostCounters;
@@ -44,15 +45,31 @@ pub fn wire_temperature_source(sample: &ProcessedSample, pad: &PadModel) -> Temp
     }
 }
 
-/// A processed sample set as a sample frame. The temperature is the one the model corrected
-/// with; a faulted taxel carries no pressure.
-pub fn sample_frame(sample: &ProcessedSample, pad: &PadModel) -> SampleFrame {
+/// The wire's summary of a pad's force and contact.
+pub fn pad_summary(force: &PadForce, contact: bool) -> PadSummary {
+    PadSummary {
+        force_n: force.force_n,
+        centre_of_pressure_mm: force.centre_of_pressure_mm.map(|(x_mm, y_mm)| [x_mm, y_mm]),
+        partial: force.flags.contains(PadForceFlags::PARTIAL),
+        contact,
+    }
+}
+
+/// A processed sample set of pad `index` as a sample frame. The temperature is the one the
+/// model corrected with; a faulted taxel carries no pressure.
+pub fn sample_frame(
+    sample: &ProcessedSample,
+    pad: &PadModel,
+    index: PadIndex,
+    summary: PadSummary,
+) -> SampleFrame {
     let temperature_source = wire_temperature_source(sample, pad);
     let temperature_c = match temperature_source {
         TemperatureSource::None => None,
         _ => Some(sample.output.temperature.temperature_c),
     };
     SampleFrame {
+        pad: index,
         sequence: sample.sequence,
         timestamp_us: sample.timestamp_us,
         temperature_c,
@@ -62,6 +79,7 @@ pub fn sample_frame(sample: &ProcessedSample, pad: &PadModel) -> SampleFrame {
             capacitance_pf: taxel.capacitance_pf().unwrap_or(f32::NAN),
             flags: taxel.flags().bits(),
         }),
+        summary,
     }
 }
 

@@ -23,7 +23,7 @@ pub use boot::{boot, boot_calibration, BoardConfig, BoardParts, BootReport, Boot
 pub use control::DeviceControl;
 pub use convert::{
     baseline_record, baseline_wire, calibration_record, converter_rate, counters_frame,
-    sample_frame, taxel_calibration_spec, wire_sample_rate, wire_temperature_source,
+    pad_summary, sample_frame, taxel_calibration_spec, wire_sample_rate, wire_temperature_source,
     CalibrationConversionError,
 };
 pub use host_input::{HostInput, HostInputEvent};
@@ -32,15 +32,22 @@ pub use retained::{boot_plan, BootPlan, ResetKind, RetainedState, RETAINED_LEN};
 pub use supervisor::{Supervisor, SupervisorAction};
 
 use acquisition::{ProcessedSample, TemperatureOrigin};
-use model_core::{BaselineError, BaselineRecord, Calibration, TareStatus, Tier, TAXEL_COUNT};
+use model_core::{
+    pad_force, BaselineError, BaselineRecord, Calibration, ContactConfig, ContactDetector,
+    ContactEvent, PadGeometry, TareStatus, Tier, TAXEL_COUNT,
+};
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
-    InfoFrame, ReplyFrame, ReplyPayload, Request, SampleFrame, SampleRate, TaxelBaselineWire,
-    PROTOCOL_VERSION,
+    InfoFrame, PadIndex, ReplyFrame, ReplyPayload, Request, SampleFrame, SampleRate,
+    TaxelBaselineWire, PROTOCOL_VERSION,
 };
 
-/// Largest encoded output: a CSV line (283 bytes) or the largest frame (155 bytes).
-pub const MAX_OUTGOING_LEN: usize = 288;
+/// Largest encoded output: a CSV line or the largest frame, whichever is longer.
+pub const MAX_OUTGOING_LEN: usize = if wire::CSV_LINE_MAX_LEN > wire::MAX_FRAME_ENCODED_LEN {
+    wire::CSV_LINE_MAX_LEN
+} else {
+    wire::MAX_FRAME_ENCODED_LEN
+};
 
 const _: () = assert!(wire::MAX_FRAME_ENCODED_LEN <= MAX_OUTGOING_LEN);
 
@@ -117,21 +124,33 @@ pub struct HostCounters {
 }
 
 /// Settings of the device application.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DeviceConfig {
     /// A counters frame goes out every this many sample sets (0 = never).
     pub counters_every_sets: u32,
     /// Whether streaming is on at start.
     pub streaming_at_start: bool,
+    /// Where the taxels are and how large, for force and centre of pressure.
+    pub geometry: PadGeometry,
+    /// When the pad counts as in contact.
+    pub contact: ContactConfig,
+}
+
+impl DeviceConfig {
+    /// Counters every 100 sets, streaming at start, the article's pad, the default contact
+    /// thresholds.
+    pub const DEFAULT: DeviceConfig = DeviceConfig {
+        counters_every_sets: 100,
+        streaming_at_start: true,
+        geometry: PadGeometry::ARTICLE,
+        contact: ContactConfig::DEFAULT,
+    };
 }
 
 impl Default for DeviceConfig {
     fn default() -> Self {
-        Self {
-            counters_every_sets: 100,
-            streaming_at_start: true,
-        }
+        Self::DEFAULT
     }
 }
 
@@ -154,6 +173,7 @@ pub struct Device<A, P> {
     retained_written: Option<RetainedState>,
     announced_baselines: [Option<BaselineRecord>; TAXEL_COUNT],
     announced_generation: Option<u32>,
+    contact: ContactDetector,
 }
 
 impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
@@ -185,6 +205,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             retained_written: None,
             announced_baselines: [None; TAXEL_COUNT],
             announced_generation: None,
+            contact: ContactDetector::new(config.contact),
         }
     }
 
@@ -244,6 +265,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             model_tier: self.control.pad().tier() as u8,
             streaming: self.streaming,
             text_mode: self.text_mode,
+            pad_count: 1,
         }
     }
 
@@ -338,8 +360,11 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 Outgoing::Frame(DeviceFrame::Reply(ReplyFrame { request_id, result })),
             );
         }
+        let force = pad_force(&sample.output.taxels, &self.config.geometry);
+        let contact_event = self.contact.update(&force, sample.timestamp_us);
         if self.streaming {
-            let frame = sample_frame(sample, self.control.pad());
+            let summary = pad_summary(&force, self.contact.in_contact());
+            let frame = sample_frame(sample, self.control.pad(), PadIndex::default(), summary);
             let outgoing = if self.text_mode {
                 Outgoing::CsvLine(frame)
             } else {
@@ -349,6 +374,23 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 self.host_counters.sample_sets_dropped =
                     self.host_counters.sample_sets_dropped.saturating_add(1);
             }
+        }
+        if let Some(event) = contact_event {
+            let (timestamp_us, event) = match event {
+                ContactEvent::Started { timestamp_us } => (
+                    timestamp_us,
+                    DeviceEvent::ContactStarted {
+                        pad: PadIndex::default(),
+                    },
+                ),
+                ContactEvent::Ended { timestamp_us } => (
+                    timestamp_us,
+                    DeviceEvent::ContactEnded {
+                        pad: PadIndex::default(),
+                    },
+                ),
+            };
+            self.send_event(host, timestamp_us, event);
         }
         // Only a tare, a restore or a new calibration changes the generation, so the records
         // are built and compared only then, not every cycle.

@@ -49,15 +49,20 @@ pub struct ContactConfig {
     debounce_sets: u16,
 }
 
-impl Default for ContactConfig {
+impl ContactConfig {
     /// On above [`DEFAULT_ON_THRESHOLD_N`], off below [`DEFAULT_OFF_THRESHOLD_N`], after
     /// [`DEFAULT_DEBOUNCE_SETS`] sets.
+    pub const DEFAULT: ContactConfig = ContactConfig {
+        on_threshold_n: DEFAULT_ON_THRESHOLD_N,
+        off_threshold_n: DEFAULT_OFF_THRESHOLD_N,
+        debounce_sets: DEFAULT_DEBOUNCE_SETS,
+    };
+}
+
+impl Default for ContactConfig {
+    /// [`ContactConfig::DEFAULT`].
     fn default() -> Self {
-        Self {
-            on_threshold_n: DEFAULT_ON_THRESHOLD_N,
-            off_threshold_n: DEFAULT_OFF_THRESHOLD_N,
-            debounce_sets: DEFAULT_DEBOUNCE_SETS,
-        }
+        Self::DEFAULT
     }
 }
 

@@ -118,20 +118,39 @@ pub struct PadGeometry {
     taxels: [TaxelGeometry; TAXEL_COUNT],
 }
 
-impl Default for PadGeometry {
+impl PadGeometry {
     /// The article's pad: 25 mm² electrodes centred at (±2.75 mm, ±2.75 mm), C11 top-left (see
     /// the module's frame).
+    pub const ARTICLE: PadGeometry = PadGeometry {
+        taxels: [
+            TaxelGeometry::new(
+                -ARTICLE_CENTRE_OFFSET_MM,
+                ARTICLE_CENTRE_OFFSET_MM,
+                ARTICLE_TAXEL_AREA_MM2,
+            ),
+            TaxelGeometry::new(
+                ARTICLE_CENTRE_OFFSET_MM,
+                ARTICLE_CENTRE_OFFSET_MM,
+                ARTICLE_TAXEL_AREA_MM2,
+            ),
+            TaxelGeometry::new(
+                -ARTICLE_CENTRE_OFFSET_MM,
+                -ARTICLE_CENTRE_OFFSET_MM,
+                ARTICLE_TAXEL_AREA_MM2,
+            ),
+            TaxelGeometry::new(
+                ARTICLE_CENTRE_OFFSET_MM,
+                -ARTICLE_CENTRE_OFFSET_MM,
+                ARTICLE_TAXEL_AREA_MM2,
+            ),
+        ],
+    };
+}
+
+impl Default for PadGeometry {
+    /// [`PadGeometry::ARTICLE`].
     fn default() -> Self {
-        let offset = ARTICLE_CENTRE_OFFSET_MM;
-        let area = ARTICLE_TAXEL_AREA_MM2;
-        Self {
-            taxels: [
-                TaxelGeometry::new(-offset, offset, area),
-                TaxelGeometry::new(offset, offset, area),
-                TaxelGeometry::new(-offset, -offset, area),
-                TaxelGeometry::new(offset, -offset, area),
-            ],
-        }
+        Self::ARTICLE
     }
 }
 

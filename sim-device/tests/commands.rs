@@ -524,7 +524,7 @@ fn text_mode_prints_a_header_and_csv_lines_and_binary_brings_frames_back() {
     );
     let lines: Vec<&str> = text
         .lines()
-        .filter(|line| line.matches(',').count() == 10)
+        .filter(|line| line.matches(',').count() == 12)
         .collect();
     assert!(lines.len() >= 10, "{text}");
     host.send_bytes(b"binary\n");

@@ -62,12 +62,18 @@ pub fn rate_words(rate_sps: u16) -> String {
 pub fn info_words(info: &InfoFrame) -> String {
     let version = info.firmware_version;
     format!(
-        "firmware {}.{}.{}, protocol {}, board {}, calibration {} ({}), tier {}, {}",
+        "firmware {}.{}.{}, protocol {}, board {}{}, calibration {} ({}), tier {}, {}",
         version.major,
         version.minor,
         version.patch,
         info.protocol_version,
         board_serial_hex(info),
+        // One pad is the usual board: said only when there are more (or none).
+        if info.pad_count == 1 {
+            String::new()
+        } else {
+            format!(", {} pads", info.pad_count)
+        },
         info.calibration_id,
         calibration_source_words(info.calibration_source),
         tier_words(info.model_tier),
@@ -114,6 +120,8 @@ pub fn event_words(event: &EventFrame) -> String {
                 format!("new baselines (tared: {})", tared.join(", "))
             }
         }
+        DeviceEvent::ContactStarted { pad } => format!("pad {}: contact started", pad.get()),
+        DeviceEvent::ContactEnded { pad } => format!("pad {}: contact ended", pad.get()),
     };
     format!(
         "device event at {} s: {what}",
@@ -129,7 +137,7 @@ mod tests {
     #[test]
     fn info_reads_as_words_with_the_serial_in_hex() {
         let info = InfoFrame {
-            protocol_version: 2,
+            protocol_version: 3,
             firmware_version: FirmwareVersion {
                 major: 0,
                 minor: 1,
@@ -142,8 +150,10 @@ mod tests {
             model_tier: Tier::MonotoneCubic as u8,
             streaming: true,
             text_mode: false,
+            pad_count: 2,
         };
         let text = info_words(&info);
+        assert!(text.contains(", 2 pads,"), "{text}");
         assert!(text.contains("board 53494D00000000000000002A"), "{text}");
         assert!(text.contains("firmware 0.1.0"), "{text}");
         assert!(

@@ -138,6 +138,7 @@ mod tests {
 
     fn sample(sequence: u32) -> SampleFrame {
         SampleFrame {
+            pad: wire::PadIndex::default(),
             sequence,
             timestamp_us: 0,
             temperature_c: None,
@@ -147,6 +148,7 @@ mod tests {
                 pressure_kpa: None,
                 flags: 0,
             }; 4],
+            summary: wire::PadSummary::default(),
         }
     }
 

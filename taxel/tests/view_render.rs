@@ -31,6 +31,7 @@ fn info() -> InfoFrame {
         model_tier: 2,
         streaming: true,
         text_mode: false,
+        pad_count: 1,
     }
 }
 

@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::command::{ErrorCode, TaxelCalibrationRecord};
-use crate::sample::{SampleFrame, TemperatureSource};
+use crate::sample::{PadIndex, SampleFrame, TemperatureSource};
 
 /// A frame from the device to the host.
 #[derive(Debug, Clone, PartialEq)]
@@ -72,11 +72,13 @@ pub struct InfoFrame {
     pub streaming: bool,
     /// Whether the device prints CSV lines instead of binary frames.
     pub text_mode: bool,
+    /// How many pads the device reads (sample frames carry pad indices below it; version 3).
+    pub pad_count: u8,
 }
 
 impl InfoFrame {
-    /// The largest body: 1 + 3 + 12 + 5 (varint u32) + 1 + 3 (varint u16) + 1 + 1 + 1.
-    pub const MAX_BODY_LEN: usize = 1 + 3 + 12 + 5 + 1 + 3 + 1 + 1 + 1;
+    /// The largest body: 1 + 3 + 12 + 5 (varint u32) + 1 + 3 (varint u16) + 1 + 1 + 1 + 1.
+    pub const MAX_BODY_LEN: usize = 1 + 3 + 12 + 5 + 1 + 3 + 1 + 1 + 1 + 1;
     /// The largest encoded frame, delimiter included.
     pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
 }
@@ -199,6 +201,18 @@ pub enum DeviceEvent {
     TareFinished {
         /// Bit n set: taxel n has a baseline now.
         tared_mask: u8,
+    },
+    /// A pad came into contact: its force stayed above the contact threshold for the debounce
+    /// time. The event's timestamp is that of the sample set that confirmed it (version 3).
+    ContactStarted {
+        /// The pad.
+        pad: PadIndex,
+    },
+    /// A pad's contact ended: its force stayed below the release threshold for the debounce
+    /// time (version 3).
+    ContactEnded {
+        /// The pad.
+        pad: PadIndex,
     },
 }
 

@@ -40,7 +40,7 @@ pub use frame::{
     decode_frame, encode_frame, frame_encoded_len_bound, DeviceFrameDecoder, Frame, FrameDecoder,
     RequestDecoder, WireMessage, CRC_LEN, HEADER_LEN, MAX_FRAME_ENCODED_LEN, MAX_PAYLOAD_LEN,
 };
-pub use sample::{SampleFrame, TaxelSample, TemperatureSource};
+pub use sample::{PadIndex, PadSummary, SampleFrame, TaxelSample, TemperatureSource};
 pub use text::{
     format_csv_line, CsvLineTooLong, TextCommand, TextCommandParser, CSV_HEADER, CSV_LINE_MAX_LEN,
     TEXT_COMMAND_LINE_MAX_LEN,
@@ -58,8 +58,10 @@ pub use postcard::Error as PostcardError;
 /// A decoder that sees another value reports [`DecodeError::UnsupportedVersion`]. Version 2
 /// added `unloaded_sensor_pf` to [`TaxelCalibrationWire`], which changes the body of
 /// `WriteCalibration` and of the calibration reply; postcard bodies carry no field names, so a
-/// version-1 peer could not tell, and every frame of version 2 says so instead.
-pub const PROTOCOL_VERSION: u8 = 2;
+/// version-1 peer could not tell, and every frame of version 2 says so instead. Version 3 made
+/// the device several pads: a sample frame per pad with its index, force, centre of pressure
+/// and contact; contact events; the pad count in the info frame.
+pub const PROTOCOL_VERSION: u8 = 3;
 
 /// The number of taxels on the pad: C11, C12, C21, C22 in this order (row, column).
 pub const TAXEL_COUNT: usize = 4;

@@ -1,10 +1,10 @@
-//! The sample frame: one sample set of the four taxels, laid out so that its worst case
-//! (every value present) encodes to 63 bytes and therefore always fits one 64-byte USB packet
-//! without a zero-length packet.
+//! The sample frame: one sample set of one pad's four taxels, with what a robot consumes from it
+//! (force, centre of pressure, contact). One frame per pad per sample set: a damaged frame costs
+//! one pad's set, not every pad's, and the device's output queue holds small entries. Its worst
+//! case (every value present) encodes to 76 bytes, two USB packets.
 //!
-//! The body is not a derived postcard struct: a status byte says which optional values follow,
-//! and the integers are fixed-width little-endian because their varint worst cases
-//! (5 bytes for a u32, 10 for a u64, 3 for a u16) would not fit the packet.
+//! The body is not a derived postcard struct: status bytes say which optional values follow,
+//! and the integers are fixed-width little-endian so that the layout is the same for every value.
 
 use core::fmt;
 
@@ -58,14 +58,72 @@ pub struct TaxelSample {
     pub flags: u16,
 }
 
-/// One sample set: the four taxels at one instant, with temperature and timing.
+/// Which pad of the device a frame is about: 0 to [`PadIndex::MAX`], the order of the pads in
+/// the device's pad list (multiplexer channel order).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PadIndex(u8);
+
+impl PadIndex {
+    /// The highest index: eight pads, one per multiplexer channel.
+    pub const MAX: u8 = 7;
+
+    /// The index `index`, if it is at most [`PadIndex::MAX`].
+    pub const fn new(index: u8) -> Option<Self> {
+        if index <= Self::MAX {
+            Some(Self(index))
+        } else {
+            None
+        }
+    }
+
+    /// The index as a number.
+    pub const fn get(self) -> u8 {
+        self.0
+    }
+}
+
+impl Serialize for PadIndex {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_u8(self.0)
+    }
+}
+
+impl<'de> Deserialize<'de> for PadIndex {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let index = u8::deserialize(deserializer)?;
+        PadIndex::new(index).ok_or_else(|| D::Error::custom("pad index above 7"))
+    }
+}
+
+/// What a robot consumes from one sample set of a pad, computed on the device from the taxels
+/// that read (faulted taxels are excluded, and `partial` says so).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PadSummary {
+    /// Total normal force on the pad's electrodes, N; `None` when no taxel reads.
+    pub force_n: Option<f32>,
+    /// Centre of pressure in the pad's frame, mm (x, y); `None` when the force is too small
+    /// to place it.
+    pub centre_of_pressure_mm: Option<[f32; 2]>,
+    /// Some taxels were excluded because they are faulted.
+    pub partial: bool,
+    /// The pad is in contact (hysteresis and debounce applied on the device).
+    pub contact: bool,
+}
+
+/// One sample set: one pad's four taxels at one instant, with temperature, timing and the pad's
+/// force, centre of pressure and contact.
 ///
 /// Its serde implementation is the wire layout and is meant for postcard: absent values are
 /// left out of a tuple, which other serde formats would see as a tuple of varying length.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SampleFrame {
+    /// The pad.
+    pub pad: PadIndex,
     /// Increments by one per sample set produced (dropped sets leave a gap); wraps at `u32::MAX`.
+    /// All pads of one set share the number.
     pub sequence: u32,
     /// The device clock at the end of the conversion, in microseconds since boot.
     pub timestamp_us: u64,
@@ -75,6 +133,8 @@ pub struct SampleFrame {
     pub temperature_source: TemperatureSource,
     /// The taxels C11, C12, C21, C22.
     pub taxels: [TaxelSample; TAXEL_COUNT],
+    /// Force, centre of pressure and contact.
+    pub summary: PadSummary,
 }
 
 /// Status byte bits 0..=3: the pressure of taxel 0..=3 follows.
@@ -83,18 +143,50 @@ const STATUS_PRESSURE_PRESENT_MASK: u8 = 0b0000_1111;
 const STATUS_TEMPERATURE_PRESENT: u8 = 1 << 4;
 /// Status byte bits 5..=6: the temperature source code.
 const STATUS_TEMPERATURE_SOURCE_SHIFT: u32 = 5;
-/// Status byte bit 7: reserved, must be zero (protocol versions 1 and 2).
+/// Status byte bit 7: reserved, must be zero (protocol versions 1 to 3).
 const STATUS_RESERVED: u8 = 1 << 7;
 
-/// Status, sequence, timestamp, temperature, then pressure, capacitance, flags per taxel.
-const SAMPLE_ELEMENT_COUNT_MAX: usize = 4 + 3 * TAXEL_COUNT;
+/// Pad byte bits 0..=2: the pad index.
+const PAD_INDEX_MASK: u8 = 0b0000_0111;
+/// Pad byte bit 3: contact.
+const PAD_CONTACT: u8 = 1 << 3;
+/// Pad byte bit 4: the force follows.
+const PAD_FORCE_PRESENT: u8 = 1 << 4;
+/// Pad byte bit 5: the centre of pressure follows.
+const PAD_CENTRE_PRESENT: u8 = 1 << 5;
+/// Pad byte bit 6: some taxels were excluded from force and centre of pressure.
+const PAD_PARTIAL: u8 = 1 << 6;
+/// Pad byte bit 7: reserved, must be zero.
+const PAD_RESERVED: u8 = 1 << 7;
+
+/// Status, pad byte, sequence, timestamp, temperature, force, centre of pressure, then
+/// pressure, capacitance, flags per taxel.
+const SAMPLE_ELEMENT_COUNT_MAX: usize = 7 + 3 * TAXEL_COUNT;
 
 impl SampleFrame {
-    /// The largest body: status 1 + sequence 4 + timestamp 8 + temperature 4
-    /// + 4 x (pressure 4 + capacitance 4 + flags 2).
-    pub const MAX_BODY_LEN: usize = 1 + 4 + 8 + 4 + TAXEL_COUNT * (4 + 4 + 2);
-    /// The largest encoded frame, delimiter included (63 bytes: one USB packet, no ZLP needed).
+    /// The largest body: status 1 + pad byte 1 + sequence 4 + timestamp 8 + temperature 4
+    /// + force 4 + centre of pressure 8 + 4 x (pressure 4 + capacitance 4 + flags 2).
+    pub const MAX_BODY_LEN: usize = 1 + 1 + 4 + 8 + 4 + 4 + 8 + TAXEL_COUNT * (4 + 4 + 2);
+    /// The largest encoded frame, delimiter included (76 bytes: two USB packets).
     pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
+
+    /// The pad byte that follows the status byte.
+    pub fn pad_byte(&self) -> u8 {
+        let mut byte = self.pad.get() & PAD_INDEX_MASK;
+        if self.summary.contact {
+            byte |= PAD_CONTACT;
+        }
+        if self.summary.force_n.is_some() {
+            byte |= PAD_FORCE_PRESENT;
+        }
+        if self.summary.centre_of_pressure_mm.is_some() {
+            byte |= PAD_CENTRE_PRESENT;
+        }
+        if self.summary.partial {
+            byte |= PAD_PARTIAL;
+        }
+        byte
+    }
 
     /// The status byte that leads the body.
     pub fn status_byte(&self) -> u8 {
@@ -117,10 +209,17 @@ impl Serialize for SampleFrame {
         // simply left out; the status byte tells the reader which ones are there.
         let mut tuple = serializer.serialize_tuple(SAMPLE_ELEMENT_COUNT_MAX)?;
         tuple.serialize_element(&self.status_byte())?;
+        tuple.serialize_element(&self.pad_byte())?;
         tuple.serialize_element(&self.sequence.to_le_bytes())?;
         tuple.serialize_element(&self.timestamp_us.to_le_bytes())?;
         if let Some(temperature_c) = self.temperature_c {
             tuple.serialize_element(&temperature_c)?;
+        }
+        if let Some(force_n) = self.summary.force_n {
+            tuple.serialize_element(&force_n)?;
+        }
+        if let Some(centre_mm) = self.summary.centre_of_pressure_mm {
+            tuple.serialize_element(&centre_mm)?;
         }
         for taxel in &self.taxels {
             if let Some(pressure_kpa) = taxel.pressure_kpa {
@@ -170,12 +269,33 @@ impl<'de> Visitor<'de> for SampleVisitor {
         if status & STATUS_RESERVED != 0 {
             return Err(A::Error::custom("reserved status bit set"));
         }
+        let pad_byte: u8 = elements.next()?;
+        if pad_byte & PAD_RESERVED != 0 {
+            return Err(A::Error::custom("reserved pad bit set"));
+        }
+        let pad = PadIndex(pad_byte & PAD_INDEX_MASK);
         let sequence = u32::from_le_bytes(elements.next()?);
         let timestamp_us = u64::from_le_bytes(elements.next()?);
         let temperature_c = if status & STATUS_TEMPERATURE_PRESENT != 0 {
             Some(elements.next::<f32>()?)
         } else {
             None
+        };
+        let force_n = if pad_byte & PAD_FORCE_PRESENT != 0 {
+            Some(elements.next::<f32>()?)
+        } else {
+            None
+        };
+        let centre_of_pressure_mm = if pad_byte & PAD_CENTRE_PRESENT != 0 {
+            Some(elements.next::<[f32; 2]>()?)
+        } else {
+            None
+        };
+        let summary = PadSummary {
+            force_n,
+            centre_of_pressure_mm,
+            partial: pad_byte & PAD_PARTIAL != 0,
+            contact: pad_byte & PAD_CONTACT != 0,
         };
         let temperature_source =
             TemperatureSource::from_code(status >> STATUS_TEMPERATURE_SOURCE_SHIFT);
@@ -195,11 +315,13 @@ impl<'de> Visitor<'de> for SampleVisitor {
             taxel.flags = u16::from_le_bytes(elements.next()?);
         }
         Ok(SampleFrame {
+            pad,
             sequence,
             timestamp_us,
             temperature_c,
             temperature_source,
             taxels,
+            summary,
         })
     }
 }

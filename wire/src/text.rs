@@ -9,11 +9,12 @@ use crate::sample::SampleFrame;
 
 /// The CSV column names, printed by the device when text mode starts (followed by `\r\n`).
 pub const CSV_HEADER: &str =
-    "seq,time_s,temp_c,p11_kpa,p12_kpa,p21_kpa,p22_kpa,flags11,flags12,flags21,flags22";
+    "seq,pad,time_s,temp_c,p11_kpa,p12_kpa,p21_kpa,p22_kpa,flags11,flags12,flags21,flags22,force_n";
 
-/// The longest line [`format_csv_line`] can produce, `\r\n` included: sequence 10 + time 21
-/// + five numbers of 44 (`-f32::MAX` with three decimals) + four flags of 5 + 10 commas + 2.
-pub const CSV_LINE_MAX_LEN: usize = 10 + 21 + 5 * 44 + 4 * 5 + 10 + 2;
+/// The longest line [`format_csv_line`] can produce, `\r\n` included: sequence 10 + pad 1
+/// + time 21 + six numbers of 44 (`-f32::MAX` with three decimals) + four flags of 5
+/// + 12 commas + 2.
+pub const CSV_LINE_MAX_LEN: usize = 10 + 1 + 21 + 6 * 44 + 4 * 5 + 12 + 2;
 
 /// The line did not fit the string given to [`format_csv_line`]; the string was left empty.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -107,8 +108,9 @@ fn write_optional<W: Write>(line: &mut W, value: Option<f32>) -> core::fmt::Resu
 fn write_line<W: Write>(sample: &SampleFrame, line: &mut W) -> core::fmt::Result {
     write!(
         line,
-        "{},{}.{:06}",
+        "{},{},{}.{:06}",
         sample.sequence,
+        sample.pad.get(),
         sample.timestamp_us / 1_000_000,
         sample.timestamp_us % 1_000_000
     )?;
@@ -119,6 +121,7 @@ fn write_line<W: Write>(sample: &SampleFrame, line: &mut W) -> core::fmt::Result
     for taxel in &sample.taxels {
         write!(line, ",{}", taxel.flags)?;
     }
+    write_optional(line, sample.summary.force_n)?;
     line.write_str("\r\n")
 }
 

@@ -7,7 +7,7 @@ use common::*;
 use proptest::prelude::*;
 use wire::{
     kind, Command, DecodeError, DeviceFrame, DeviceFrameDecoder, ErrorCode, Frame, FrameDecoder,
-    ReplyFrame, Request, RequestDecoder, PROTOCOL_VERSION,
+    ReplyFrame, Request, RequestDecoder, SampleFrame, PROTOCOL_VERSION,
 };
 
 fn sample_bytes(sequence: u32) -> Vec<u8> {
@@ -113,8 +113,12 @@ fn every_single_bit_flip_is_rejected_and_the_next_frame_decodes() {
 #[test]
 fn a_corrupted_body_is_reported_as_a_crc_error() {
     let mut payload_frame = sample_bytes(40);
-    // A byte well inside the data that is neither a COBS code byte nor the delimiter.
-    let index = payload_frame.len() / 2;
+    // A data byte, neither a COBS code byte nor the delimiter: the first byte of the temperature
+    // (f32::MIN, little-endian FF FF 7F FF, no zero in it or next to it).
+    let index = payload_frame
+        .windows(4)
+        .position(|window| window == f32::MIN.to_le_bytes())
+        .unwrap();
     payload_frame[index] ^= 0x10;
     let results = decode_all(&payload_frame);
     assert_eq!(results, [Err(DecodeError::Crc)]);
@@ -132,8 +136,8 @@ fn a_future_version_is_reported_then_the_next_frame_decodes() {
     assert_eq!(
         results[0],
         Err(DecodeError::UnsupportedVersion {
-            found: 3,
-            supported: 2
+            found: PROTOCOL_VERSION + 1,
+            supported: PROTOCOL_VERSION
         })
     );
     assert_eq!(sequence_of(&results[1]), Some(50));
@@ -141,7 +145,7 @@ fn a_future_version_is_reported_then_the_next_frame_decodes() {
         results[2],
         Err(DecodeError::UnsupportedVersion {
             found: 0xFF,
-            supported: 2
+            supported: PROTOCOL_VERSION
         })
     );
     assert_eq!(sequence_of(&results[3]), Some(51));
@@ -218,24 +222,27 @@ fn each_kind_of_damage_has_its_own_error() {
         )),
         [Err(DecodeError::TrailingBytes)]
     );
-    // Status byte with the reserved bit 7 set.
-    let mut body = vec![0x80];
-    body.extend([0; 12]);
-    body.extend([0; 4 * 6]);
-    assert!(matches!(
-        decode_all(&raw_frame(PROTOCOL_VERSION, kind::SAMPLE, &body))[..],
-        [Err(DecodeError::Postcard(_))]
-    ));
-    body[0] = 0x00;
-    assert!(matches!(
-        decode_all(&raw_frame(PROTOCOL_VERSION, kind::SAMPLE, &body))[..],
-        [Ok(DeviceFrame::Sample(_))]
-    ));
+    // Status byte, then pad byte, with their reserved bit 7 set.
+    for reserved in [0, 1] {
+        let mut body = vec![0x00, 0x00];
+        body[reserved] = 0x80;
+        body.extend([0; 12]);
+        body.extend([0; 4 * 6]);
+        assert!(matches!(
+            decode_all(&raw_frame(PROTOCOL_VERSION, kind::SAMPLE, &body))[..],
+            [Err(DecodeError::Postcard(_))]
+        ));
+        body[reserved] = 0x00;
+        assert!(matches!(
+            decode_all(&raw_frame(PROTOCOL_VERSION, kind::SAMPLE, &body))[..],
+            [Ok(DeviceFrame::Sample(_))]
+        ));
+    }
 }
 
 #[test]
 fn an_oversized_frame_is_reported_once_then_the_next_frame_decodes() {
-    let mut decoder = FrameDecoder::<64, DeviceFrame>::new();
+    let mut decoder = FrameDecoder::<80, DeviceFrame>::new();
     let mut stream = vec![0x55; 1000];
     stream.push(0);
     stream.extend(sample_bytes(60));
@@ -246,10 +253,12 @@ fn an_oversized_frame_is_reported_once_then_the_next_frame_decodes() {
 
     // A frame of exactly the buffer size (without delimiter) is accepted.
     let frame = sample_bytes(61);
-    let mut exact = FrameDecoder::<62, DeviceFrame>::new();
+    const LEN: usize = SampleFrame::MAX_ENCODED_LEN - 1;
+    assert_eq!(frame.len(), LEN + 1);
+    let mut exact = FrameDecoder::<LEN, DeviceFrame>::new();
     let results: Vec<_> = exact.feed(&frame).collect();
     assert_eq!(sequence_of(&results[0]), Some(61));
-    let mut short = FrameDecoder::<61, DeviceFrame>::new();
+    let mut short = FrameDecoder::<{ LEN - 1 }, DeviceFrame>::new();
     let results: Vec<_> = short.feed(&frame).collect();
     assert_eq!(results, [Err(DecodeError::Overflow)]);
 }

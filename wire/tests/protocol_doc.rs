@@ -305,7 +305,7 @@ fn lines_and_frames_are_told_apart_by_the_documented_rule() {
     stream.extend(line.as_bytes());
     let (mut lines, mut frames, mut rest) = (Vec::new(), Vec::new(), stream.as_slice());
     while !rest.is_empty() {
-        let end_byte = if rest.get(1) == Some(&0x02) {
+        let end_byte = if rest.get(1) == Some(&wire::PROTOCOL_VERSION) {
             0x00
         } else {
             b'\n'

@@ -16,7 +16,7 @@ fn csv_line_has_the_header_columns() {
     format_csv_line(&example_sample(), &mut line).unwrap();
     assert_eq!(
         line.as_str(),
-        "1234,5.000250,23.500,12.500,nan,nan,0.000,0,5,128,1\r\n"
+        "1234,1,5.000250,23.500,12.500,nan,nan,0.000,0,5,128,1,0.312\r\n"
     );
     assert_eq!(
         line.trim_end().split(',').count(),
@@ -32,11 +32,12 @@ fn missing_temperature_and_faulted_pressure_never_print_a_number() {
     for taxel in &mut sample.taxels {
         taxel.pressure_kpa = None;
     }
+    sample.summary.force_n = None;
     let mut line = String::<CSV_LINE_MAX_LEN>::new();
     format_csv_line(&sample, &mut line).unwrap();
     assert_eq!(
         line.as_str(),
-        "1234,5.000250,nan,nan,nan,nan,nan,0,5,128,1\r\n"
+        "1234,1,5.000250,nan,nan,nan,nan,nan,0,5,128,1,nan\r\n"
     );
 }
 
@@ -47,11 +48,12 @@ fn worst_case_line_has_the_documented_length() {
     for taxel in &mut sample.taxels {
         taxel.pressure_kpa = Some(f32::MIN);
     }
+    sample.summary.force_n = Some(f32::MIN);
     let mut line = String::<CSV_LINE_MAX_LEN>::new();
     format_csv_line(&sample, &mut line).unwrap();
     assert_eq!(line.len(), CSV_LINE_MAX_LEN);
     assert!(line.starts_with(
-        "4294967295,18446744073709.551615,-340282346638528859811704183484516925440.000,"
+        "4294967295,7,18446744073709.551615,-340282346638528859811704183484516925440.000,"
     ));
 }
 
@@ -73,9 +75,9 @@ proptest! {
         let mut line = String::<CSV_LINE_MAX_LEN>::new();
         prop_assert!(format_csv_line(&sample, &mut line).is_ok());
         prop_assert!(line.ends_with("\r\n"));
-        prop_assert_eq!(line.matches(',').count(), 10);
+        prop_assert_eq!(line.matches(',').count(), 12);
         for (index, taxel) in sample.taxels.iter().enumerate() {
-            let field = line.trim_end().split(',').nth(3 + index).unwrap();
+            let field = line.trim_end().split(',').nth(4 + index).unwrap();
             if taxel.pressure_kpa.is_none() {
                 prop_assert_eq!(field, "nan");
             }

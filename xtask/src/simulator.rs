@@ -303,6 +303,8 @@ fn replay(steps: u32) -> Result<(Latency, u64)> {
     let mut buffer = [0u8; MAX_OUTGOING_LEN];
     let mut model_to_frame_ns = Vec::with_capacity(steps as usize);
     let mut mismatches = 0;
+    let config = device::BOARD.device;
+    let mut contact = model_core::ContactDetector::new(config.contact);
     for step in 0..WARM_UP_STEPS + steps {
         let mut pad = device.device_mut().control().pad().clone();
         let sets_before = port.sample_frames;
@@ -310,7 +312,10 @@ fn replay(steps: u32) -> Result<(Latency, u64)> {
         let started = Instant::now();
         let mut replayed = sample;
         replayed.output = pad.process(&sample.input);
-        let frame = device::sample_frame(&replayed, &pad);
+        let force = model_core::pad_force(&replayed.output.taxels, &config.geometry);
+        contact.update(&force, replayed.timestamp_us);
+        let summary = device::pad_summary(&force, contact.in_contact());
+        let frame = device::sample_frame(&replayed, &pad, wire::PadIndex::default(), summary);
         let length =
             device::encode_outgoing(&Outgoing::Frame(DeviceFrame::Sample(frame)), &mut buffer);
         let elapsed_ns = started.elapsed().as_nanos() as u64;

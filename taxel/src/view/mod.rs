@@ -640,6 +640,7 @@ mod tests {
         let mut active = Some(start_recording(directory.path(), &mut link, &mut state).unwrap());
         let sample = |sequence| {
             DeviceFrame::Sample(wire::SampleFrame {
+                pad: wire::PadIndex::default(),
                 sequence,
                 timestamp_us: u64::from(sequence) * 10_000,
                 temperature_c: Some(25.0),
@@ -649,6 +650,7 @@ mod tests {
                     capacitance_pf: 4.6,
                     flags: 0,
                 }; 4],
+                summary: wire::PadSummary::default(),
             })
         };
         record_frame(&mut active, &mut link, &sample(1), &mut state);

@@ -21,6 +21,7 @@ pub fn sample(
     taxels: [(Option<f32>, f32, u16); 4],
 ) -> SampleFrame {
     SampleFrame {
+        pad: wire::PadIndex::default(),
         sequence,
         timestamp_us,
         temperature_c: Some(23.5),
@@ -30,6 +31,7 @@ pub fn sample(
             capacitance_pf,
             flags,
         }),
+        summary: wire::PadSummary::default(),
     }
 }
 

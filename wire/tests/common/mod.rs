@@ -12,9 +12,10 @@ use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 use wire::{
     decode_frame, encode_frame, CalibrationSource, Command, CountersFrame, DeviceEvent,
-    DeviceFrame, ErrorCode, EventFrame, FirmwareVersion, FrameDecoder, InfoFrame, ReplyFrame,
-    ReplyPayload, Request, SampleFrame, TaxelCalibrationRecord, TaxelCalibrationWire, TaxelSample,
-    TemperatureSource, UseCase, WireMessage, CALIBRATION_POINTS_MAX, MAX_FRAME_ENCODED_LEN,
+    DeviceFrame, ErrorCode, EventFrame, FirmwareVersion, FrameDecoder, InfoFrame, PadIndex,
+    PadSummary, ReplyFrame, ReplyPayload, Request, SampleFrame, TaxelCalibrationRecord,
+    TaxelCalibrationWire, TaxelSample, TemperatureSource, UseCase, WireMessage,
+    CALIBRATION_POINTS_MAX, MAX_FRAME_ENCODED_LEN,
 };
 
 /// A fixed seed and no regression files, so every run draws the same cases.
@@ -68,21 +69,48 @@ pub fn taxel_sample(float: BoxedStrategy<f32>) -> impl Strategy<Value = TaxelSam
     )
 }
 
+pub fn pad_summary(float: BoxedStrategy<f32>) -> impl Strategy<Value = PadSummary> {
+    (
+        prop::option::of(float.clone()),
+        prop::option::of(prop::array::uniform2(float)),
+        any::<bool>(),
+        any::<bool>(),
+    )
+        .prop_map(
+            |(force_n, centre_of_pressure_mm, partial, contact)| PadSummary {
+                force_n,
+                centre_of_pressure_mm,
+                partial,
+                contact,
+            },
+        )
+}
+
+pub fn pad_index() -> impl Strategy<Value = PadIndex> {
+    (0..=PadIndex::MAX).prop_map(|index| PadIndex::new(index).unwrap())
+}
+
 pub fn sample_frame_with(float: BoxedStrategy<f32>) -> impl Strategy<Value = SampleFrame> {
     (
+        pad_index(),
         any::<u32>(),
         any::<u64>(),
         prop::option::of(float.clone()),
         temperature_source(),
-        prop::array::uniform4(taxel_sample(float)),
+        prop::array::uniform4(taxel_sample(float.clone())),
+        pad_summary(float),
     )
         .prop_map(
-            |(sequence, timestamp_us, temperature_c, temperature_source, taxels)| SampleFrame {
-                sequence,
-                timestamp_us,
-                temperature_c,
-                temperature_source,
-                taxels,
+            |(pad, sequence, timestamp_us, temperature_c, temperature_source, taxels, summary)| {
+                SampleFrame {
+                    pad,
+                    sequence,
+                    timestamp_us,
+                    temperature_c,
+                    temperature_source,
+                    taxels,
+                    summary,
+                }
             },
         )
 }
@@ -111,6 +139,7 @@ pub fn info_frame() -> impl Strategy<Value = InfoFrame> {
         any::<u8>(),
         any::<bool>(),
         any::<bool>(),
+        any::<u8>(),
     )
         .prop_map(
             |(
@@ -123,6 +152,7 @@ pub fn info_frame() -> impl Strategy<Value = InfoFrame> {
                 model_tier,
                 streaming,
                 text_mode,
+                pad_count,
             )| InfoFrame {
                 protocol_version,
                 firmware_version: FirmwareVersion {
@@ -137,6 +167,7 @@ pub fn info_frame() -> impl Strategy<Value = InfoFrame> {
                 model_tier,
                 streaming,
                 text_mode,
+                pad_count,
             },
         )
 }
@@ -213,6 +244,8 @@ pub fn device_event() -> impl Strategy<Value = DeviceEvent> {
         any::<u32>().prop_map(|reinit_count| DeviceEvent::ConverterReinitialised { reinit_count }),
         temperature_source().prop_map(|source| DeviceEvent::TemperatureSourceChanged { source }),
         Just(DeviceEvent::CalibrationFlashCorrupt),
+        pad_index().prop_map(|pad| DeviceEvent::ContactStarted { pad }),
+        pad_index().prop_map(|pad| DeviceEvent::ContactEnded { pad }),
     ]
 }
 
@@ -311,6 +344,7 @@ pub fn assert_round_trip<M: WireMessage + Debug>(message: &M) -> Vec<u8> {
 /// The sample frame with every optional value present and the largest integers.
 pub fn worst_case_sample() -> SampleFrame {
     SampleFrame {
+        pad: PadIndex::new(PadIndex::MAX).unwrap(),
         sequence: u32::MAX,
         timestamp_us: u64::MAX,
         temperature_c: Some(f32::MIN),
@@ -320,6 +354,12 @@ pub fn worst_case_sample() -> SampleFrame {
             capacitance_pf: f32::NEG_INFINITY,
             flags: u16::MAX,
         }; 4],
+        summary: PadSummary {
+            force_n: Some(f32::MAX),
+            centre_of_pressure_mm: Some([f32::MIN, f32::MAX]),
+            partial: true,
+            contact: true,
+        },
     }
 }
 
@@ -338,6 +378,7 @@ pub fn worst_case_info() -> InfoFrame {
         model_tier: u8::MAX,
         streaming: true,
         text_mode: true,
+        pad_count: u8::MAX,
     }
 }
 
@@ -446,6 +487,7 @@ pub fn raw_frame(version: u8, kind: u8, body: &[u8]) -> Vec<u8> {
 /// The sample frame of PROTOCOL.md's examples and of the text-mode tests.
 pub fn example_sample() -> SampleFrame {
     SampleFrame {
+        pad: PadIndex::new(1).unwrap(),
         sequence: 1234,
         timestamp_us: 5_000_250,
         temperature_c: Some(23.5),
@@ -472,5 +514,12 @@ pub fn example_sample() -> SampleFrame {
                 flags: wire::flags::BELOW_BASELINE,
             },
         ],
+        summary: PadSummary {
+            // Taxels 0 and 3 read (12.5 and 0 kPa on 25 mm² each); 1 and 2 are excluded.
+            force_n: Some(0.3125),
+            centre_of_pressure_mm: Some([-2.75, 2.75]),
+            partial: true,
+            contact: true,
+        },
     }
 }
