@@ -160,6 +160,17 @@ pub enum RequestError {
     /// The device answered with a payload of another kind.
     #[error("the device answered {0} with a reply of another kind")]
     UnexpectedReply(&'static str),
+    /// No reply came, and the device sends frames of a protocol version this host does not
+    /// speak.
+    #[error(
+        "the device speaks protocol version {found} and this host tool version {supported}: update the firmware or the host tool so that both match"
+    )]
+    OtherProtocolVersion {
+        /// The device's version.
+        found: u8,
+        /// This host's version.
+        supported: u8,
+    },
 }
 
 /// One attached board.
@@ -343,6 +354,8 @@ pub struct LinkStatistics {
     pub bytes_rejected: u64,
     /// The last decoding error.
     pub last_error: Option<DecodeError>,
+    /// The protocol version of the last intact frame of a version this host does not speak.
+    pub other_protocol_version: Option<u8>,
 }
 
 /// The decoding half of the link: bytes in, device frames out, resynchronising at every 0x00.
@@ -371,6 +384,9 @@ impl FrameReceiver {
                     frames.extend([frame]);
                 }
                 Some(Err(error)) => {
+                    if let DecodeError::UnsupportedVersion { found, .. } = error {
+                        self.statistics.other_protocol_version = Some(found);
+                    }
                     self.statistics.frames_rejected += 1;
                     self.statistics.bytes_rejected += self.bytes_in_chunk;
                     self.statistics.last_error = Some(error);
@@ -587,6 +603,12 @@ impl<P: Read + Write> DeviceLink<P> {
                     .map_err(RequestError::Refused);
             }
             if Instant::now() >= deadline {
+                if let Some(found) = self.statistics().other_protocol_version {
+                    return Err(RequestError::OtherProtocolVersion {
+                        found,
+                        supported: wire::PROTOCOL_VERSION,
+                    });
+                }
                 return Err(RequestError::Timeout {
                     request_id,
                     timeout_ms: timeout.as_millis(),
@@ -600,6 +622,54 @@ impl<P: Read + Write> DeviceLink<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A port that hands out `incoming` and swallows what is written.
+    struct Scripted {
+        incoming: std::io::Cursor<Vec<u8>>,
+    }
+
+    impl Read for Scripted {
+        fn read(&mut self, buffer: &mut [u8]) -> std::io::Result<usize> {
+            // Once the script is out, nothing more arrives (a serial port's read timeout).
+            match self.incoming.read(buffer)? {
+                0 => Err(std::io::ErrorKind::TimedOut.into()),
+                read => Ok(read),
+            }
+        }
+    }
+
+    impl Write for Scripted {
+        fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+            Ok(bytes.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_device_of_another_protocol_version_is_named_not_timed_out() {
+        // An intact frame of version 2 (COBS of version, kind Info, an empty body, CRC), as an
+        // older firmware sends when it cannot read our request.
+        let mut payload = vec![2u8, wire::kind::INFO];
+        let crc = wire::crc16(&payload);
+        payload.extend(crc.to_le_bytes());
+        assert!(!payload.contains(&0));
+        let mut frame = vec![payload.len() as u8 + 1];
+        frame.extend(&payload);
+        frame.push(0);
+        let mut link = DeviceLink::new(Scripted {
+            incoming: std::io::Cursor::new(frame),
+        });
+        let error = link.synchronise(Duration::from_millis(50)).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            format!(
+                "the device speaks protocol version 2 and this host tool version {}: update the firmware or the host tool so that both match",
+                wire::PROTOCOL_VERSION
+            )
+        );
+    }
 
     fn board(port_name: &str, serial_number: &str) -> BoardPort {
         BoardPort {
