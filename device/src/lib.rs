@@ -34,12 +34,12 @@ pub use supervisor::{Supervisor, SupervisorAction};
 use acquisition::{ProcessedSample, TemperatureOrigin};
 use model_core::{
     pad_force, BaselineError, BaselineRecord, Calibration, ContactConfig, ContactDetector,
-    ContactEvent, PadGeometry, TareStatus, Tier, TAXEL_COUNT,
+    ContactEvent, PadGeometry, TareStatus, TAXEL_COUNT,
 };
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
-    InfoFrame, PadIndex, ReplyFrame, ReplyPayload, Request, SampleFrame, SampleRate,
-    TaxelBaselineWire, PROTOCOL_VERSION,
+    InfoFrame, PadIndex, ReplyFrame, ReplyPayload, Request, SampleFrame, TaxelBaselineWire,
+    PROTOCOL_VERSION,
 };
 
 /// Largest encoded output: a CSV line or the largest frame, whichever is longer.
@@ -261,8 +261,8 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             board_serial: self.identity.board_serial,
             calibration_id: self.control.pad().calibration().id(),
             calibration_source: self.calibration_source,
-            rate_sps: self.control.sample_rate().sps(),
-            model_tier: self.control.pad().tier() as u8,
+            rate: self.control.sample_rate(),
+            model_tier: self.control.pad().tier(),
             streaming: self.streaming,
             text_mode: self.text_mode,
             pad_count: 1,
@@ -481,13 +481,10 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 self.streaming = false;
                 Ok(ReplyPayload::Ack)
             }
-            Command::SetRate { rate_sps } => match SampleRate::from_sps(rate_sps) {
-                Some(rate) => {
-                    self.control.set_sample_rate(rate);
-                    Ok(ReplyPayload::Ack)
-                }
-                None => Err(ErrorCode::InvalidArgument),
-            },
+            Command::SetRate { rate } => {
+                self.control.set_sample_rate(rate);
+                Ok(ReplyPayload::Ack)
+            }
             Command::Tare { sample_sets } => {
                 if self.pending_tare.is_some() {
                     Err(ErrorCode::Busy)
@@ -497,15 +494,13 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                     return None;
                 }
             }
-            Command::SetModelTier { tier } => match Tier::from_id(tier) {
-                Some(tier) if self.control.pad_mut().set_tier(tier).is_ok() => {
-                    Ok(ReplyPayload::Ack)
-                }
-                _ => Err(ErrorCode::NotSupported),
+            Command::SetModelTier { tier } => match self.control.pad_mut().set_tier(tier) {
+                Ok(()) => Ok(ReplyPayload::Ack),
+                Err(_) => Err(ErrorCode::NotSupported),
             },
             Command::SetUseCase(use_case) => {
                 match self.control.pad_mut().apply_use_case(&use_case) {
-                    Ok(choice) => Ok(ReplyPayload::ModelTier(choice.tier as u8)),
+                    Ok(choice) => Ok(ReplyPayload::ModelTier(choice.tier)),
                     Err(_) => Err(ErrorCode::NotSupported),
                 }
             }

@@ -48,7 +48,7 @@ fn the_simulated_converter_is_configured_as_the_board() {
         other => unreachable!("reserved rate bits {other:#b}"),
     };
     assert_eq!(rate_sps, BOARD.converter_rate.samples_per_second());
-    assert_eq!(u32::from(device.device_mut().info().rate_sps), rate_sps);
+    assert_eq!(u32::from(device.device_mut().info().rate.sps()), rate_sps);
 }
 
 /// The simulated calibration flash has the board's geometry: the region of sectors 6 and 7 of

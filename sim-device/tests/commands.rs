@@ -7,7 +7,8 @@
 use sim_device::{MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, DeviceFrameDecoder, ErrorCode,
-    EventFrame, InfoFrame, ReplyPayload, Request, SampleFrame, TaxelCalibrationRecord, UseCase,
+    EventFrame, InfoFrame, ReplyPayload, Request, SampleFrame, SampleRate, TaxelCalibrationRecord,
+    UseCase,
 };
 
 struct Host {
@@ -83,6 +84,49 @@ impl Host {
         panic!("no reply to request {request_id}");
     }
 
+    /// Sends command `command` with one varint argument, as a client of another implementation
+    /// could (any value, not only the ones the typed commands can hold), and waits for the reply.
+    fn request_with_varint(
+        &mut self,
+        command: u8,
+        argument: u16,
+    ) -> Result<ReplyPayload, ErrorCode> {
+        let request_id = self.next_request_id;
+        self.next_request_id += 1;
+        let mut payload = vec![
+            wire::PROTOCOL_VERSION,
+            wire::kind::REQUEST,
+            request_id as u8,
+        ];
+        assert!(request_id < 0x80);
+        payload.push(command);
+        let mut value = argument;
+        while value >= 0x80 {
+            payload.push((value as u8) | 0x80);
+            value >>= 7;
+        }
+        payload.push(value as u8);
+        payload.extend(wire::crc16(&payload).to_le_bytes());
+        // COBS, as PROTOCOL.md section 2.1 describes it.
+        let mut frame = Vec::new();
+        for run in payload.split(|&byte| byte == 0) {
+            frame.push(run.len() as u8 + 1);
+            frame.extend(run);
+        }
+        frame.push(0);
+        self.send_bytes(&frame);
+        for _ in 0..200 {
+            for frame in self.steps(1) {
+                if let DeviceFrame::Reply(reply) = frame {
+                    if reply.request_id == request_id {
+                        return reply.result;
+                    }
+                }
+            }
+        }
+        panic!("no reply to request {request_id}");
+    }
+
     fn info(&mut self) -> InfoFrame {
         match self.request(Command::Info) {
             Ok(ReplyPayload::Info(info)) => info,
@@ -99,8 +143,8 @@ fn info_and_counters_describe_the_device() {
     assert_eq!(&info.board_serial[..9], b"SIMULATED");
     // Factory calibrated: the simulated pad's own curve is in its flash.
     assert_eq!(info.calibration_source, CalibrationSource::Flash);
-    assert_eq!(info.rate_sps, 400);
-    assert_eq!(info.model_tier, model_core::Tier::MonotoneCubic as u8);
+    assert_eq!(info.rate, SampleRate::Sps400);
+    assert_eq!(info.model_tier, model_core::Tier::MonotoneCubic);
     assert!(info.streaming && !info.text_mode);
     assert!(matches!(
         host.request(Command::ReadCounters),
@@ -124,10 +168,12 @@ fn streaming_stops_and_starts() {
 fn the_rate_changes_and_a_bad_rate_is_refused() {
     let mut host = Host::new();
     assert_eq!(
-        host.request(Command::SetRate { rate_sps: 200 }),
+        host.request(Command::SetRate {
+            rate: SampleRate::Sps200
+        }),
         Ok(ReplyPayload::Ack)
     );
-    assert_eq!(host.info().rate_sps, 200);
+    assert_eq!(host.info().rate, SampleRate::Sps200);
     host.samples.clear();
     host.steps(40);
     let spacing_us: Vec<u64> = host
@@ -138,10 +184,13 @@ fn the_rate_changes_and_a_bad_rate_is_refused() {
     // Four conversions at 200 S/s: a sample set every 20 ms.
     let typical = spacing_us[spacing_us.len() / 2];
     assert!((19_000..22_000).contains(&typical), "{typical} us");
+    // SetRate is command 4; 150 S/s is no rate.
     assert_eq!(
-        host.request(Command::SetRate { rate_sps: 150 }),
+        host.request_with_varint(4, 150),
         Err(ErrorCode::InvalidArgument)
     );
+    assert_eq!(host.request_with_varint(4, 100), Ok(ReplyPayload::Ack));
+    assert_eq!(host.info().rate, SampleRate::Sps100);
 }
 
 /// A rate change (or setting the same rate) is not an error recovery: no re-initialisation is
@@ -155,9 +204,15 @@ fn setting_a_rate_is_not_counted_as_a_converter_reinitialisation() {
     };
     let before = reinits(&mut host);
     let mut events = 0;
-    for rate_sps in [400, 400, 200, 200, 400] {
+    for rate in [
+        SampleRate::Sps400,
+        SampleRate::Sps400,
+        SampleRate::Sps200,
+        SampleRate::Sps200,
+        SampleRate::Sps400,
+    ] {
         assert_eq!(
-            host.request(Command::SetRate { rate_sps }),
+            host.request(Command::SetRate { rate }),
             Ok(ReplyPayload::Ack)
         );
         events += host
@@ -190,17 +245,18 @@ const SET_PERIOD_TOLERANCE: f64 = 0.02;
 fn every_supported_rate_streams_clean_sample_sets_at_that_rate() {
     let mut host = Host::new();
     // 400 S/s at boot, so every request below is a change.
-    for rate_sps in [100u16, 200, 400] {
+    for rate in [SampleRate::Sps100, SampleRate::Sps200, SampleRate::Sps400] {
+        let rate_sps = rate.sps();
         let reinits_before = match host.request(Command::ReadCounters) {
             Ok(ReplyPayload::Counters(counters)) => counters.converter_reinits,
             other => panic!("{other:?}"),
         };
         assert_eq!(
-            host.request(Command::SetRate { rate_sps }),
+            host.request(Command::SetRate { rate }),
             Ok(ReplyPayload::Ack),
             "{rate_sps} S/s"
         );
-        assert_eq!(host.info().rate_sps, rate_sps);
+        assert_eq!(host.info().rate, rate);
 
         host.samples.clear();
         let frames = host.steps(SETS_PER_RATE);
@@ -308,15 +364,16 @@ fn a_tare_while_the_pad_is_pressed_is_refused_as_not_still() {
 #[test]
 fn tiers_and_use_cases_are_chosen_or_refused() {
     let mut host = Host::new();
-    let polynomial = model_core::Tier::Polynomial as u8;
+    let polynomial = model_core::Tier::Polynomial;
     assert_eq!(
         host.request(Command::SetModelTier { tier: polynomial }),
         Ok(ReplyPayload::Ack)
     );
     assert_eq!(host.info().model_tier, polynomial);
+    // SetModelTier is command 6; 99 is no tier.
     assert_eq!(
-        host.request(Command::SetModelTier { tier: 99 }),
-        Err(ErrorCode::NotSupported)
+        host.request_with_varint(6, 99),
+        Err(ErrorCode::InvalidArgument)
     );
     let glove = UseCase {
         pressure_max_kpa: 50.0,

@@ -41,12 +41,9 @@ pub fn baseline_error_words(error: &BaselineError) -> String {
     }
 }
 
-/// The tier's name, or its id when this host does not know it.
-pub fn tier_words(tier_id: u8) -> String {
-    match Tier::from_id(tier_id) {
-        Some(tier) => tier.name().to_owned(),
-        None => format!("tier {tier_id}"),
-    }
+/// The tier's name.
+pub fn tier_words(tier: Tier) -> String {
+    tier.name().to_owned()
 }
 
 /// The device's rates in words: the converter's conversions per second and the sample sets per
@@ -77,7 +74,7 @@ pub fn info_words(info: &InfoFrame) -> String {
         info.calibration_id,
         calibration_source_words(info.calibration_source),
         tier_words(info.model_tier),
-        rate_words(info.rate_sps)
+        rate_words(info.rate.sps())
     )
 }
 
@@ -146,8 +143,8 @@ mod tests {
             board_serial: [0x53, 0x49, 0x4d, 0, 0, 0, 0, 0, 0, 0, 0, 0x2a],
             calibration_id: 7,
             calibration_source: CalibrationSource::Flash,
-            rate_sps: 400,
-            model_tier: Tier::MonotoneCubic as u8,
+            rate: wire::SampleRate::Sps400,
+            model_tier: Tier::MonotoneCubic,
             streaming: true,
             text_mode: false,
             pad_count: 2,

@@ -146,7 +146,7 @@ impl RecordedDeviceState {
             board_serial: board_serial_hex(info),
             calibration_source: calibration_source_words(info.calibration_source).to_owned(),
             tier: tier_words(info.model_tier),
-            converter_rate_sps: info.rate_sps,
+            converter_rate_sps: info.rate.sps(),
             calibration: calibration.to_spec(),
             baselines: Vec::new(),
         }

@@ -15,7 +15,7 @@ use taxel::device_link::{DeviceLink, FrameReceiver, LinkError, RequestError};
 use taxel::record::{record_header, record_link, StopReason};
 use wire::{
     Command, CountersFrame, DecodeError, DeviceEvent, DeviceFrame, ErrorCode, EventFrame,
-    ReplyFrame, ReplyPayload, TemperatureSource,
+    ReplyFrame, ReplyPayload, SampleRate, TemperatureSource, Tier,
 };
 
 fn frames_with_garbage() -> (Vec<DeviceFrame>, Vec<u8>, u64) {
@@ -129,7 +129,7 @@ fn request_waits_for_its_own_reply_and_keeps_other_frames_in_order() {
             DeviceFrame::Sample(sample(2, 20, [(Some(2.0), 4.5, 0); 4])),
             DeviceFrame::Reply(ReplyFrame {
                 request_id: request.request_id,
-                result: Ok(ReplyPayload::ModelTier(3)),
+                result: Ok(ReplyPayload::ModelTier(Tier::Saturating)),
             }),
             DeviceFrame::Sample(sample(3, 30, [(Some(3.0), 4.5, 0); 4])),
         ]
@@ -144,7 +144,7 @@ fn request_waits_for_its_own_reply_and_keeps_other_frames_in_order() {
     let reply = link
         .request(Command::SetUseCase(use_case), Duration::from_secs(5))
         .unwrap();
-    assert_eq!(reply, ReplyPayload::ModelTier(3));
+    assert_eq!(reply, ReplyPayload::ModelTier(Tier::Saturating));
     let mut sequences = Vec::new();
     let mut other_replies = 0;
     while let Ok(Some(frame)) = link.next_frame() {
@@ -171,7 +171,12 @@ fn refusal_and_silence_are_told_apart() {
         _ => Vec::new(),
     }));
     let mut link = DeviceLink::new(device);
-    let refused = link.request(Command::SetRate { rate_sps: 123 }, Duration::from_secs(5));
+    let refused = link.request(
+        Command::SetRate {
+            rate: SampleRate::Sps200,
+        },
+        Duration::from_secs(5),
+    );
     assert!(matches!(
         refused,
         Err(RequestError::Refused(ErrorCode::InvalidArgument))

@@ -28,7 +28,8 @@ pub enum ErrorCode {
     Busy,
     /// Writing or reading the calibration flash failed.
     FlashError,
-    /// The firmware does not implement this (for example an unknown model tier id).
+    /// The device cannot do this with what it has (for example a tier the calibration in use
+    /// cannot provide).
     NotSupported,
     /// A tare finished without a baseline for every taxel (the pad was loaded, or a taxel is
     /// open or shorted); the sample flags say which taxels stay untared.
@@ -72,6 +73,25 @@ impl SampleRate {
         }
     }
 }
+
+/// On the wire a rate is its number of conversions per second (a u16 varint); any other number
+/// fails to decode, and a request carrying one is answered [`ErrorCode::InvalidArgument`].
+impl Serialize for SampleRate {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_u16(self.sps())
+    }
+}
+
+impl<'de> Deserialize<'de> for SampleRate {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let rate_sps = u16::deserialize(deserializer)?;
+        SampleRate::from_sps(rate_sps)
+            .ok_or_else(|| serde::de::Error::custom("unsupported conversion rate"))
+    }
+}
+
+/// The model tier: model-core's definition, carried as its id (one byte for every tier).
+pub use model_core::Tier;
 
 /// The measurement task the host asks the device to choose a model tier for: model-core's
 /// definition, carried as postcard encodes it (four f32 in field order).
@@ -154,11 +174,11 @@ pub enum Command {
     StartStreaming,
     /// Stops sending samples. Replies Ack.
     StopStreaming,
-    /// Sets the converter rate; 100, 200 or 400 S/s, anything else is
+    /// Sets the converter rate; 100, 200 or 400 S/s on the wire, anything else is
     /// [`ErrorCode::InvalidArgument`]. Replies Ack.
     SetRate {
-        /// The rate in conversions per second.
-        rate_sps: u16,
+        /// The rate.
+        rate: SampleRate,
     },
     /// Takes the unloaded reference of every taxel as the mean of this many sample sets
     /// (at least 1). Replies Ack when done.
@@ -166,11 +186,11 @@ pub enum Command {
         /// The number of sample sets to average.
         sample_sets: u16,
     },
-    /// Selects a model tier by id; an id the firmware lacks is [`ErrorCode::NotSupported`].
-    /// Replies Ack.
+    /// Selects a model tier; an id that is no tier is [`ErrorCode::InvalidArgument`], a tier
+    /// the calibration in use cannot provide [`ErrorCode::NotSupported`]. Replies Ack.
     SetModelTier {
-        /// The tier id.
-        tier: u8,
+        /// The tier.
+        tier: Tier,
     },
     /// Lets the device choose the tier for a use case. Replies
     /// [`crate::ReplyPayload::ModelTier`], or [`ErrorCode::NotSupported`] if no tier fits.
@@ -205,10 +225,6 @@ impl Command {
     /// Checks the arguments the wire protocol constrains; `Err` is the error code to reply.
     pub fn check_arguments(&self) -> Result<(), ErrorCode> {
         match self {
-            Command::SetRate { rate_sps } => match SampleRate::from_sps(*rate_sps) {
-                Some(_) => Ok(()),
-                None => Err(ErrorCode::InvalidArgument),
-            },
             Command::Tare { sample_sets } if *sample_sets == 0 => Err(ErrorCode::InvalidArgument),
             Command::SetUseCase(use_case) if !use_case.is_valid() => {
                 Err(ErrorCode::InvalidArgument)
@@ -260,6 +276,10 @@ impl Request {
                         request_id,
                         error: if unknown {
                             ErrorCode::UnknownCommand
+                        } else if error == postcard::Error::SerdeDeCustom {
+                            // A typed argument refused its value (a rate or a tier id that
+                            // does not exist): the body parsed, the argument is out of range.
+                            ErrorCode::InvalidArgument
                         } else {
                             ErrorCode::Malformed
                         },

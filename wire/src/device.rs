@@ -4,7 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::command::{ErrorCode, TaxelCalibrationRecord};
+use crate::command::{ErrorCode, SampleRate, TaxelCalibrationRecord, Tier};
 use crate::sample::{PadIndex, SampleFrame, TemperatureSource};
 
 /// A frame from the device to the host.
@@ -64,10 +64,10 @@ pub struct InfoFrame {
     pub calibration_id: u32,
     /// Where the calibration in use came from.
     pub calibration_source: CalibrationSource,
-    /// The converter rate in conversions per second (a sample set arrives at about a quarter of it).
-    pub rate_sps: u16,
-    /// The id of the pressure-model tier in use.
-    pub model_tier: u8,
+    /// The converter rate (a sample set arrives at about a quarter of it).
+    pub rate: SampleRate,
+    /// The pressure-model tier in use.
+    pub model_tier: Tier,
     /// Whether sample frames are being sent.
     pub streaming: bool,
     /// Whether the device prints CSV lines instead of binary frames.
@@ -77,8 +77,9 @@ pub struct InfoFrame {
 }
 
 impl InfoFrame {
-    /// The largest body: 1 + 3 + 12 + 5 (varint u32) + 1 + 3 (varint u16) + 1 + 1 + 1 + 1.
-    pub const MAX_BODY_LEN: usize = 1 + 3 + 12 + 5 + 1 + 3 + 1 + 1 + 1 + 1;
+    /// The largest body: 1 + 3 + 12 + 5 (varint u32) + 1 + 2 (the rate, at most 400 as a
+    /// varint) + 1 + 1 + 1 + 1.
+    pub const MAX_BODY_LEN: usize = 1 + 3 + 12 + 5 + 1 + 2 + 1 + 1 + 1 + 1;
     /// The largest encoded frame, delimiter included.
     pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
 }
@@ -124,7 +125,7 @@ pub enum ReplyPayload {
     /// The answer to [`crate::Command::ReadCalibration`].
     Calibration(TaxelCalibrationRecord),
     /// The answer to [`crate::Command::SetUseCase`]: the model tier the device selected.
-    ModelTier(u8),
+    ModelTier(Tier),
     /// The answer to [`crate::Command::ReadBaseline`] (added within version 2).
     Baseline(TaxelBaselineWire),
 }

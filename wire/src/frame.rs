@@ -325,7 +325,9 @@ mod tests {
     fn every_too_small_output_buffer_is_an_error() {
         let request = Request {
             request_id: 0xBEEF,
-            command: Command::SetRate { rate_sps: 400 },
+            command: Command::SetRate {
+                rate: crate::SampleRate::Sps400,
+            },
         };
         let mut out = [0u8; MAX_FRAME_ENCODED_LEN];
         let len = encode_frame(&request, &mut out).unwrap();

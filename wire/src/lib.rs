@@ -28,8 +28,8 @@ mod usb;
 
 pub use checksum::{crc16, CRC_ALGORITHM};
 pub use command::{
-    Command, ErrorCode, Request, SampleRate, TaxelCalibrationRecord, TaxelCalibrationWire, UseCase,
-    CALIBRATION_POINTS_MAX, COMMAND_COUNT,
+    Command, ErrorCode, Request, SampleRate, TaxelCalibrationRecord, TaxelCalibrationWire, Tier,
+    UseCase, CALIBRATION_POINTS_MAX, COMMAND_COUNT,
 };
 pub use device::{
     BaselineWire, CalibrationSource, CountersFrame, DeviceEvent, DeviceFrame, EventFrame,

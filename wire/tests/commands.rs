@@ -5,8 +5,8 @@ mod common;
 
 use common::*;
 use wire::{
-    decode_frame, Command, ErrorCode, Request, SampleRate, TaxelCalibrationRecord,
-    TaxelCalibrationWire, UseCase, COMMAND_COUNT,
+    decode_frame, Command, DecodeError, ErrorCode, Request, RequestDecoder, SampleRate,
+    TaxelCalibrationRecord, TaxelCalibrationWire, Tier, UseCase, COMMAND_COUNT, PROTOCOL_VERSION,
 };
 
 fn use_case() -> UseCase {
@@ -46,9 +46,11 @@ fn command_discriminants_are_the_documented_ones() {
         Command::ReadCounters,
         Command::StartStreaming,
         Command::StopStreaming,
-        Command::SetRate { rate_sps: 100 },
+        Command::SetRate {
+            rate: SampleRate::Sps100,
+        },
         Command::Tare { sample_sets: 1 },
-        Command::SetModelTier { tier: 0 },
+        Command::SetModelTier { tier: Tier::Linear },
         Command::SetUseCase(use_case()),
         Command::ReadCalibration { taxel_index: 0 },
         Command::WriteCalibration(record(&TABLE_1)),
@@ -110,17 +112,51 @@ fn the_calibration_record_ends_with_the_optional_unloaded_capacitance() {
     }
 }
 
+/// The request `id 5`, then `command`, then `argument` as a postcard varint, as a host of
+/// another implementation could send it.
+fn request_with_varint(command: u8, argument: u32) -> Result<Request, DecodeError> {
+    let mut body = vec![5, command];
+    let mut value = argument;
+    loop {
+        let byte = (value & 0x7F) as u8;
+        value >>= 7;
+        if value == 0 {
+            body.push(byte);
+            break;
+        }
+        body.push(byte | 0x80);
+    }
+    let frame = raw_frame(PROTOCOL_VERSION, wire::kind::REQUEST, &body);
+    let mut decoder = RequestDecoder::new();
+    let mut results: Vec<_> = decoder.feed(&frame).collect();
+    assert_eq!(results.len(), 1);
+    results.remove(0)
+}
+
 #[test]
 fn only_100_200_and_400_samples_per_second_are_rates() {
     for rate_sps in 0..=u16::MAX {
         let supported = matches!(rate_sps, 100 | 200 | 400);
         assert_eq!(SampleRate::from_sps(rate_sps).is_some(), supported);
-        let expected = if supported {
-            Ok(())
-        } else {
-            Err(ErrorCode::InvalidArgument)
-        };
-        assert_eq!(Command::SetRate { rate_sps }.check_arguments(), expected);
+        // SetRate is command 4; any other number is refused where it is decoded, with the
+        // error the device replies.
+        let decoded = request_with_varint(4, u32::from(rate_sps));
+        match SampleRate::from_sps(rate_sps) {
+            Some(rate) => assert_eq!(
+                decoded,
+                Ok(Request {
+                    request_id: 5,
+                    command: Command::SetRate { rate }
+                })
+            ),
+            None => assert_eq!(
+                decoded,
+                Err(DecodeError::InvalidRequest {
+                    request_id: 5,
+                    error: ErrorCode::InvalidArgument
+                })
+            ),
+        }
     }
     for rate in [SampleRate::Sps100, SampleRate::Sps200, SampleRate::Sps400] {
         assert_eq!(SampleRate::from_sps(rate.sps()), Some(rate));
@@ -213,13 +249,36 @@ fn calibration_writes_are_checked() {
 }
 
 #[test]
+fn a_tier_is_one_of_the_ids_and_any_other_is_an_invalid_argument() {
+    // SetModelTier is command 6.
+    for id in 0..=u8::MAX {
+        let decoded = request_with_varint(6, u32::from(id));
+        match Tier::from_id(id) {
+            Some(tier) => assert_eq!(
+                decoded,
+                Ok(Request {
+                    request_id: 5,
+                    command: Command::SetModelTier { tier }
+                })
+            ),
+            None => assert_eq!(
+                decoded,
+                Err(DecodeError::InvalidRequest {
+                    request_id: 5,
+                    error: ErrorCode::InvalidArgument
+                })
+            ),
+        }
+    }
+}
+
+#[test]
 fn commands_without_arguments_are_always_acceptable() {
     for command in [
         Command::Info,
         Command::ReadCounters,
         Command::StartStreaming,
         Command::StopStreaming,
-        Command::SetModelTier { tier: 255 },
         Command::SaveCalibration,
         Command::RestoreDefaults,
         Command::SetTextMode { enabled: false },

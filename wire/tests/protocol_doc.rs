@@ -9,8 +9,8 @@ mod common;
 
 use common::*;
 use wire::{
-    Command, DeviceFrame, ErrorCode, ReplyFrame, ReplyPayload, Request, TaxelCalibrationRecord,
-    TaxelCalibrationWire, WireMessage,
+    Command, DeviceFrame, ErrorCode, ReplyFrame, ReplyPayload, Request, SampleRate,
+    TaxelCalibrationRecord, TaxelCalibrationWire, Tier, WireMessage,
 };
 
 const PROTOCOL: &str = include_str!("../../docs/PROTOCOL.md");
@@ -29,7 +29,9 @@ fn examples() -> Vec<(&'static str, Vec<u8>)> {
             "request-set-rate",
             encode(&Request {
                 request_id: 2,
-                command: Command::SetRate { rate_sps: 200 },
+                command: Command::SetRate {
+                    rate: SampleRate::Sps200,
+                },
             }),
         ),
         (
@@ -185,7 +187,7 @@ fn document_size_table_is_the_encoder_worst_case() {
         .len(),
         reply_len(u16::MAX, ReplyPayload::Info(worst_case_info())),
         reply_len(u16::MAX, ReplyPayload::Counters(worst_case_counters())),
-        reply_len(u16::MAX, ReplyPayload::ModelTier(u8::MAX)),
+        reply_len(u16::MAX, ReplyPayload::ModelTier(Tier::Polynomial)),
         reply_len(u16::MAX, ReplyPayload::Baseline(worst_case_baseline())),
     ];
     let calibration = |points| {
@@ -285,16 +287,16 @@ fn the_sample_example_obeys_the_document() {
     assert_eq!(documented, line.trim_end());
 }
 
-/// Section 9's rule for text mode: at a boundary, a second byte of 02 starts a binary frame (to
+/// Section 9's rule for text mode: at a boundary, a second byte of 03 starts a binary frame (to
 /// the next 00), anything else a line (to the next newline).
 #[test]
 fn lines_and_frames_are_told_apart_by_the_documented_rule() {
     let mut line = heapless::String::<{ wire::CSV_LINE_MAX_LEN }>::new();
     wire::format_csv_line(&example_sample(), &mut line).unwrap();
     let reply = encode(&DeviceFrame::Reply(ReplyFrame {
+        // Request id 10 is the byte 0A (newline) in the body.
         request_id: 10,
-        // A payload with the byte 0A (newline) in it.
-        result: Ok(ReplyPayload::ModelTier(0x0A)),
+        result: Ok(ReplyPayload::ModelTier(Tier::Polynomial)),
     }));
     assert!(reply.contains(&b'\n'));
     let mut stream = Vec::new();

@@ -267,7 +267,7 @@ fn device_line(state: &ViewState, wide: bool) -> String {
                 info.calibration_id,
                 calibration_source_words(info.calibration_source),
                 tier_words(info.model_tier),
-                info.rate_sps
+                info.rate.sps()
             )
         }
         None => "Device: -".to_owned(),

@@ -13,8 +13,8 @@ use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 use wire::{
     decode_frame, encode_frame, CalibrationSource, Command, CountersFrame, DeviceEvent,
     DeviceFrame, ErrorCode, EventFrame, FirmwareVersion, FrameDecoder, InfoFrame, PadIndex,
-    PadSummary, ReplyFrame, ReplyPayload, Request, SampleFrame, TaxelCalibrationRecord,
-    TaxelCalibrationWire, TaxelSample, TemperatureSource, UseCase, WireMessage,
+    PadSummary, ReplyFrame, ReplyPayload, Request, SampleFrame, SampleRate, TaxelCalibrationRecord,
+    TaxelCalibrationWire, TaxelSample, TemperatureSource, Tier, UseCase, WireMessage,
     CALIBRATION_POINTS_MAX, MAX_FRAME_ENCODED_LEN,
 };
 
@@ -135,8 +135,8 @@ pub fn info_frame() -> impl Strategy<Value = InfoFrame> {
         any::<[u8; 12]>(),
         any::<u32>(),
         calibration_source(),
-        any::<u16>(),
-        any::<u8>(),
+        sample_rate(),
+        tier(),
         any::<bool>(),
         any::<bool>(),
         any::<u8>(),
@@ -148,7 +148,7 @@ pub fn info_frame() -> impl Strategy<Value = InfoFrame> {
                 board_serial,
                 calibration_id,
                 calibration_source,
-                rate_sps,
+                rate,
                 model_tier,
                 streaming,
                 text_mode,
@@ -163,7 +163,7 @@ pub fn info_frame() -> impl Strategy<Value = InfoFrame> {
                 board_serial,
                 calibration_id,
                 calibration_source,
-                rate_sps,
+                rate,
                 model_tier,
                 streaming,
                 text_mode,
@@ -227,7 +227,7 @@ pub fn reply_payload() -> impl Strategy<Value = ReplyPayload> {
         info_frame().prop_map(ReplyPayload::Info),
         counters_frame().prop_map(ReplyPayload::Counters),
         calibration_record().prop_map(ReplyPayload::Calibration),
-        any::<u8>().prop_map(ReplyPayload::ModelTier),
+        tier().prop_map(ReplyPayload::ModelTier),
     ]
 }
 
@@ -277,15 +277,27 @@ pub fn use_case() -> impl Strategy<Value = UseCase> {
     )
 }
 
+pub fn sample_rate() -> impl Strategy<Value = SampleRate> {
+    prop::sample::select(vec![
+        SampleRate::Sps100,
+        SampleRate::Sps200,
+        SampleRate::Sps400,
+    ])
+}
+
+pub fn tier() -> impl Strategy<Value = Tier> {
+    prop::sample::select(Tier::ALL.to_vec())
+}
+
 pub fn command() -> impl Strategy<Value = Command> {
     prop_oneof![
         Just(Command::Info),
         Just(Command::ReadCounters),
         Just(Command::StartStreaming),
         Just(Command::StopStreaming),
-        any::<u16>().prop_map(|rate_sps| Command::SetRate { rate_sps }),
+        sample_rate().prop_map(|rate| Command::SetRate { rate }),
         any::<u16>().prop_map(|sample_sets| Command::Tare { sample_sets }),
-        any::<u8>().prop_map(|tier| Command::SetModelTier { tier }),
+        tier().prop_map(|tier| Command::SetModelTier { tier }),
         use_case().prop_map(Command::SetUseCase),
         any::<u8>().prop_map(|taxel_index| Command::ReadCalibration { taxel_index }),
         calibration_record().prop_map(Command::WriteCalibration),
@@ -374,8 +386,8 @@ pub fn worst_case_info() -> InfoFrame {
         board_serial: [0xFF; 12],
         calibration_id: u32::MAX,
         calibration_source: CalibrationSource::DefaultsAfterCorruptFlash,
-        rate_sps: u16::MAX,
-        model_tier: u8::MAX,
+        rate: SampleRate::Sps400,
+        model_tier: Tier::ALL[Tier::ALL.len() - 1],
         streaming: true,
         text_mode: true,
         pad_count: u8::MAX,
