@@ -114,6 +114,48 @@ fn every_layout_keeps_pressures_faults_and_flags_visible() {
     assert!(row_of(&normal, "pressure (kPa)") > row_of(&normal, " C21 "));
 }
 
+/// Force, centre of pressure and contact, as the device sent them, in every layout; a pad
+/// whose taxels are all faulted has no force and says so.
+#[test]
+fn every_layout_shows_the_pads_force_and_contact() {
+    let mut state = state_with_samples();
+    let taxels = [
+        (Some(12.5), 4.75, 0),
+        (None, -0.25, 0x0005),
+        (None, 4.5, 0x0080),
+        (Some(0.0), 4.25, 1),
+    ];
+    let mut pressed = sample(14, 1_020_000, taxels);
+    pressed.summary = wire::PadSummary {
+        force_n: Some(0.3125),
+        centre_of_pressure_mm: Some([-2.75, 2.75]),
+        partial: true,
+        contact: true,
+    };
+    state.apply_frame(&DeviceFrame::Sample(pressed));
+    for (width, height, expected) in [
+        (40, 12, "0.31 N contact"),
+        (80, 24, "Force: 0.312 N at (-2.8, 2.8) mm, in contact"),
+        (
+            160,
+            48,
+            "Force: 0.312 N at (-2.8, 2.8) mm, in contact (faulted taxels left out)",
+        ),
+    ] {
+        let text = render_to_string(&state, width, height);
+        assert!(
+            text.contains(expected),
+            "{width}x{height}: {expected}\n{text}"
+        );
+    }
+    let mut dead = pressed;
+    dead.sequence = 15;
+    dead.summary = wire::PadSummary::default();
+    state.apply_frame(&DeviceFrame::Sample(dead));
+    let text = render_to_string(&state, 80, 24);
+    assert!(text.contains("Force: none (no taxel reads)"), "{text}");
+}
+
 #[test]
 fn a_terminal_too_small_gets_a_notice() {
     let text = render_to_string(&state_with_samples(), 30, 8);

@@ -231,6 +231,44 @@ fn temperature_line(state: &ViewState) -> String {
     }
 }
 
+/// The pad's force, centre of pressure and contact as the device computed them.
+fn force_line(state: &ViewState) -> String {
+    let Some(sample) = &state.sample else {
+        return "Force: -".to_owned();
+    };
+    let summary = &sample.summary;
+    let Some(force_n) = summary.force_n else {
+        return "Force: none (no taxel reads)".to_owned();
+    };
+    let mut line = format!("Force: {force_n:.3} N");
+    if let Some([x_mm, y_mm]) = summary.centre_of_pressure_mm {
+        line.push_str(&format!(" at ({x_mm:.1}, {y_mm:.1}) mm"));
+    }
+    line.push_str(if summary.contact {
+        ", in contact"
+    } else {
+        ", no contact"
+    });
+    if summary.partial {
+        line.push_str(" (faulted taxels left out)");
+    }
+    line
+}
+
+/// The force in a few characters, for the compact layout.
+fn force_text(state: &ViewState) -> String {
+    match state.sample.as_ref().map(|sample| &sample.summary) {
+        Some(summary) => match summary.force_n {
+            Some(force_n) => format!(
+                "{force_n:.2} N{}",
+                if summary.contact { " contact" } else { "" }
+            ),
+            None => "- N".to_owned(),
+        },
+        None => "- N".to_owned(),
+    }
+}
+
 fn rate_text(state: &ViewState) -> String {
     state
         .sample_set_rate_hz()
@@ -312,6 +350,7 @@ fn text_lines(state: &ViewState, wide: bool) -> Vec<Line<'static>> {
             temperature_line(state),
             rate_text(state)
         )),
+        Line::from(force_line(state)),
         Line::from(accounting_line(state)),
         Line::from(device_line(state, wide)),
         status_line(state),
@@ -351,7 +390,8 @@ fn compact_lines(state: &ViewState) -> Vec<Line<'static>> {
         None => "- °C".to_owned(),
     };
     lines.push(Line::from(format!(
-        "{temperature}  {} sets/s",
+        "{temperature}  {}  {} sets/s",
+        force_text(state),
         rate_text(state)
     )));
     lines.push(Line::from(format!(
