@@ -15,6 +15,7 @@ pub mod calibrate_report;
 pub mod calibration_file;
 pub mod calibration_transfer;
 pub mod cli;
+pub mod clock_sync;
 pub mod console;
 pub mod convert;
 pub mod csv_format;
