@@ -25,11 +25,33 @@ use crate::scene_file::SceneFile;
 pub const FACTORY_CALIBRATION_ID: u32 = 1;
 
 /// The simulated clock.
-pub struct SimulatedClock(Simulation);
+pub struct SimulatedClock {
+    simulation: Simulation,
+    error: ClockError,
+}
 
 impl Clock for SimulatedClock {
     fn now_us(&self) -> u64 {
-        self.0.now_us()
+        self.error.device_us(self.simulation.now_us())
+    }
+}
+
+/// How a simulated board's crystal differs from true (simulated) time: a rate error and the
+/// device time at the simulation's start. The default is an exact clock starting at 0.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ClockError {
+    /// Rate error, parts per million (positive: the device clock runs fast; crystals are
+    /// typically within +-100).
+    pub rate_ppm: f64,
+    /// Device time when the simulation starts, µs.
+    pub offset_us: u64,
+}
+
+impl ClockError {
+    /// The device clock at simulated time `true_us`.
+    pub fn device_us(&self, true_us: u64) -> u64 {
+        let scaled_us = true_us as f64 * (1.0 + self.rate_ppm * 1e-6);
+        self.offset_us.saturating_add(scaled_us.max(0.0) as u64)
     }
 }
 
@@ -124,6 +146,7 @@ pub struct SimulatedDevice {
     passes_with_faults: u64,
     // The board's no-init RAM: rewritten after every step, read by the next MCU-only boot.
     retained_ram: [u8; RETAINED_LEN],
+    clock_error: ClockError,
 }
 
 /// The board serial the simulated device reports: "SIMULATED" and the seed's low bytes.
@@ -141,18 +164,28 @@ impl SimulatedDevice {
     /// simulated flash through the firmware's storage code, then the firmware's boot: calibration
     /// from flash, converter initialisation and a tare on the first cycles.
     pub fn new(config: SimulatedDeviceConfig) -> Result<Self, SimulatedDeviceError> {
-        Self::boot_new(config, true)
+        Self::boot_new(config, true, ClockError::default())
+    }
+
+    /// [`SimulatedDevice::new`] on a board whose clock differs from true time by `clock_error`
+    /// (several boards on one host, each with its own crystal).
+    pub fn with_clock_error(
+        config: SimulatedDeviceConfig,
+        clock_error: ClockError,
+    ) -> Result<Self, SimulatedDeviceError> {
+        Self::boot_new(config, true, clock_error)
     }
 
     /// Boots the simulated device on erased flash, as a board that was never calibrated: it
     /// runs on the built-in default calibration, exactly as the firmware does.
     pub fn with_blank_flash(config: SimulatedDeviceConfig) -> Result<Self, SimulatedDeviceError> {
-        Self::boot_new(config, false)
+        Self::boot_new(config, false, ClockError::default())
     }
 
     fn boot_new(
         config: SimulatedDeviceConfig,
         factory_calibrated: bool,
+        clock_error: ClockError,
     ) -> Result<Self, SimulatedDeviceError> {
         let simulation = Simulation::new(SimulationConfig {
             seed: config.seed,
@@ -190,6 +223,7 @@ impl SimulatedDevice {
             config.seed,
             ResetKind::PowerOn,
             None,
+            clock_error,
         );
         Ok(Self {
             device,
@@ -198,6 +232,7 @@ impl SimulatedDevice {
             seed: config.seed,
             passes_with_faults: 0,
             retained_ram: [0; RETAINED_LEN],
+            clock_error,
         })
     }
 
@@ -216,6 +251,7 @@ impl SimulatedDevice {
             self.seed,
             ResetKind::McuOnly,
             RetainedState::decode(&self.retained_ram),
+            self.clock_error,
         );
         Ok(())
     }
@@ -285,6 +321,7 @@ fn boot_simulated(
     seed: u64,
     reset: ResetKind,
     retained: Option<RetainedState>,
+    clock_error: ClockError,
 ) -> Device<SimulatedAcquisition, SimulatedPersistence> {
     let stored = embassy_futures::block_on(persistence.0.load());
     let parts = BoardParts {
@@ -292,7 +329,10 @@ fn boot_simulated(
         delay: simulation.delay(),
         temperature: Tmp117::new(simulation.i2c(), Address::Gnd),
         fallback_temperature: SimulatedDieTemperature(simulation.clone()),
-        clock: SimulatedClock(simulation.clone()),
+        clock: SimulatedClock {
+            simulation: simulation.clone(),
+            error: clock_error,
+        },
         persistence,
         identity: DeviceIdentity {
             firmware_version: device::FIRMWARE_VERSION,
