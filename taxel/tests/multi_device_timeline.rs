@@ -30,7 +30,7 @@ impl Latency {
         self.0 ^= self.0 << 17;
         // 0.1 to 1 ms, and 2 % of the frames 5 to 30 ms late (a busy host).
         let jitter_us = 100 + self.0 % 900;
-        if self.0 % 50 == 0 {
+        if self.0.is_multiple_of(50) {
             jitter_us + 5_000 + (self.0 >> 8) % 25_000
         } else {
             jitter_us
