@@ -375,6 +375,7 @@ pub fn markdown(data: &ReportData) -> String {
     use_cases(out, data);
     drift(out, data);
     firmware(out, data);
+    usb_bandwidth(out);
     simulator(out, data);
     text
 }

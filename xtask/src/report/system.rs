@@ -73,6 +73,45 @@ pub(super) fn firmware(out: &mut String, data: &ReportData) {
     );
 }
 
+/// Bulk payload a full-speed USB device can move at most: 19 transactions of 64 bytes per
+/// 1 ms frame (USB 2.0 specification, table 5-10 for full-speed bulk).
+const FULL_SPEED_BULK_BYTES_PER_S: u64 = 19 * 64 * 1000;
+
+/// The link load of sample frames per pad count, from the encoder's largest sample frame.
+pub(super) fn usb_bandwidth(out: &mut String) {
+    let _ = writeln!(out, "## USB bandwidth per pad count
+");
+    let frame_bytes = wire::SampleFrame::MAX_ENCODED_LEN as u64;
+    let packet_bytes = wire::USB_FULL_SPEED_PACKET_LEN as u64;
+    let packets_per_frame = frame_bytes.div_ceil(packet_bytes);
+    let _ = writeln!(
+        out,
+        "Computed, not measured: every pad sends one sample frame per sample set, at most {frame_bytes}          bytes ({packets_per_frame} packets of at most {packet_bytes} bytes), at the converter's          400 conversions/s = 100 sample sets/s (four conversions per set). A full-speed bulk          endpoint moves at most {FULL_SPEED_BULK_BYTES_PER_S} bytes/s (19 packets of 64 bytes          per 1 ms frame); events, counters and replies are a few frames per second on top.
+"
+    );
+    let _ = writeln!(
+        out,
+        "| pads | sample frames/s | bytes/s, worst case | packets/s, worst case | share of full-speed bulk |
+|---|---|---|---|---|"
+    );
+    for pads in [1u64, 2, 4, 6, 8] {
+        let frames_per_s = pads * 100;
+        let bytes_per_s = frames_per_s * frame_bytes;
+        let _ = writeln!(
+            out,
+            "| {pads} | {frames_per_s} | {bytes_per_s} | {} | {:.1} % |",
+            frames_per_s * packets_per_frame,
+            100.0 * bytes_per_s as f64 / FULL_SPEED_BULK_BYTES_PER_S as f64
+        );
+    }
+    let _ = writeln!(
+        out,
+        "
+The device never waits for the host: a frame that does not fit its output queue is          dropped and counted (`dropped_sample_sets`), so a slow host costs sample sets, never          the acquisition's timing. The sample-set rate each pad reaches on the I2C bus with          several pads is not measured yet: the device reads one pad today.
+"
+    );
+}
+
 pub(super) fn microseconds(nanoseconds: f64) -> String {
     format!("{:.2}", nanoseconds / 1000.0)
 }
