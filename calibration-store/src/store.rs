@@ -29,10 +29,12 @@
 //! [`CalibrationStore::load`] reads page 0 then page 1, each from its start, and returns the valid
 //! record with the highest save counter (of equal counters, the later). It returns
 //! [`CorruptReason::Record`] (or [`CorruptReason::Storage`] for an intact item longer than any
-//! record) instead when such an item comes after that record in this order: it may be newer than
-//! anything this firmware reads. Damage to the newest record (not a power loss) brings back the
-//! record before it when that one is still in flash, which is the case when the newest was
-//! appended.
+//! record) instead when an intact item it cannot use may be newer than that record: one after it
+//! in its page (a page is appended to in order), or one in the other page when that page holds
+//! no valid record to date it (a move erases the page it writes to, so a page with valid records
+//! of lower counters is older as a whole). Damage to the newest record (not a power loss) brings
+//! back the record before it when that one is still in flash, which is the case when the newest
+//! was appended.
 //!
 //! # Saving
 //!
@@ -253,9 +255,15 @@ struct NewestRecord {
 /// What one pass over both pages (page 0 first, each from its start) found.
 struct Scan<E> {
     newest: Option<NewestRecord>,
-    /// Why an intact item after the newest record (or anywhere, without one) is unusable:
-    /// something newer than anything readable may be there.
+    /// Why an intact item that may be newer than the newest record is unusable: one after it
+    /// in its page, or anywhere in a page without a valid record (whose age is unknown).
+    /// Set when the scan ends, from the per-page fields below.
     refused_after_newest: Option<CorruptReason<E>>,
+    /// Per page, the highest save counter of a valid record in it.
+    page_newest: [Option<u32>; PAGE_COUNT as usize],
+    /// Per page, why an intact item after the page's highest valid record (or anywhere in a
+    /// page without one) is unusable.
+    page_refused: [Option<CorruptReason<E>>; PAGE_COUNT as usize],
     /// Per page, where the next item would go: after the last item, or after damage.
     free_start: [u32; PAGE_COUNT as usize],
 }
@@ -446,6 +454,8 @@ impl<F: NorFlash> CalibrationStore<F> {
         let mut scan = Scan {
             newest: None,
             refused_after_newest: None,
+            page_newest: [None; PAGE_COUNT as usize],
+            page_refused: [const { None }; PAGE_COUNT as usize],
             free_start: [0; PAGE_COUNT as usize],
         };
         for page in 0..PAGE_COUNT {
@@ -486,6 +496,26 @@ impl<F: NorFlash> CalibrationStore<F> {
                 *free_start = address;
             }
         }
+        // A page is appended to in order, and the other page holds only older records (a move
+        // erases it before writing): so only a refused item after the newest record in its
+        // page, or in a page with no valid record to date it, may be newer than the newest.
+        scan.refused_after_newest = match scan.newest {
+            Some(newest) => {
+                let other = other_page(newest.page) as usize;
+                let other_undated = scan.page_newest.get(other).is_some_and(Option::is_none);
+                let undated = if other_undated {
+                    scan.page_refused.get_mut(other).and_then(Option::take)
+                } else {
+                    None
+                };
+                let after_newest = scan
+                    .page_refused
+                    .get_mut(newest.page as usize)
+                    .and_then(Option::take);
+                after_newest.or(undated)
+            }
+            None => scan.page_refused.iter_mut().find_map(Option::take),
+        };
         Ok(scan)
     }
 
@@ -520,27 +550,41 @@ impl<F: NorFlash> CalibrationStore<F> {
             .get(..length)
             .filter(|_| length <= MAX_RECORD_LEN)
         else {
-            scan.refused_after_newest = Some(CorruptReason::Storage);
+            if let Some(refused) = scan.page_refused.get_mut(page as usize) {
+                *refused = Some(CorruptReason::Storage);
+            }
             return;
         };
-        match decode_saved_record(value) {
-            Ok(record)
-                if scan
-                    .newest
-                    .is_none_or(|newest| record.save_counter >= newest.save_counter) =>
-            {
-                if let Some(newest) = self.newest.0.get_mut(..length) {
-                    newest.copy_from_slice(value);
+        let record = match decode_saved_record(value) {
+            Ok(record) => record,
+            Err(error) => {
+                if let Some(refused) = scan.page_refused.get_mut(page as usize) {
+                    *refused = Some(CorruptReason::Record(error));
                 }
-                scan.newest = Some(NewestRecord {
-                    save_counter: record.save_counter,
-                    length,
-                    page,
-                });
-                scan.refused_after_newest = None;
+                return;
             }
-            Ok(_) => {}
-            Err(error) => scan.refused_after_newest = Some(CorruptReason::Record(error)),
+        };
+        if let (Some(page_newest), Some(refused)) = (
+            scan.page_newest.get_mut(page as usize),
+            scan.page_refused.get_mut(page as usize),
+        ) {
+            if page_newest.is_none_or(|counter| record.save_counter >= counter) {
+                *page_newest = Some(record.save_counter);
+                *refused = None;
+            }
+        }
+        if scan
+            .newest
+            .is_none_or(|newest| record.save_counter >= newest.save_counter)
+        {
+            if let Some(newest) = self.newest.0.get_mut(..length) {
+                newest.copy_from_slice(value);
+            }
+            scan.newest = Some(NewestRecord {
+                save_counter: record.save_counter,
+                length,
+                page,
+            });
         }
     }
 
