@@ -77,7 +77,9 @@ pub async fn discover<BUS: I2c>(bus: &mut BUS, mux: Address) -> Topology {
         .is_ok();
     let shared = first_tmp117(bus, None).await;
     let shared_temperature = shared.map_or(PadTemperature::DieOnly, PadTemperature::Shared);
-    if !mux_present {
+    // A converter that answers with every channel off sits upstream of the multiplexer: it
+    // would answer on every channel too, so it is the board's only addressable pad.
+    if !mux_present || is_fdc1004(bus).await {
         return Topology::single_pad(shared_temperature);
     }
     let mut pads = Vec::new();

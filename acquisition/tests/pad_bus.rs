@@ -118,6 +118,9 @@ fn pads_are_the_channels_whose_converter_identifies_itself() {
     // (the read-back differs), so it is skipped.
     let mut expectations = vec![select(0), Transaction::read(MUX, vec![0])];
     expectations.extend(tmp117_probe(Some(0x49), None));
+    // No converter with every channel off.
+    expectations.push(absent(FDC1004, 0xFE));
+    expectations.push(absent(FDC1004, 0xFF));
     for channel in 0..8u8 {
         let mask = 1 << channel;
         expectations.push(select(mask));
@@ -159,6 +162,25 @@ fn pads_are_the_channels_whose_converter_identifies_itself() {
                 temperature: PadTemperature::Shared(tmp117::Address::Vplus)
             },
         ]
+    );
+    mock.done();
+}
+
+#[test]
+fn a_converter_upstream_of_the_multiplexer_is_the_only_pad() {
+    // It answers with every channel off, so it would answer on every channel: not 8 pads.
+    let mut expectations = vec![select(0), Transaction::read(MUX, vec![0])];
+    expectations.extend(tmp117_probe(None, None));
+    expectations.push(read_register(FDC1004, 0xFE, 0x5449));
+    expectations.push(read_register(FDC1004, 0xFF, 0x1004));
+    let mut mock = Mock::new(&expectations);
+    let topology = block_on(discover(&mut mock, Address::default()));
+    assert_eq!(
+        topology.pads.as_slice(),
+        [PadSlot {
+            channel: None,
+            temperature: PadTemperature::DieOnly
+        }]
     );
     mock.done();
 }

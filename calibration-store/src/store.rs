@@ -296,13 +296,17 @@ impl<F: NorFlash> CalibrationStore<F> {
         {
             return Err(RegionError::NotPageAligned);
         }
-        if range.end.saturating_sub(range.start) < PAGE_COUNT * Self::PAGE_LEN {
+        // Two pages of an erase size near 4 GiB overflow u32: no region can hold them.
+        let Some(region_len) = PAGE_COUNT.checked_mul(Self::PAGE_LEN) else {
+            return Err(RegionError::BeyondFlash);
+        };
+        if range.end.saturating_sub(range.start) < region_len {
             return Err(RegionError::TooFewPages);
         }
         if range.end as usize > flash.capacity() {
             return Err(RegionError::BeyondFlash);
         }
-        if range.end - range.start > PAGE_COUNT * Self::PAGE_LEN {
+        if range.end - range.start > region_len {
             return Err(RegionError::TooManyPages);
         }
         if Self::WORD_LEN as usize > LARGEST_WORD_SIZE {
@@ -462,7 +466,7 @@ impl<F: NorFlash> CalibrationStore<F> {
             let end = self.items_end(page);
             let mut address = self.page_range(page).start + Self::WORD_LEN;
             let mut header_buffer = WordBuffer([0; LARGEST_WORD_SIZE]);
-            while address + Self::HEADER_LEN <= end {
+            while address.saturating_add(Self::HEADER_LEN) <= end {
                 let Some(header) = header_buffer.0.get_mut(..Self::HEADER_LEN as usize) else {
                     break;
                 };
@@ -475,7 +479,8 @@ impl<F: NorFlash> CalibrationStore<F> {
                 };
                 let length = u16::from_le_bytes([l0, l1]);
                 let data_address = address + Self::HEADER_LEN;
-                let next = address + Self::item_len(length.into());
+                // A length read from flash must not wrap the address (a range near 4 GiB).
+                let next = address.saturating_add(Self::item_len(length.into()));
                 if length_crc(u16::from_le_bytes([l0, l1])) != u16::from_le_bytes([k0, k1])
                     || next > end
                 {

@@ -207,8 +207,10 @@ impl ContactDetector {
         self.in_contact
     }
 
-    /// Back to out of contact with nothing pending, without an event (e.g. after a tare or a
-    /// reconnection).
+    /// Back to out of contact with nothing pending, without an event, for a caller that starts
+    /// over (the device keeps one detector per pad for as long as it runs: the contact bit of
+    /// every sample frame is the state, and a host that connects during a contact sees it set
+    /// without having seen the start event).
     pub fn reset(&mut self) {
         *self = Self::new(self.config);
     }
@@ -216,7 +218,7 @@ impl ContactDetector {
     /// Takes one sample set's force, measured at `timestamp_us` on the device clock, µs. Returns
     /// the event when this set confirms a change of state (see the module for the rules).
     pub fn update(&mut self, force: &PadForce, timestamp_us: u64) -> Option<ContactEvent> {
-        let force_n = force.force_n.filter(|force_n| !force_n.is_nan());
+        let force_n = force.force_n.filter(|force_n| force_n.is_finite());
         let towards_change = match force_n {
             None => false,
             Some(force_n) if !self.in_contact => force_n > self.config.on_threshold_n,

@@ -121,8 +121,9 @@ impl PadModel {
         }
     }
 
-    /// Replaces the calibration. Each baseline is derived again from its tared capacitance and
-    /// temperature with the new parasitic capacitance, temperature law and thresholds (a
+    /// Replaces the calibration. Each baseline is derived again from its record (tared
+    /// capacitance, temperature, tracked drift) with the new parasitic capacitance, temperature
+    /// law and thresholds (a
     /// baseline keeps no number computed with the old ones); a taxel whose baseline does not
     /// validate under the new calibration becomes untared. A tier the new curves cannot provide
     /// falls back to the default.

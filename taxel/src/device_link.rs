@@ -354,7 +354,8 @@ pub struct LinkStatistics {
     pub bytes_rejected: u64,
     /// The last decoding error.
     pub last_error: Option<DecodeError>,
-    /// The protocol version of the last intact frame of a version this host does not speak.
+    /// The protocol version of the last intact frame of a version this host does not speak,
+    /// unless a frame of its own version has been decoded since.
     pub other_protocol_version: Option<u8>,
 }
 
@@ -380,6 +381,9 @@ impl FrameReceiver {
             match self.decoder.push(byte) {
                 Some(Ok(frame)) => {
                     self.statistics.frames_decoded += 1;
+                    // A frame of our version since: the device speaks it (a stale frame of
+                    // another version from before a firmware update is history).
+                    self.statistics.other_protocol_version = None;
                     self.bytes_in_chunk = 0;
                     frames.extend([frame]);
                 }

@@ -14,6 +14,11 @@ pub const CALIBRATION_POINTS_MAX: usize = 16;
 /// [`ErrorCode::UnknownCommand`].
 pub const COMMAND_COUNT: u32 = 14;
 
+/// The discriminants of the commands whose argument is a typed value ([`SampleRate`], [`Tier`])
+/// that refuses numbers outside its range when it is decoded.
+const SET_RATE_DISCRIMINANT: u32 = 4;
+const SET_MODEL_TIER_DISCRIMINANT: u32 = 6;
+
 /// Why the device refused a request.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -268,15 +273,21 @@ impl Request {
             }),
             Err(error) => match postcard::take_from_bytes::<u16>(body) {
                 Ok((request_id, rest)) => {
-                    let unknown = matches!(
-                        postcard::take_from_bytes::<u32>(rest),
-                        Ok((discriminant, _)) if discriminant >= COMMAND_COUNT
+                    let discriminant = postcard::take_from_bytes::<u32>(rest)
+                        .ok()
+                        .map(|(discriminant, _)| discriminant);
+                    let unknown = discriminant.is_some_and(|command| command >= COMMAND_COUNT);
+                    // Only these two commands carry a typed argument that refuses values; any
+                    // other refusal (too many points, a bad enum) is a malformed body.
+                    let typed_argument = matches!(
+                        discriminant,
+                        Some(SET_RATE_DISCRIMINANT | SET_MODEL_TIER_DISCRIMINANT)
                     );
                     Err(DecodeError::InvalidRequest {
                         request_id,
                         error: if unknown {
                             ErrorCode::UnknownCommand
-                        } else if error == postcard::Error::SerdeDeCustom {
+                        } else if typed_argument && error == postcard::Error::SerdeDeCustom {
                             // A typed argument refused its value (a rate or a tier id that
                             // does not exist): the body parsed, the argument is out of range.
                             ErrorCode::InvalidArgument

@@ -273,6 +273,28 @@ fn a_tier_is_one_of_the_ids_and_any_other_is_an_invalid_argument() {
 }
 
 #[test]
+fn seventeen_points_that_fit_the_buffer_are_malformed_not_an_invalid_argument() {
+    // WriteCalibration (command 9): taxel 0, calibration id 1, 17 points, parasitic 0 pF, no C0.
+    let mut body = vec![5u8, 9, 0, 1, 17];
+    for point in 0..17u8 {
+        body.extend((f32::from(point) * 3.0).to_le_bytes());
+        body.extend((f32::from(point) * 0.01).to_le_bytes());
+    }
+    body.extend(0.0f32.to_le_bytes());
+    body.push(0);
+    let frame = raw_frame(PROTOCOL_VERSION, wire::kind::REQUEST, &body);
+    let mut decoder = RequestDecoder::new();
+    let results: Vec<_> = decoder.feed(&frame).collect();
+    assert_eq!(
+        results,
+        [Err(DecodeError::InvalidRequest {
+            request_id: 5,
+            error: ErrorCode::Malformed
+        })]
+    );
+}
+
+#[test]
 fn commands_without_arguments_are_always_acceptable() {
     for command in [
         Command::Info,

@@ -79,8 +79,11 @@ const FULL_SPEED_BULK_BYTES_PER_S: u64 = 19 * 64 * 1000;
 
 /// The link load of sample frames per pad count, from the encoder's largest sample frame.
 pub(super) fn usb_bandwidth(out: &mut String) {
-    let _ = writeln!(out, "## USB bandwidth per pad count
-");
+    let _ = writeln!(
+        out,
+        "## USB bandwidth per pad count
+"
+    );
     let frame_bytes = wire::SampleFrame::MAX_ENCODED_LEN as u64;
     let packet_bytes = wire::USB_FULL_SPEED_PACKET_LEN as u64;
     let packets_per_frame = frame_bytes.div_ceil(packet_bytes);
