@@ -354,6 +354,9 @@ pub struct LinkStatistics {
     pub bytes_rejected: u64,
     /// The last decoding error.
     pub last_error: Option<DecodeError>,
+    /// Sample frames of pads other than pad 0, set aside: this host version shows, records and
+    /// re-processes one pad (a device with several pads says so in its Info frame).
+    pub samples_of_other_pads: u64,
     /// The protocol version of the last intact frame of a version this host does not speak,
     /// unless a frame of its own version has been decoded since.
     pub other_protocol_version: Option<u8>,
@@ -379,6 +382,12 @@ impl FrameReceiver {
         for &byte in bytes {
             self.bytes_in_chunk += 1;
             match self.decoder.push(byte) {
+                Some(Ok(DeviceFrame::Sample(sample))) if sample.pad.get() != 0 => {
+                    self.statistics.frames_decoded += 1;
+                    self.statistics.samples_of_other_pads += 1;
+                    self.statistics.other_protocol_version = None;
+                    self.bytes_in_chunk = 0;
+                }
                 Some(Ok(frame)) => {
                     self.statistics.frames_decoded += 1;
                     // A frame of our version since: the device speaks it (a stale frame of
@@ -649,6 +658,35 @@ mod tests {
         fn flush(&mut self) -> std::io::Result<()> {
             Ok(())
         }
+    }
+
+    #[test]
+    fn samples_of_other_pads_are_set_aside_and_counted() {
+        let sample = |pad| {
+            DeviceFrame::Sample(wire::SampleFrame {
+                pad: wire::PadIndex::new(pad).unwrap(),
+                sequence: 7,
+                timestamp_us: 1_000,
+                temperature_c: None,
+                temperature_source: wire::TemperatureSource::None,
+                taxels: [wire::TaxelSample {
+                    pressure_kpa: None,
+                    capacitance_pf: 4.5,
+                    flags: 0,
+                }; 4],
+                summary: wire::PadSummary::default(),
+            })
+        };
+        let mut bytes = Vec::new();
+        for pad in [0, 1, 0, 7] {
+            bytes.extend(encode_frame_to_vec(&sample(pad)).unwrap());
+        }
+        let mut receiver = FrameReceiver::new();
+        let mut frames = Vec::new();
+        receiver.push_bytes(&bytes, &mut frames);
+        assert_eq!(frames, [sample(0), sample(0)]);
+        assert_eq!(receiver.statistics().samples_of_other_pads, 2);
+        assert_eq!(receiver.statistics().frames_rejected, 0);
     }
 
     #[test]

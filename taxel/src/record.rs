@@ -239,6 +239,12 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
         .synchronise(timeout)
         .with_context(|| format!("asking the device on {port_path} who it is"))?;
     noteln!("device on {port_path}: {}", info_words(&info));
+    if info.pad_count > 1 {
+        noteln!(
+            "the device reads {} pads; this version of taxel records pad 0 only",
+            info.pad_count
+        );
+    }
     let device_state = read_device_state(&mut link, &info, timeout)?;
     let (mut recording, raw_writer) = Recording::create(&args.output, Some(&raw_path))?;
     recording.set_device_state(device_state);
