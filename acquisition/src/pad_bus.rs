@@ -7,6 +7,8 @@
 //! a multiplexer that reset behind our back (a brown-out on the pad cable) is then selected
 //! again on the next transaction instead of leaving every later one on the wrong channel.
 
+use core::ops::Deref;
+
 use embassy_sync::blocking_mutex::raw::RawMutex;
 use embassy_sync::mutex::Mutex;
 use embedded_hal_async::i2c::{Error, ErrorKind, ErrorType, I2c, Operation};
@@ -61,14 +63,18 @@ impl<E: Error> Error for PadBusError<E> {
 
 /// One pad's handle on a shared [`MuxedBus`]: on `channel` of the multiplexer, or on the bus
 /// itself (`None`: a pad without multiplexer, or a device upstream of it).
-pub struct PadBus<'a, M: RawMutex, BUS> {
-    shared: &'a Mutex<M, MuxedBus<BUS>>,
+///
+/// `S` is how the handle reaches the shared bus: a `&'static` on the MCU (the bus lives in a
+/// static), a reference or a reference-counted pointer on the host (the simulated device owns
+/// its bus).
+pub struct PadBus<S> {
+    shared: S,
     channel: Option<Channel>,
 }
 
-impl<'a, M: RawMutex, BUS> PadBus<'a, M, BUS> {
+impl<S> PadBus<S> {
     /// A handle for the device(s) on `channel`.
-    pub fn new(shared: &'a Mutex<M, MuxedBus<BUS>>, channel: Option<Channel>) -> Self {
+    pub fn new(shared: S, channel: Option<Channel>) -> Self {
         Self { shared, channel }
     }
 
@@ -78,7 +84,12 @@ impl<'a, M: RawMutex, BUS> PadBus<'a, M, BUS> {
     }
 }
 
-impl<M: RawMutex, BUS: ErrorType> ErrorType for PadBus<'_, M, BUS> {
+impl<S, M, BUS> ErrorType for PadBus<S>
+where
+    S: Deref<Target = Mutex<M, MuxedBus<BUS>>>,
+    M: RawMutex,
+    BUS: ErrorType,
+{
     type Error = PadBusError<BUS::Error>;
 }
 
@@ -111,7 +122,12 @@ impl<BUS: I2c> MuxedBus<BUS> {
 
 // Each method forwards to the same method of the bus (not all to `transaction`), so a bus
 // with a faster `write_read` keeps it.
-impl<M: RawMutex, BUS: I2c> I2c for PadBus<'_, M, BUS> {
+impl<S, M, BUS> I2c for PadBus<S>
+where
+    S: Deref<Target = Mutex<M, MuxedBus<BUS>>>,
+    M: RawMutex,
+    BUS: I2c,
+{
     async fn read(&mut self, address: u8, read: &mut [u8]) -> Result<(), Self::Error> {
         let mut shared = self.shared.lock().await;
         shared.select(self.channel).await?;
