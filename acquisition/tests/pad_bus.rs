@@ -189,16 +189,16 @@ fn a_converter_upstream_of_the_multiplexer_is_the_only_pad() {
 fn pads_can_share_the_bus_by_reference_counting() {
     // The simulated device owns its bus: its pads hold reference-counted handles.
     let mock = Mock::new(&[select(1 << 3), read_register(FDC1004, 0xFF, 0x1004)]);
-    let shared = std::sync::Arc::new(Mutex::<NoopRawMutex, _>::new(MuxedBus::new(
+    let shared = std::rc::Rc::new(Mutex::<NoopRawMutex, _>::new(MuxedBus::new(
         mock,
         Some(Address::default()),
     )));
-    let mut pad = PadBus::new(std::sync::Arc::clone(&shared), Some(Channel::Ch3));
+    let mut pad = PadBus::new(std::rc::Rc::clone(&shared), Some(Channel::Ch3));
     let mut bytes = [0u8; 2];
     block_on(pad.write_read(FDC1004, &[0xFF], &mut bytes)).unwrap();
     assert_eq!(pad.channel(), Some(Channel::Ch3));
     drop(pad);
-    std::sync::Arc::try_unwrap(shared)
+    std::rc::Rc::try_unwrap(shared)
         .ok()
         .unwrap()
         .into_inner()
