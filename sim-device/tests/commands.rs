@@ -72,6 +72,11 @@ impl Host {
         )
         .unwrap();
         self.send_bytes(&encoded[..length]);
+        self.reply_to(request_id)
+    }
+
+    /// Steps up to 200 cycles until the reply to `request_id` arrives.
+    fn reply_to(&mut self, request_id: u16) -> Result<ReplyPayload, ErrorCode> {
         for _ in 0..200 {
             for frame in self.steps(1) {
                 if let DeviceFrame::Reply(reply) = frame {
@@ -115,16 +120,7 @@ impl Host {
         }
         frame.push(0);
         self.send_bytes(&frame);
-        for _ in 0..200 {
-            for frame in self.steps(1) {
-                if let DeviceFrame::Reply(reply) = frame {
-                    if reply.request_id == request_id {
-                        return reply.result;
-                    }
-                }
-            }
-        }
-        panic!("no reply to request {request_id}");
+        self.reply_to(request_id)
     }
 
     fn info(&mut self) -> InfoFrame {
