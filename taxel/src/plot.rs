@@ -37,15 +37,19 @@ const TAXEL_COLOURS: [RGBColor; TAXEL_COUNT] = [
     RGBColor(148, 103, 189),
 ];
 
-/// Colours of the six tiers, in [`Tier::ALL`] order.
-const TIER_COLOURS: [RGBColor; 6] = [
-    RGBColor(127, 127, 127),
-    RGBColor(255, 127, 14),
-    RGBColor(31, 119, 180),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-];
+/// The colour of a tier in every picture (calibration residuals here, the performance
+/// report's speed-vs-error plot).
+pub const fn tier_colour(tier: Tier) -> RGBColor {
+    match tier {
+        Tier::Linear => RGBColor(0x7f, 0x7f, 0x7f),
+        Tier::PiecewiseLinear => RGBColor(0x2c, 0xa0, 0x2c),
+        Tier::MonotoneCubic => RGBColor(0x1f, 0x77, 0xb4),
+        Tier::Saturating => RGBColor(0xff, 0x7f, 0x0e),
+        Tier::SaturatingMicromath => RGBColor(0xd6, 0x27, 0x28),
+        Tier::Table => RGBColor(0x94, 0x67, 0xbd),
+        Tier::Polynomial => RGBColor(0x8c, 0x56, 0x4b),
+    }
+}
 
 /// The long help of the subcommand.
 pub const LONG_ABOUT: &str = "Plot to SVG or PNG (chosen by the output file's extension).\n\n\
@@ -500,7 +504,7 @@ fn draw_residuals<DB: DrawingBackend>(
     ))?;
     let tier_count = picture.residuals.len().max(1) as f64;
     for (index, (tier, values)) in picture.residuals.iter().enumerate() {
-        let colour = TIER_COLOURS[*tier as usize % TIER_COLOURS.len()];
+        let colour = tier_colour(*tier);
         // A small sideways offset per tier keeps coincident residuals visible.
         let offset = (index as f64 - (tier_count - 1.0) / 2.0) * 0.006 * x_top;
         chart

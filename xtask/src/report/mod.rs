@@ -8,7 +8,6 @@ use model_core::conditioning::{CONVERTER_NOISE_PF, NOMINAL_SENSOR_PF};
 use model_core::inverse::POLYNOMIAL_DEGREE;
 use model_core::use_case::MEASURED_INSTRUCTIONS;
 use model_core::{SelectionError, TaxelFlags, Tier, TierChoice};
-use plotters::style::RGBColor;
 
 use crate::bench_output::BenchRun;
 use crate::firmware::{Footprint, FLASH_BUDGET_BYTES, STATIC_RAM_BUDGET_BYTES};
@@ -207,20 +206,10 @@ fn fastest_close(data: &ReportData, run: &BenchRun, measure: Measure) -> Option<
 
 /// The speed-vs-error picture.
 pub fn plot(data: &ReportData) -> Plot {
-    const COLOURS: [RGBColor; 8] = [
-        RGBColor(0x7f, 0x7f, 0x7f),
-        RGBColor(0x2c, 0xa0, 0x2c),
-        RGBColor(0x1f, 0x77, 0xb4),
-        RGBColor(0xff, 0x7f, 0x0e),
-        RGBColor(0xd6, 0x27, 0x28),
-        RGBColor(0x94, 0x67, 0xbd),
-        RGBColor(0x8c, 0x56, 0x4b),
-        RGBColor(0xe3, 0x77, 0xc2),
-    ];
     let mut points = Vec::new();
     let mut links = Vec::new();
-    for (index, figure) in figures(data).into_iter().enumerate() {
-        let colour = COLOURS[index % COLOURS.len()];
+    for figure in figures(data) {
+        let colour = taxel::plot::tier_colour(figure.tier);
         let Some(y) = figure.max_from_default_kpa else {
             continue;
         };
