@@ -103,7 +103,7 @@ impl FaultKind {
             FaultKind::Shorted => "C12 reads -0.5 pF (conduction under a concentrated load) for 2 s",
             FaultKind::OpenLead => "C21 reads only its cable capacitance for 2 s",
             FaultKind::TemperatureSensorGone => "simulated TMP117 NACKs for 2 s",
-            FaultKind::SlowHost => "host reads 200 bytes per set (a set's frame is 43-63 bytes, but the link is capped at 4 KiB and the host stalls for 2 s)",
+            FaultKind::SlowHost => "host reads 200 bytes per set (a set's frame is 44-76 bytes, but the link is capped at 4 KiB and the host stalls for 2 s)",
             FaultKind::UnplugMidFrame => "link cut after 20 bytes of a frame, the rest lost; 1 s unplugged; then plugged back",
             FaultKind::Garbage => "64 random bytes injected into the device-to-host stream every 50 ms for 2 s, and 64 into the host-to-device stream",
         }

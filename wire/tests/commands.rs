@@ -133,6 +133,29 @@ fn request_with_varint(command: u8, argument: u32) -> Result<Request, DecodeErro
     results.remove(0)
 }
 
+/// A request of `command` with `argument` decodes to `expected`, or, when that is `None`, is
+/// refused where it is decoded with the error the device replies: InvalidArgument.
+fn assert_decodes_to(command: u8, argument: u32, expected: Option<Command>) {
+    let decoded = request_with_varint(command, argument);
+    match expected {
+        Some(command) => assert_eq!(
+            decoded,
+            Ok(Request {
+                request_id: 5,
+                command
+            })
+        ),
+        None => assert_eq!(
+            decoded,
+            Err(DecodeError::InvalidRequest {
+                request_id: 5,
+                error: ErrorCode::InvalidArgument
+            }),
+            "command {command}, argument {argument}"
+        ),
+    }
+}
+
 #[test]
 fn only_100_200_and_400_samples_per_second_are_rates() {
     for rate_sps in 0..=u16::MAX {
@@ -140,23 +163,11 @@ fn only_100_200_and_400_samples_per_second_are_rates() {
         assert_eq!(SampleRate::from_sps(rate_sps).is_some(), supported);
         // SetRate is command 4; any other number is refused where it is decoded, with the
         // error the device replies.
-        let decoded = request_with_varint(4, u32::from(rate_sps));
-        match SampleRate::from_sps(rate_sps) {
-            Some(rate) => assert_eq!(
-                decoded,
-                Ok(Request {
-                    request_id: 5,
-                    command: Command::SetRate { rate }
-                })
-            ),
-            None => assert_eq!(
-                decoded,
-                Err(DecodeError::InvalidRequest {
-                    request_id: 5,
-                    error: ErrorCode::InvalidArgument
-                })
-            ),
-        }
+        assert_decodes_to(
+            4,
+            u32::from(rate_sps),
+            SampleRate::from_sps(rate_sps).map(|rate| Command::SetRate { rate }),
+        );
     }
     for rate in [SampleRate::Sps100, SampleRate::Sps200, SampleRate::Sps400] {
         assert_eq!(SampleRate::from_sps(rate.sps()), Some(rate));
@@ -252,23 +263,11 @@ fn calibration_writes_are_checked() {
 fn a_tier_is_one_of_the_ids_and_any_other_is_an_invalid_argument() {
     // SetModelTier is command 6.
     for id in 0..=u8::MAX {
-        let decoded = request_with_varint(6, u32::from(id));
-        match Tier::from_id(id) {
-            Some(tier) => assert_eq!(
-                decoded,
-                Ok(Request {
-                    request_id: 5,
-                    command: Command::SetModelTier { tier }
-                })
-            ),
-            None => assert_eq!(
-                decoded,
-                Err(DecodeError::InvalidRequest {
-                    request_id: 5,
-                    error: ErrorCode::InvalidArgument
-                })
-            ),
-        }
+        assert_decodes_to(
+            6,
+            u32::from(id),
+            Tier::from_id(id).map(|tier| Command::SetModelTier { tier }),
+        );
     }
 }
 

@@ -231,7 +231,7 @@ pub fn rewrite(root: &Path, run: &BenchRun) -> Result<bool> {
     if updated == source {
         return Ok(false);
     }
-    std::fs::write(&path, updated).with_context(|| format!("writing {USE_CASE_FILE}"))?;
+    crate::write_whole_file(&path, &updated)?;
     Ok(true)
 }
 

@@ -24,8 +24,15 @@ fn main() -> ExitCode {
         }
     }
     let markdown = render_markdown(&outcomes, COMMAND);
-    if let Err(error) = std::fs::write(&output, markdown) {
-        eprintln!("error: writing {output}: {error}");
+    // Through a temporary name: an interrupted run leaves the previous report, not half of one.
+    let written = taxel::output_file::OutputFile::create(std::path::Path::new(&output)).and_then(
+        |mut file| {
+            std::io::Write::write_all(&mut file, markdown.as_bytes())?;
+            file.commit()
+        },
+    );
+    if let Err(error) = written {
+        eprintln!("error: writing {output}: {error:#}");
         return ExitCode::FAILURE;
     }
     let bad: Vec<_> = outcomes
