@@ -43,6 +43,23 @@ impl Counters {
         *counter = counter.saturating_add(1);
     }
 
+    /// Both counts added, counter by counter (saturating): several pads' counters as one.
+    pub fn plus(&self, other: &Counters) -> Counters {
+        Counters {
+            converter_inits: self.converter_inits.saturating_add(other.converter_inits),
+            i2c_errors: self.i2c_errors.saturating_add(other.i2c_errors),
+            done_timeouts: self.done_timeouts.saturating_add(other.done_timeouts),
+            converter_check_failures: self
+                .converter_check_failures
+                .saturating_add(other.converter_check_failures),
+            zero_reads: self.zero_reads.saturating_add(other.zero_reads),
+            stuck_events: self.stuck_events.saturating_add(other.stuck_events),
+            temperature_errors: self
+                .temperature_errors
+                .saturating_add(other.temperature_errors),
+        }
+    }
+
     /// Converter re-initialisations after an error (initialisations after the first one).
     pub fn converter_reinits(&self) -> u32 {
         self.converter_inits.saturating_sub(1)

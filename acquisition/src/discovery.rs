@@ -8,6 +8,7 @@
 //! A pad that is not there at boot is not looked for again: plugging a pad in needs a reboot.
 //! A pad that was found and later fails keeps its slot and is flagged until it answers again.
 
+use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;
 use heapless::Vec;
 use tca9548a::{Address, Channel, ChannelMask, Tca9548a, CHANNEL_COUNT};
@@ -68,9 +69,21 @@ impl Topology {
     }
 }
 
-/// Looks for a multiplexer at `mux`, then for the pads and temperature sensors. Leaves every
-/// multiplexer channel off. Never fails: what does not answer is not there.
-pub async fn discover<BUS: I2c>(bus: &mut BUS, mux: Address) -> Topology {
+/// How long the sensors take to answer after power-on, µs: the FDC1004's power-up time
+/// ([`fdc1004::POWER_UP_DELAY_US`]), longer than the TMP117's 1.5 ms.
+pub const SENSOR_POWER_UP_US: u32 = fdc1004::POWER_UP_DELAY_US;
+
+/// Waits until sensors powered up with the MCU answer ([`SENSOR_POWER_UP_US`]), then looks for a
+/// multiplexer at `mux`, then for the pads and temperature sensors. Leaves every multiplexer
+/// channel off. Never fails: what does not answer is not there.
+pub async fn discover<BUS: I2c, D: DelayNs>(
+    bus: &mut BUS,
+    delay: &mut D,
+    mux: Address,
+) -> Topology {
+    // Probing earlier would take a TMP117 still in its power-up for an absent one, and the
+    // pads would run on the die sensor until the next reboot.
+    delay.delay_us(SENSOR_POWER_UP_US).await;
     let mux_present = Tca9548a::new(&mut *bus, mux)
         .select_mask_verified(ChannelMask::NONE)
         .await

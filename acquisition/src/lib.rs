@@ -1,11 +1,12 @@
 //! The acquisition loop, written against traits so that the firmware and the desktop simulator
-//! run the same code: every converter cycle reads the FDC1004 and a temperature source, runs
-//! model-core, stamps the result and hands it to a consumer without ever waiting for it.
+//! run the same code: every sample set reads each pad's FDC1004 in turn (the converters convert
+//! in parallel, in repeat mode) and its temperature source, runs the pad's model-core model and
+//! stamps the result for a consumer that never makes the loop wait.
 //!
-//! Recovery is part of the loop: a converter error, an all-zero read or a stuck channel flags the
-//! affected sample set, counts the event and re-initialises the converter on the next cycle; a
-//! temperature sensor that stops answering degrades to the fallback source. Nothing here ever
-//! stops the stream.
+//! Recovery is part of the loop, per pad: a converter error, an all-zero read or a stuck channel
+//! flags that pad's sample, counts the event and re-initialises its converter, backing off while
+//! it keeps failing; a temperature sensor that stops answering degrades to the fallback source.
+//! The other pads keep their rate, and nothing here ever stops the stream.
 #![no_std]
 #![deny(missing_docs)]
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
@@ -13,12 +14,14 @@
 mod counters;
 pub mod die_sensor;
 pub mod discovery;
+mod pad;
 pub mod pad_bus;
 mod stuck;
 mod temperature;
 mod timeout_i2c;
 
 pub use counters::Counters;
+pub use pad::PadAcquisition;
 pub use stuck::StuckDetector;
 pub use temperature::TemperatureSource;
 pub use timeout_i2c::{TimeoutI2c, TimeoutI2cError};
@@ -26,7 +29,11 @@ pub use timeout_i2c::{TimeoutI2c, TimeoutI2cError};
 use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;
 use fdc1004::{Fdc1004, Rate};
-use model_core::{PadModel, PadOutput, SampleInput, TaxelFlags, TaxelReading, TAXEL_COUNT};
+use heapless::Vec;
+use model_core::{PadModel, PadOutput, SampleInput};
+
+use crate::discovery::MAX_PADS;
+use crate::pad::ConverterActivity;
 
 /// A monotonic clock in microseconds.
 pub trait Clock {
@@ -46,12 +53,14 @@ pub enum TemperatureOrigin {
     None,
 }
 
-/// One converter cycle, as read and as converted.
+/// One pad's reading of one sample set, as read and as converted.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ProcessedSample {
-    /// Increments every cycle, including cycles that produced only faults; a gap at the
-    /// consumer means sets were dropped.
+    /// The pad, in the order the loop reads them (0 = the first).
+    pub pad: u8,
+    /// The sample set: increments every set, including sets that produced only faults, and is
+    /// the same for every pad of a set; a gap at the consumer means sets were dropped.
     pub sequence: u32,
     /// When the converter's results were read, µs.
     pub timestamp_us: u64,
@@ -61,7 +70,7 @@ pub struct ProcessedSample {
     pub temperature_origin: TemperatureOrigin,
     /// The model's result.
     pub output: PadOutput,
-    /// Counters as of this set.
+    /// The pad's counters as of this set.
     pub counters: Counters,
 }
 
@@ -74,8 +83,11 @@ pub struct AcquisitionConfig {
     pub stuck_after_cycles: u16,
     /// While the primary temperature sensor is failing, try it again every this many cycles.
     pub primary_temperature_retry_cycles: u16,
-    /// Wait after a failed converter initialisation before the next attempt, µs.
+    /// Wait after a failed converter initialisation before the next attempt, µs; it doubles
+    /// with every further failure of the same pad, up to `reinit_backoff_max_us`.
     pub reinit_backoff_us: u32,
+    /// Longest wait between two initialisation attempts of a failing converter, µs.
+    pub reinit_backoff_max_us: u32,
     /// Sample sets averaged by the tare taken automatically at start (0 = none).
     pub tare_sets_at_start: u16,
     /// While the primary temperature sensor works, read the fallback every this many cycles to
@@ -89,54 +101,30 @@ impl Default for AcquisitionConfig {
             stuck_after_cycles: 50,
             primary_temperature_retry_cycles: 100,
             reinit_backoff_us: 20_000,
+            reinit_backoff_max_us: 320_000,
             tare_sets_at_start: 16,
             fallback_offset_check_cycles: 100,
         }
     }
 }
 
-/// The acquisition loop's state: the converter, the temperature sources, the clock and the model.
+/// The acquisition loop's state: the pads, the fallback temperature source, the clock.
 pub struct Acquisition<I2C, D, T, F, K> {
-    converter: Fdc1004<I2C, D>,
-    primary_temperature: T,
+    pads: Vec<PadAcquisition<I2C, D, T>, MAX_PADS>,
     fallback_temperature: F,
     clock: K,
-    pad: PadModel,
     config: AcquisitionConfig,
-    counters: Counters,
-    stuck: StuckDetector,
     sequence: u32,
-    converter_ready: bool,
-    // The next initialisation applies a requested change, so it is no recovery to count.
-    reconfiguration_requested: bool,
-    primary_failing_cycles: Option<u16>,
-    fallback_offset: FallbackOffset,
-    delay_after_failure: D,
+    // Whether any converter was waited for and read in the set under way.
+    set_paced: bool,
+    delay: D,
+    rate: Rate,
 }
 
-/// What the fallback temperature sensor reads above the primary one, learned while both work.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-struct FallbackOffset {
-    offset_c: Option<f32>,
-    cycles_since_check: u16,
-}
-
-impl FallbackOffset {
-    /// Weight of a new difference in the running offset.
-    const SMOOTHING: f32 = 0.2;
-
-    fn learn(&mut self, fallback_c: f32, primary_c: f32) {
-        let difference_c = fallback_c - primary_c;
-        self.offset_c = Some(match self.offset_c {
-            Some(offset_c) => offset_c + Self::SMOOTHING * (difference_c - offset_c),
-            None => difference_c,
-        });
-    }
-
-    fn correct(&self, fallback_c: f32) -> f32 {
-        fallback_c - self.offset_c.unwrap_or(0.0)
-    }
-}
+/// The loop already reads [`MAX_PADS`] pads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TooManyPads;
 
 impl<I2C, D, T, F, K> Acquisition<I2C, D, T, F, K>
 where
@@ -146,8 +134,30 @@ where
     F: TemperatureSource,
     K: Clock,
 {
-    /// Assembles the loop. The converter is initialised on the first cycle; `backoff_delay`
-    /// waits between failed initialisations.
+    /// A loop with no pad yet (see [`Acquisition::add_pad`]); `delay` paces sample sets in
+    /// which no converter could be read. Pads are read at `rate` ([`Acquisition::set_rate`]).
+    pub fn without_pads(
+        fallback_temperature: F,
+        clock: K,
+        config: AcquisitionConfig,
+        delay: D,
+        rate: Rate,
+    ) -> Self {
+        Self {
+            pads: Vec::new(),
+            fallback_temperature,
+            clock,
+            config,
+            sequence: 0,
+            set_paced: false,
+            delay,
+            rate,
+        }
+    }
+
+    /// The single-pad loop: one converter, its temperature source, the fallback, the model.
+    /// The converter is initialised on the first cycle; `backoff_delay` paces the sets in which
+    /// it could not be read.
     pub fn new(
         converter: Fdc1004<I2C, D>,
         primary_temperature: T,
@@ -157,204 +167,152 @@ where
         config: AcquisitionConfig,
         backoff_delay: D,
     ) -> Self {
-        let mut acquisition = Self {
-            converter,
-            primary_temperature,
-            fallback_temperature,
-            clock,
-            pad,
-            config,
-            counters: Counters::default(),
-            stuck: StuckDetector::new(config.stuck_after_cycles),
-            sequence: 0,
-            converter_ready: false,
-            reconfiguration_requested: false,
-            primary_failing_cycles: None,
-            fallback_offset: FallbackOffset {
-                offset_c: None,
-                cycles_since_check: config.fallback_offset_check_cycles,
-            },
-            delay_after_failure: backoff_delay,
-        };
-        if config.tare_sets_at_start > 0 {
-            acquisition.pad.start_tare(config.tare_sets_at_start);
-        }
+        let rate = converter.config().rate;
+        let mut acquisition =
+            Self::without_pads(fallback_temperature, clock, config, backoff_delay, rate);
+        // Cannot fail: the loop has no pad yet.
+        let _ = acquisition.add_pad(converter, Some(primary_temperature), pad);
         acquisition
     }
 
-    /// The model (tier, calibration, tare) for commands between cycles.
-    pub fn pad_mut(&mut self) -> &mut PadModel {
-        &mut self.pad
+    /// Adds a pad, read after the ones added before it; its converter is set to the loop's
+    /// rate and initialised on its first read.
+    pub fn add_pad(
+        &mut self,
+        mut converter: Fdc1004<I2C, D>,
+        primary_temperature: Option<T>,
+        model: PadModel,
+    ) -> Result<(), TooManyPads> {
+        let config = converter.config().with_rate(self.rate);
+        converter.set_config(config);
+        self.pads
+            .push(PadAcquisition::new(
+                converter,
+                primary_temperature,
+                model,
+                &self.config,
+            ))
+            .map_err(|_| TooManyPads)
     }
 
-    /// The model.
-    pub fn pad(&self) -> &PadModel {
-        &self.pad
+    /// How many pads the loop reads.
+    pub fn pad_count(&self) -> usize {
+        self.pads.len()
     }
 
-    /// The counters so far.
+    /// A pad's model.
+    pub fn pad(&self, pad: usize) -> Option<&PadModel> {
+        self.pads.get(pad).map(PadAcquisition::model)
+    }
+
+    /// A pad's model, for commands between sets (tier, calibration, tare).
+    pub fn pad_mut(&mut self, pad: usize) -> Option<&mut PadModel> {
+        self.pads.get_mut(pad).map(PadAcquisition::model_mut)
+    }
+
+    /// Every pad's model, in order.
+    pub fn pads_mut(&mut self) -> impl Iterator<Item = &mut PadModel> {
+        self.pads.iter_mut().map(PadAcquisition::model_mut)
+    }
+
+    /// Whether a pad has a primary temperature sensor (its own or a shared TMP117).
+    pub fn pad_has_primary_temperature(&self, pad: usize) -> bool {
+        self.pads
+            .get(pad)
+            .is_some_and(PadAcquisition::has_primary_temperature)
+    }
+
+    /// A pad's counters so far.
+    pub fn pad_counters(&self, pad: usize) -> Option<Counters> {
+        self.pads.get(pad).map(PadAcquisition::counters)
+    }
+
+    /// Every pad's counters added up (each saturating).
     pub fn counters(&self) -> Counters {
-        self.counters
+        self.pads.iter().fold(Counters::default(), |total, pad| {
+            total.plus(&pad.counters())
+        })
     }
 
-    /// The converter's sample rate.
+    /// Converter re-initialisations after errors, summed over pads (each pad's first
+    /// initialisation is no re-initialisation).
+    pub fn converter_reinits(&self) -> u32 {
+        self.pads.iter().fold(0u32, |total, pad| {
+            total.saturating_add(pad.counters().converter_reinits())
+        })
+    }
+
+    /// The converters' sample rate.
     pub fn rate(&self) -> Rate {
-        self.converter.config().rate
+        self.rate
     }
 
-    /// Changes the converter's rate, its DONE timeout following it
-    /// ([`fdc1004::Config::with_rate`]). Takes effect through an initialisation on the next
-    /// cycle; that one is a requested reconfiguration, not a recovery, so it is not counted in
-    /// [`Counters::converter_inits`] (unless the converter was waiting for a recovery anyway).
+    /// Changes every converter's rate, its DONE timeout following it
+    /// ([`fdc1004::Config::with_rate`]). Takes effect through an initialisation on the pad's
+    /// next read; that one is a requested reconfiguration, not a recovery, so it is not counted
+    /// in [`Counters::converter_inits`] (unless the converter was waiting for a recovery anyway).
     pub fn set_rate(&mut self, rate: Rate) {
-        if self.rate() == rate {
-            // Nothing to apply: the converter keeps running as it is.
-            return;
-        }
-        let config = self.converter.config().with_rate(rate);
-        self.converter.set_config(config);
-        if self.converter_ready {
-            self.reconfiguration_requested = true;
-            self.converter_ready = false;
+        self.rate = rate;
+        for pad in self.pads.iter_mut() {
+            pad.set_rate(rate);
         }
     }
 
-    /// One converter cycle: (re-)initialise if needed, read, check, convert.
-    pub async fn cycle(&mut self) -> ProcessedSample {
-        let mut reading_flags = [TaxelFlags::empty(); TAXEL_COUNT];
-        let readings = match self.read_converter().await {
-            Some(codes) => {
-                let capdac = self.converter.config().capdac;
-                let stuck = self.stuck.update(&codes);
-                for (flags, is_stuck) in reading_flags.iter_mut().zip(stuck) {
-                    if is_stuck {
-                        *flags |= TaxelFlags::STUCK;
-                    }
-                }
-                if stuck.iter().any(|is_stuck| *is_stuck) {
-                    Counters::bump(&mut self.counters.stuck_events);
-                    self.converter_ready = false;
-                }
-                let mut readings = [TaxelReading::Unavailable; TAXEL_COUNT];
-                for ((reading, code), capdac) in readings.iter_mut().zip(codes).zip(capdac) {
-                    *reading = TaxelReading::Raw { code, capdac };
-                }
-                readings
-            }
-            None => {
-                reading_flags = [TaxelFlags::CONVERTER_ERROR; TAXEL_COUNT];
-                [TaxelReading::Unavailable; TAXEL_COUNT]
-            }
-        };
-        let (temperature_c, temperature_origin) = self.read_temperature().await;
-        if temperature_origin == TemperatureOrigin::Fallback {
-            for flags in reading_flags.iter_mut() {
-                *flags |= TaxelFlags::TEMPERATURE_FALLBACK;
-            }
+    /// The sample set being read (the sequence number its samples carry).
+    pub fn sequence(&self) -> u32 {
+        self.sequence
+    }
+
+    /// Reads one pad for the set under way; `None` if there is no such pad.
+    pub async fn read_pad(&mut self, pad: usize) -> Option<ProcessedSample> {
+        let pad_index = u8::try_from(pad).ok()?;
+        let reader = self.pads.get_mut(pad)?;
+        let (sample, activity) = reader
+            .read(
+                pad_index,
+                self.sequence,
+                &mut self.fallback_temperature,
+                &self.clock,
+                &self.config,
+            )
+            .await;
+        if activity == ConverterActivity::Read {
+            self.set_paced = true;
         }
-        let timestamp_us = self.clock.now_us();
-        let input = SampleInput {
-            readings,
-            reading_flags,
-            temperature_c,
-            time_us: Some(timestamp_us),
-        };
-        let output = self.pad.process(&input);
-        let sample = ProcessedSample {
-            sequence: self.sequence,
-            timestamp_us,
-            input,
-            temperature_origin,
-            output,
-            counters: self.counters,
-        };
+        Some(sample)
+    }
+
+    /// Ends the set under way: the next reads belong to the next set. When no converter was
+    /// waited for in this set (every pad failing or backing off, or no pad), waits the first
+    /// back-off interval, so a board with no working pad does not spin.
+    pub async fn finish_set(&mut self) {
+        if !core::mem::take(&mut self.set_paced) {
+            self.delay.delay_us(self.config.reinit_backoff_us).await;
+        }
         self.sequence = self.sequence.wrapping_add(1);
-        sample
     }
 
-    async fn read_converter(&mut self) -> Option<[i32; TAXEL_COUNT]> {
-        if !self.converter_ready {
-            if !core::mem::take(&mut self.reconfiguration_requested) {
-                Counters::bump(&mut self.counters.converter_inits);
-            }
-            if let Err(error) = self.converter.init().await {
-                self.counters.count_converter_error(&error);
-                self.delay_after_failure
-                    .delay_us(self.config.reinit_backoff_us)
-                    .await;
-                return None;
-            }
-            self.stuck.reset();
-            self.converter_ready = true;
-        }
-        match self.converter.read_measurements().await {
-            Ok(measurements) if measurements.all_zero() => {
-                Counters::bump(&mut self.counters.zero_reads);
-                self.converter_ready = false;
-                None
-            }
-            Ok(measurements) => Some(measurements.codes.map(|code| code.0)),
-            Err(error) => {
-                self.counters.count_converter_error(&error);
-                self.converter_ready = false;
-                None
+    /// One sample set of a single-pad loop: reads every pad in turn, ends the set and returns
+    /// the first pad's sample (`None` without pads). A multi-pad consumer calls
+    /// [`Acquisition::read_pad`] per pad and [`Acquisition::finish_set`] instead, to handle each
+    /// pad's sample as soon as it is read.
+    pub async fn cycle(&mut self) -> Option<ProcessedSample> {
+        let mut first = None;
+        for pad in 0..self.pads.len() {
+            let sample = self.read_pad(pad).await;
+            if first.is_none() {
+                first = sample;
             }
         }
+        self.finish_set().await;
+        first
     }
 
-    /// Reads the fallback sensor now and then while the primary works, to learn its offset.
-    async fn check_fallback_offset(&mut self, primary_c: f32) {
-        let interval = self.config.fallback_offset_check_cycles;
-        if interval == 0 {
-            return;
-        }
-        self.fallback_offset.cycles_since_check =
-            self.fallback_offset.cycles_since_check.saturating_add(1);
-        if self.fallback_offset.cycles_since_check < interval {
-            return;
-        }
-        self.fallback_offset.cycles_since_check = 0;
-        if let Ok(fallback_c) = self.fallback_temperature.read_temperature_c().await {
-            if fallback_c.is_finite() {
-                self.fallback_offset.learn(fallback_c, primary_c);
-            }
-        }
-    }
-
-    /// The fallback sensor's learned offset above the primary, °C (None until learned).
-    pub fn fallback_offset_c(&self) -> Option<f32> {
-        self.fallback_offset.offset_c
-    }
-
-    async fn read_temperature(&mut self) -> (Option<f32>, TemperatureOrigin) {
-        let try_primary = match self.primary_failing_cycles {
-            None => true,
-            Some(cycles) => cycles >= self.config.primary_temperature_retry_cycles,
-        };
-        if try_primary {
-            match self.primary_temperature.read_temperature_c().await {
-                Ok(temperature_c) if temperature_c.is_finite() => {
-                    self.primary_failing_cycles = None;
-                    self.check_fallback_offset(temperature_c).await;
-                    return (Some(temperature_c), TemperatureOrigin::Primary);
-                }
-                _ => {
-                    Counters::bump(&mut self.counters.temperature_errors);
-                    self.primary_failing_cycles = Some(0);
-                }
-            }
-        } else if let Some(cycles) = self.primary_failing_cycles.as_mut() {
-            *cycles = cycles.saturating_add(1);
-        }
-        match self.fallback_temperature.read_temperature_c().await {
-            Ok(temperature_c) if temperature_c.is_finite() => (
-                Some(self.fallback_offset.correct(temperature_c)),
-                TemperatureOrigin::Fallback,
-            ),
-            _ => {
-                Counters::bump(&mut self.counters.temperature_errors);
-                (None, TemperatureOrigin::None)
-            }
-        }
+    /// A pad's learned offset of the fallback sensor above its primary, °C (None until
+    /// learned).
+    pub fn fallback_offset_c(&self, pad: usize) -> Option<f32> {
+        self.pads
+            .get(pad)
+            .and_then(PadAcquisition::fallback_offset_c)
     }
 }

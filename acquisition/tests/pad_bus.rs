@@ -12,6 +12,7 @@ use embassy_futures::block_on;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use embassy_sync::mutex::Mutex;
 use embedded_hal_async::i2c::{ErrorKind, I2c, NoAcknowledgeSource};
+use embedded_hal_mock::eh1::delay::NoopDelay;
 use embedded_hal_mock::eh1::i2c::{Mock, Transaction};
 use tca9548a::{Address, Channel};
 
@@ -99,7 +100,7 @@ fn no_multiplexer_means_one_pad_on_the_bus_even_if_its_converter_is_silent() {
     let mut expectations = vec![Transaction::write(MUX, vec![0]).with_error(NACK)];
     expectations.extend(tmp117_probe(Some(0x48), None));
     let mut mock = Mock::new(&expectations);
-    let topology = block_on(discover(&mut mock, Address::default()));
+    let topology = block_on(discover(&mut mock, &mut NoopDelay, Address::default()));
     assert_eq!(topology.mux, None);
     assert_eq!(
         topology.pads.as_slice(),
@@ -148,7 +149,7 @@ fn pads_are_the_channels_whose_converter_identifies_itself() {
     }
     expectations.push(select(0));
     let mut mock = Mock::new(&expectations);
-    let topology = block_on(discover(&mut mock, Address::default()));
+    let topology = block_on(discover(&mut mock, &mut NoopDelay, Address::default()));
     assert_eq!(topology.mux, Some(Address::default()));
     assert_eq!(
         topology.pads.as_slice(),
@@ -174,7 +175,7 @@ fn a_converter_upstream_of_the_multiplexer_is_the_only_pad() {
     expectations.push(read_register(FDC1004, 0xFE, 0x5449));
     expectations.push(read_register(FDC1004, 0xFF, 0x1004));
     let mut mock = Mock::new(&expectations);
-    let topology = block_on(discover(&mut mock, Address::default()));
+    let topology = block_on(discover(&mut mock, &mut NoopDelay, Address::default()));
     assert_eq!(
         topology.pads.as_slice(),
         [PadSlot {

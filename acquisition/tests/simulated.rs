@@ -92,7 +92,7 @@ fn run_until(
 ) -> Vec<ProcessedSample> {
     let mut samples = Vec::new();
     while simulation.now_us() < end_us {
-        samples.push(block_on(acquisition.cycle()));
+        samples.push(block_on(acquisition.cycle()).unwrap());
     }
     samples
 }
@@ -399,7 +399,7 @@ fn a_missing_temperature_sensor_degrades_to_the_fallback_and_comes_back() {
     assert_eq!(acquisition.counters().i2c_errors, 0);
     // The die reads 2 °C warm; the offset learned while the TMP117 worked corrects it, and every
     // set on the fallback says so.
-    let offset_c = acquisition.fallback_offset_c().unwrap();
+    let offset_c = acquisition.fallback_offset_c(0).unwrap();
     assert!((offset_c - 2.0).abs() < 0.05, "{offset_c}");
     let on_fallback = samples.iter().filter(|s| {
         s.temperature_origin == TemperatureOrigin::Fallback && s.timestamp_us > 2_000_000

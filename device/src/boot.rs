@@ -1,14 +1,22 @@
 //! The device's boot, written once for the firmware and the simulated device: the board's
 //! configuration, the calibration to start with from what flash holds, and the assembly of the
-//! model, the acquisition loop and the device application around the board's parts. The board
-//! and the simulator differ only in the parts they pass in (real or simulated I2C, clock, flash).
+//! models, the acquisition loop and the device application around the board's parts and the
+//! pads discovery found. The board and the simulator differ only in the parts they pass in (real
+//! or simulated I2C, clock, flash).
 
+use core::ops::Deref;
+
+use acquisition::discovery::{PadTemperature, Topology};
+use acquisition::pad_bus::{MuxedBus, PadBus};
 use acquisition::{Acquisition, AcquisitionConfig, Clock, TemperatureSource};
 use calibration_store::LoadOutcome;
+use embassy_sync::blocking_mutex::raw::RawMutex;
+use embassy_sync::mutex::Mutex;
 use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;
 use fdc1004::{Fdc1004, Rate};
 use model_core::{Calibration, PadModel};
+use tmp117::Tmp117;
 use wire::CalibrationSource;
 
 use crate::retained::{boot_plan, ResetKind, RetainedState};
@@ -31,10 +39,14 @@ pub struct BoardConfig {
     pub tare_sets_at_power_on: u16,
     /// The device application's settings.
     pub device: DeviceConfig,
+    /// Where discovery looks for a TCA9548A multiplexer (A2..A0 to ground: 0x70); without one
+    /// the bus carries a single pad.
+    pub multiplexer: tca9548a::Address,
 }
 
 /// The board's configuration.
 pub const BOARD: BoardConfig = BoardConfig {
+    multiplexer: tca9548a::Address::from_pins(false, false, false),
     capdac: [0; 4],
     converter_rate: Rate::Hz400,
     tare_sets_at_power_on: 16,
@@ -69,13 +81,14 @@ pub fn boot_calibration<E>(stored: Option<LoadOutcome<E>>) -> (Calibration, Cali
 }
 
 /// The board's parts the device runs on.
-pub struct BoardParts<I2C, D, T, F, K, P> {
-    /// The converter's I2C device.
-    pub converter_i2c: I2C,
-    /// A delay (the converter's waits and the loop's back-off).
+pub struct BoardParts<S, D, F, K, P> {
+    /// The sensor bus with its multiplexer, shared by every pad's handle (a `&'static` on the
+    /// MCU, a reference-counted pointer on the host).
+    pub bus: S,
+    /// The pads on it, as discovery found them ([`acquisition::discovery::discover`]).
+    pub topology: Topology,
+    /// A delay (the converters' waits and the loop's pacing).
     pub delay: D,
-    /// The primary temperature source (the TMP117).
-    pub temperature: T,
     /// The fallback temperature source (the MCU's die sensor).
     pub fallback_temperature: F,
     /// The clock of the sample timestamps.
@@ -90,60 +103,90 @@ pub struct BoardParts<I2C, D, T, F, K, P> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BootReport {
+    /// Pads found.
+    pub pad_count: u8,
     /// Where the calibration came from.
     pub calibration_source: CalibrationSource,
     /// Sample sets of the tare taken at start (0: none).
     pub tare_sets_at_start: u16,
-    /// Taxels whose baseline was restored from the retained record (bit n = taxel n).
+    /// Taxels of the first pad whose baseline was restored from the retained record (bit n =
+    /// taxel n).
     pub restored_mask: u8,
     /// Whether an MCU-only reset found an intact retained record.
     pub restored: bool,
 }
 
-/// The device application the firmware and the simulated device run.
-pub type BootedDevice<I2C, D, T, F, K, P> = Device<Acquisition<I2C, D, T, F, K>, P>;
+/// One pad's I2C handle on the shared bus.
+pub type PadI2c<S> = PadBus<S>;
 
-/// Boots: the calibration from what flash returned, the model with the retained baselines and
-/// tier restored after an MCU-only reset (a tare at start after a power-on), the acquisition
-/// loop and the device application.
-// Not inlined into the caller's async body, so that the model exists once in the task's state,
+/// The acquisition loop the device runs: every pad's converter and TMP117 on a handle of the
+/// shared bus.
+pub type BoardAcquisition<S, D, F, K> = Acquisition<PadI2c<S>, D, Tmp117<PadI2c<S>>, F, K>;
+
+/// The device application the firmware and the simulated device run.
+pub type BootedDevice<S, D, F, K, P> = Device<BoardAcquisition<S, D, F, K>, P>;
+
+/// Boots: the calibration from what flash returned, one model per pad found (every pad starts
+/// on that calibration; the first pad gets the baselines and tier retained over an MCU-only
+/// reset, every pad a tare at start after a power-on), the acquisition loop reading the pads in
+/// discovery order, and the device application.
+// Not inlined into the caller's async body, so that the models exist once in the task's state,
 // not twice.
 #[inline(never)]
-pub fn boot<I2C, D, T, F, K, P, E>(
-    parts: BoardParts<I2C, D, T, F, K, P>,
+pub fn boot<S, M, BUS, D, F, K, P, E>(
+    parts: BoardParts<S, D, F, K, P>,
     config: &BoardConfig,
     stored: Option<LoadOutcome<E>>,
     reset: ResetKind,
     retained: Option<RetainedState>,
-) -> (BootedDevice<I2C, D, T, F, K, P>, BootReport)
+) -> (BootedDevice<S, D, F, K, P>, BootReport)
 where
-    I2C: I2c,
+    S: Deref<Target = Mutex<M, MuxedBus<BUS>>> + Clone,
+    M: RawMutex,
+    BUS: I2c,
     D: DelayNs + Clone,
-    T: TemperatureSource,
     F: TemperatureSource,
     K: Clock,
     P: CalibrationPersistence,
 {
     let (calibration, calibration_source) = boot_calibration(stored);
     let plan = boot_plan(reset, retained, config.tare_sets_at_power_on);
-    let mut pad = PadModel::new(calibration);
-    let restored_mask = plan.apply_to(&mut pad);
-    let acquisition = Acquisition::new(
-        Fdc1004::new(
-            parts.converter_i2c,
-            parts.delay.clone(),
-            config.converter_config(),
-        ),
-        parts.temperature,
+    let mut acquisition = Acquisition::without_pads(
         parts.fallback_temperature,
         parts.clock,
-        pad,
         AcquisitionConfig {
             tare_sets_at_start: plan.tare_sets_at_start,
             ..AcquisitionConfig::default()
         },
-        parts.delay,
+        parts.delay.clone(),
+        config.converter_rate,
     );
+    let mut restored_mask = 0;
+    for (index, slot) in parts.topology.pads.iter().enumerate() {
+        let mut model = PadModel::new(calibration.clone());
+        if index == 0 {
+            restored_mask = plan.apply_to(&mut model);
+        }
+        let converter = Fdc1004::new(
+            PadBus::new(parts.bus.clone(), slot.channel),
+            parts.delay.clone(),
+            config.converter_config(),
+        );
+        let temperature = match slot.temperature {
+            PadTemperature::Own(address) => Some(Tmp117::new(
+                PadBus::new(parts.bus.clone(), slot.channel),
+                address,
+            )),
+            // Upstream of the multiplexer: it answers whichever channel is selected.
+            PadTemperature::Shared(address) => {
+                Some(Tmp117::new(PadBus::new(parts.bus.clone(), None), address))
+            }
+            PadTemperature::DieOnly => None,
+        };
+        // Cannot fail: discovery finds at most as many pads as the loop holds.
+        let _ = acquisition.add_pad(converter, temperature, model);
+    }
+    let pad_count = u8::try_from(acquisition.pad_count()).unwrap_or(u8::MAX);
     let device = Device::new(
         acquisition,
         parts.persistence,
@@ -152,6 +195,7 @@ where
         config.device,
     );
     let report = BootReport {
+        pad_count,
         calibration_source,
         tare_sets_at_start: plan.tare_sets_at_start,
         restored_mask,

@@ -10,21 +10,28 @@ use wire::SampleRate;
 
 use crate::convert::{converter_rate, wire_sample_rate};
 
-/// The acquisition loop as the device application sees it.
+/// The acquisition loop as the device application sees it: pads read one by one within a
+/// sample set.
 #[allow(async_fn_in_trait)]
 pub trait DeviceControl {
-    /// Runs one converter cycle.
-    async fn cycle(&mut self) -> ProcessedSample;
-    /// The model.
-    fn pad(&self) -> &PadModel;
-    /// The model, to change tier, calibration or tare.
-    fn pad_mut(&mut self) -> &mut PadModel;
+    /// How many pads are read.
+    fn pad_count(&self) -> usize;
+    /// Reads one pad for the set under way (`None`: no such pad).
+    async fn read_pad(&mut self, pad: usize) -> Option<ProcessedSample>;
+    /// Ends the set under way.
+    async fn finish_set(&mut self);
+    /// A pad's model.
+    fn pad(&self, pad: usize) -> Option<&PadModel>;
+    /// A pad's model, to change tier, calibration or tare.
+    fn pad_mut(&mut self, pad: usize) -> Option<&mut PadModel>;
     /// The converter rate.
     fn sample_rate(&self) -> SampleRate;
     /// Sets the converter rate (its DONE timeout follows it); takes effect on the next cycle.
     fn set_sample_rate(&mut self, rate: SampleRate);
-    /// The loop's counters.
+    /// Every pad's counters added up.
     fn counters(&self) -> Counters;
+    /// Converter re-initialisations after errors, summed over pads.
+    fn converter_reinits(&self) -> u32;
 }
 
 impl<I2C, D, T, F, K> DeviceControl for Acquisition<I2C, D, T, F, K>
@@ -35,16 +42,24 @@ where
     F: TemperatureSource,
     K: Clock,
 {
-    async fn cycle(&mut self) -> ProcessedSample {
-        Acquisition::cycle(self).await
+    fn pad_count(&self) -> usize {
+        Acquisition::pad_count(self)
     }
 
-    fn pad(&self) -> &PadModel {
-        Acquisition::pad(self)
+    async fn read_pad(&mut self, pad: usize) -> Option<ProcessedSample> {
+        Acquisition::read_pad(self, pad).await
     }
 
-    fn pad_mut(&mut self) -> &mut PadModel {
-        Acquisition::pad_mut(self)
+    async fn finish_set(&mut self) {
+        Acquisition::finish_set(self).await
+    }
+
+    fn pad(&self, pad: usize) -> Option<&PadModel> {
+        Acquisition::pad(self, pad)
+    }
+
+    fn pad_mut(&mut self, pad: usize) -> Option<&mut PadModel> {
+        Acquisition::pad_mut(self, pad)
     }
 
     fn sample_rate(&self) -> SampleRate {
@@ -57,5 +72,9 @@ where
 
     fn counters(&self) -> Counters {
         Acquisition::counters(self)
+    }
+
+    fn converter_reinits(&self) -> u32 {
+        Acquisition::converter_reinits(self)
     }
 }

@@ -19,7 +19,10 @@ mod persistence;
 mod retained;
 mod supervisor;
 
-pub use boot::{boot, boot_calibration, BoardConfig, BoardParts, BootReport, BootedDevice, BOARD};
+pub use boot::{
+    boot, boot_calibration, BoardAcquisition, BoardConfig, BoardParts, BootReport, BootedDevice,
+    PadI2c, BOARD,
+};
 pub use control::DeviceControl;
 pub use convert::{
     baseline_record, baseline_wire, calibration_record, converter_rate, counters_frame,
@@ -31,10 +34,11 @@ pub use persistence::{CalibrationPersistence, PersistenceFailed};
 pub use retained::{boot_plan, BootPlan, ResetKind, RetainedState, RETAINED_LEN};
 pub use supervisor::{Supervisor, SupervisorAction};
 
+use acquisition::discovery::MAX_PADS;
 use acquisition::{ProcessedSample, TemperatureOrigin};
 use model_core::{
     pad_force, BaselineError, BaselineRecord, Calibration, ContactConfig, ContactDetector,
-    ContactEvent, PadGeometry, TareStatus, TAXEL_COUNT,
+    ContactEvent, PadGeometry, PadModel, TareStatus, Tier, TAXEL_COUNT,
 };
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
@@ -154,6 +158,27 @@ impl Default for DeviceConfig {
     }
 }
 
+/// What the application remembers about one pad between sample sets.
+struct PadReporting {
+    contact: ContactDetector,
+    last_converter_reinits: u32,
+    last_temperature_origin: Option<TemperatureOrigin>,
+    announced_baselines: [Option<BaselineRecord>; TAXEL_COUNT],
+    announced_generation: Option<u32>,
+}
+
+impl PadReporting {
+    fn new(contact: ContactConfig) -> Self {
+        Self {
+            contact: ContactDetector::new(contact),
+            last_converter_reinits: 0,
+            last_temperature_origin: None,
+            announced_baselines: [None; TAXEL_COUNT],
+            announced_generation: None,
+        }
+    }
+}
+
 /// The device application: the acquisition loop plus the protocol.
 pub struct Device<A, P> {
     control: A,
@@ -167,17 +192,17 @@ pub struct Device<A, P> {
     pending_tare: Option<u16>,
     host_counters: HostCounters,
     sets_since_counters: u32,
-    last_converter_reinits: u32,
-    last_temperature_origin: Option<TemperatureOrigin>,
     announce_flash_corrupt: bool,
     retained_written: Option<RetainedState>,
-    announced_baselines: [Option<BaselineRecord>; TAXEL_COUNT],
-    announced_generation: Option<u32>,
-    contact: ContactDetector,
+    pads: heapless::Vec<PadReporting, MAX_PADS>,
 }
 
+/// The pad that the calibration commands, the Info frame's calibration and the retained record
+/// are about (the wire's calibration commands carry no pad index yet).
+const FIRST_PAD: usize = 0;
+
 impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
-    /// The application around an acquisition loop whose model already holds the calibration
+    /// The application around an acquisition loop whose models already hold the calibration
     /// that `calibration_source` describes.
     pub fn new(
         control: A,
@@ -186,6 +211,11 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         calibration_source: CalibrationSource,
         config: DeviceConfig,
     ) -> Self {
+        let mut pads = heapless::Vec::new();
+        for _ in 0..control.pad_count() {
+            // Cannot fail past MAX_PADS, which the loop never exceeds.
+            let _ = pads.push(PadReporting::new(config.contact));
+        }
         Self {
             control,
             persistence,
@@ -198,18 +228,14 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             pending_tare: None,
             host_counters: HostCounters::default(),
             sets_since_counters: 0,
-            last_converter_reinits: 0,
-            last_temperature_origin: None,
             announce_flash_corrupt: calibration_source
                 == CalibrationSource::DefaultsAfterCorruptFlash,
             retained_written: None,
-            announced_baselines: [None; TAXEL_COUNT],
-            announced_generation: None,
-            contact: ContactDetector::new(config.contact),
+            pads,
         }
     }
 
-    /// The acquisition loop (and model) under control.
+    /// The acquisition loop (and models) under control.
     pub fn control(&self) -> &A {
         &self.control
     }
@@ -234,11 +260,17 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         self.streaming
     }
 
-    /// What must survive an MCU-only reset.
+    /// What must survive an MCU-only reset: the first pad's baselines and the tier.
     pub fn retained_state(&self) -> RetainedState {
-        RetainedState {
-            baselines: self.control.pad().baseline_records(),
-            tier: self.control.pad().tier(),
+        match self.control.pad(FIRST_PAD) {
+            Some(pad) => RetainedState {
+                baselines: pad.baseline_records(),
+                tier: pad.tier(),
+            },
+            None => RetainedState {
+                baselines: [None; TAXEL_COUNT],
+                tier: Tier::default(),
+            },
         }
     }
 
@@ -253,25 +285,27 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         Some(state)
     }
 
-    /// The info frame as of now.
+    /// The info frame as of now (calibration and tier: the first pad's).
     pub fn info(&self) -> InfoFrame {
+        let first = self.control.pad(FIRST_PAD);
         InfoFrame {
             protocol_version: PROTOCOL_VERSION,
             firmware_version: self.identity.firmware_version,
             board_serial: self.identity.board_serial,
-            calibration_id: self.control.pad().calibration().id(),
+            calibration_id: first.map_or(0, |pad| pad.calibration().id()),
             calibration_source: self.calibration_source,
             rate: self.control.sample_rate(),
-            model_tier: self.control.pad().tier(),
+            model_tier: first.map_or(Tier::default(), PadModel::tier),
             streaming: self.streaming,
             text_mode: self.text_mode,
-            pad_count: 1,
+            pad_count: u8::try_from(self.control.pad_count()).unwrap_or(u8::MAX),
         }
     }
 
-    /// One converter cycle with everything around it: requests received since the last step
-    /// are applied first, then the cycle runs and its frames are queued.
-    pub async fn step<H: HostPort>(&mut self, host: &mut H) -> ProcessedSample {
+    /// One sample set with everything around it: requests received since the last step are
+    /// applied first, then every pad is read in turn and its frames are queued as soon as it is
+    /// read. Returns the first pad's sample (`None` on a board with no pad).
+    pub async fn step<H: HostPort>(&mut self, host: &mut H) -> Option<ProcessedSample> {
         // Read once per step: asking the port again for every frame costs a system call on
         // the desktop's pseudo-terminal and tells nothing new within one cycle.
         let connected = host.host_connected();
@@ -310,61 +344,79 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 HostInputEvent::LeaveTextMode => self.text_mode = false,
             }
         }
-        let sample = self.control.cycle().await;
-        self.after_cycle(host, &sample);
-        sample
+        let mut first = None;
+        for pad in 0..self.control.pad_count() {
+            if let Some(sample) = self.control.read_pad(pad).await {
+                self.after_pad(host, &sample);
+                first = first.or(Some(sample));
+            }
+        }
+        let timestamp_us = first.map_or(0, |sample| sample.timestamp_us);
+        self.control.finish_set().await;
+        self.after_set(host, timestamp_us);
+        first
     }
 
-    fn after_cycle<H: HostPort>(&mut self, host: &mut H, sample: &ProcessedSample) {
+    /// Events, the sample frame and contact of one pad's sample.
+    fn after_pad<H: HostPort>(&mut self, host: &mut H, sample: &ProcessedSample) {
+        let index = usize::from(sample.pad);
+        let (Some(wire_pad), Some(model)) = (PadIndex::new(sample.pad), self.control.pad(index))
+        else {
+            return;
+        };
+        let Some(reporting) = self.pads.get_mut(index) else {
+            return;
+        };
+        let mut events: heapless::Vec<DeviceEvent, 3> = heapless::Vec::new();
         let reinits = sample.counters.converter_reinits();
-        if reinits != self.last_converter_reinits {
-            self.last_converter_reinits = reinits;
-            self.send_event(
-                host,
-                sample.timestamp_us,
-                DeviceEvent::ConverterReinitialised {
-                    reinit_count: reinits,
-                },
-            );
+        if reinits != reporting.last_converter_reinits {
+            reporting.last_converter_reinits = reinits;
+            let _ = events.push(DeviceEvent::ConverterReinitialised {
+                pad: wire_pad,
+                reinit_count: reinits,
+            });
         }
-        if self.last_temperature_origin != Some(sample.temperature_origin) {
-            if self.last_temperature_origin.is_some() {
-                let source = wire_temperature_source(sample, self.control.pad());
-                self.send_event(
-                    host,
-                    sample.timestamp_us,
-                    DeviceEvent::TemperatureSourceChanged { source },
-                );
+        if reporting.last_temperature_origin != Some(sample.temperature_origin) {
+            if reporting.last_temperature_origin.is_some() {
+                let _ = events.push(DeviceEvent::TemperatureSourceChanged {
+                    pad: wire_pad,
+                    source: wire_temperature_source(sample, model),
+                });
             }
-            self.last_temperature_origin = Some(sample.temperature_origin);
-        }
-        if let (Some(request_id), TareStatus::Finished { tared_mask }) =
-            (self.pending_tare, self.control.pad().tare_status())
-        {
-            self.pending_tare = None;
-            let not_still = self
-                .control
-                .pad()
-                .last_tare_errors()
-                .iter()
-                .any(|error| matches!(error, Some(BaselineError::NotStill { .. })));
-            let result = if tared_mask == 0b1111 {
-                Ok(ReplyPayload::Ack)
-            } else if not_still {
-                Err(ErrorCode::TareNotStill)
-            } else {
-                Err(ErrorCode::TareFailed)
-            };
-            self.send(
-                host,
-                Outgoing::Frame(DeviceFrame::Reply(ReplyFrame { request_id, result })),
-            );
+            reporting.last_temperature_origin = Some(sample.temperature_origin);
         }
         let force = pad_force(&sample.output.taxels, &self.config.geometry);
-        let contact_event = self.contact.update(&force, sample.timestamp_us);
-        if self.streaming {
-            let summary = pad_summary(&force, self.contact.in_contact());
-            let frame = sample_frame(sample, self.control.pad(), PadIndex::default(), summary);
+        let contact_event = reporting.contact.update(&force, sample.timestamp_us);
+        let frame = self.streaming.then(|| {
+            let summary = pad_summary(&force, reporting.contact.in_contact());
+            sample_frame(sample, model, wire_pad, summary)
+        });
+        // Only a tare, a restore or a new calibration changes the generation, so the records
+        // are built and compared only then, not every cycle.
+        let generation = model.baseline_generation();
+        let mut tare_finished = None;
+        if reporting.announced_generation != Some(generation) {
+            reporting.announced_generation = Some(generation);
+            let baselines = model.baseline_records();
+            if baselines != reporting.announced_baselines {
+                // Whatever changed them (a tare at boot or on command, a restore after a
+                // reset), a recording host learns it after this pad's sample (computed
+                // before the change) and before the first sample computed with them.
+                reporting.announced_baselines = baselines;
+                let tared_mask = (0u8..)
+                    .zip(&baselines)
+                    .filter(|(_, baseline)| baseline.is_some())
+                    .fold(0u8, |mask, (taxel, _)| mask | (1 << taxel));
+                tare_finished = Some(DeviceEvent::TareFinished {
+                    pad: wire_pad,
+                    tared_mask,
+                });
+            }
+        }
+        for event in events {
+            self.send_event(host, sample.timestamp_us, event);
+        }
+        if let Some(frame) = frame {
             let outgoing = if self.text_mode {
                 Outgoing::CsvLine(frame)
             } else {
@@ -377,40 +429,28 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         }
         if let Some(event) = contact_event {
             let (timestamp_us, event) = match event {
-                ContactEvent::Started { timestamp_us } => (
-                    timestamp_us,
-                    DeviceEvent::ContactStarted {
-                        pad: PadIndex::default(),
-                    },
-                ),
-                ContactEvent::Ended { timestamp_us } => (
-                    timestamp_us,
-                    DeviceEvent::ContactEnded {
-                        pad: PadIndex::default(),
-                    },
-                ),
+                ContactEvent::Started { timestamp_us } => {
+                    (timestamp_us, DeviceEvent::ContactStarted { pad: wire_pad })
+                }
+                ContactEvent::Ended { timestamp_us } => {
+                    (timestamp_us, DeviceEvent::ContactEnded { pad: wire_pad })
+                }
             };
             self.send_event(host, timestamp_us, event);
         }
-        // Only a tare, a restore or a new calibration changes the generation, so the records
-        // are built and compared only then, not every cycle.
-        let generation = self.control.pad().baseline_generation();
-        if self.announced_generation != Some(generation) {
-            self.announced_generation = Some(generation);
-            let baselines = self.control.pad().baseline_records();
-            if baselines != self.announced_baselines {
-                // Whatever changed them (a tare at boot or on command, a restore after a
-                // reset), a recording host learns it after this cycle's sample (computed
-                // before the change) and before the first sample computed with them.
-                self.announced_baselines = baselines;
-                let tared_mask = (0u8..)
-                    .zip(&baselines)
-                    .filter(|(_, baseline)| baseline.is_some())
-                    .fold(0u8, |mask, (taxel, _)| mask | (1 << taxel));
-                self.send_event(
+        if let Some(event) = tare_finished {
+            self.send_event(host, sample.timestamp_us, event);
+        }
+    }
+
+    /// The reply to a tare every pad finished, and the periodic counters.
+    fn after_set<H: HostPort>(&mut self, host: &mut H, _timestamp_us: u64) {
+        if let Some(request_id) = self.pending_tare {
+            if let Some(result) = self.tare_result() {
+                self.pending_tare = None;
+                self.send(
                     host,
-                    sample.timestamp_us,
-                    DeviceEvent::TareFinished { tared_mask },
+                    Outgoing::Frame(DeviceFrame::Reply(ReplyFrame { request_id, result })),
                 );
             }
         }
@@ -419,9 +459,38 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             && self.sets_since_counters >= self.config.counters_every_sets
         {
             self.sets_since_counters = 0;
-            let counters = counters_frame(&sample.counters, &self.host_counters);
+            let counters = counters_frame(
+                &self.control.counters(),
+                self.control.converter_reinits(),
+                &self.host_counters,
+            );
             self.send_status(host, DeviceFrame::Counters(counters));
         }
+    }
+
+    /// The reply to a tare once every pad finished it (`None` while one is still averaging):
+    /// Ack when every taxel of every pad was tared, else why not.
+    fn tare_result(&self) -> Option<Result<ReplyPayload, ErrorCode>> {
+        let mut all_tared = true;
+        let mut not_still = false;
+        for pad in 0..self.control.pad_count() {
+            let model = self.control.pad(pad)?;
+            let TareStatus::Finished { tared_mask } = model.tare_status() else {
+                return None;
+            };
+            all_tared &= tared_mask == 0b1111;
+            not_still |= model
+                .last_tare_errors()
+                .iter()
+                .any(|error| matches!(error, Some(BaselineError::NotStill { .. })));
+        }
+        Some(if all_tared {
+            Ok(ReplyPayload::Ack)
+        } else if not_still {
+            Err(ErrorCode::TareNotStill)
+        } else {
+            Err(ErrorCode::TareFailed)
+        })
     }
 
     fn send_event<H: HostPort>(&mut self, host: &mut H, timestamp_us: u64, event: DeviceEvent) {
@@ -462,6 +531,29 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         Some(ReplyFrame { request_id, result })
     }
 
+    /// Sets every pad's tier, or none: a tier one pad's calibration cannot provide leaves every
+    /// pad as it was.
+    fn set_tier_everywhere(&mut self, tier: Tier) -> Result<(), ErrorCode> {
+        let previous = self.control.pad(FIRST_PAD).map(PadModel::tier);
+        for pad in 0..self.control.pad_count() {
+            let Some(model) = self.control.pad_mut(pad) else {
+                continue;
+            };
+            if model.set_tier(tier).is_err() {
+                if let Some(previous) = previous {
+                    for changed in 0..pad {
+                        if let Some(model) = self.control.pad_mut(changed) {
+                            // The tier was in use on this pad a moment ago.
+                            let _ = model.set_tier(previous);
+                        }
+                    }
+                }
+                return Err(ErrorCode::NotSupported);
+            }
+        }
+        Ok(())
+    }
+
     async fn apply(
         &mut self,
         request_id: u16,
@@ -471,6 +563,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             Command::Info => Ok(ReplyPayload::Info(self.info())),
             Command::ReadCounters => Ok(ReplyPayload::Counters(counters_frame(
                 &self.control.counters(),
+                self.control.converter_reinits(),
                 &self.host_counters,
             ))),
             Command::StartStreaming => {
@@ -488,75 +581,89 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             Command::Tare { sample_sets } => {
                 if self.pending_tare.is_some() {
                     Err(ErrorCode::Busy)
+                } else if self.control.pad_count() == 0 {
+                    Err(ErrorCode::NotSupported)
                 } else {
-                    self.control.pad_mut().start_tare(sample_sets);
+                    for pad in 0..self.control.pad_count() {
+                        if let Some(model) = self.control.pad_mut(pad) {
+                            model.start_tare(sample_sets);
+                        }
+                    }
                     self.pending_tare = Some(request_id);
                     return None;
                 }
             }
-            Command::SetModelTier { tier } => match self.control.pad_mut().set_tier(tier) {
-                Ok(()) => Ok(ReplyPayload::Ack),
-                Err(_) => Err(ErrorCode::NotSupported),
-            },
-            Command::SetUseCase(use_case) => {
-                match self.control.pad_mut().apply_use_case(&use_case) {
-                    Ok(choice) => Ok(ReplyPayload::ModelTier(choice.tier)),
-                    Err(_) => Err(ErrorCode::NotSupported),
-                }
+            Command::SetModelTier { tier } => {
+                self.set_tier_everywhere(tier).map(|()| ReplyPayload::Ack)
             }
-            Command::ReadCalibration { taxel_index } => {
-                let calibration = self.control.pad().calibration();
-                match calibration_record(calibration, taxel_index) {
+            Command::SetUseCase(use_case) => match self.control.pad(FIRST_PAD) {
+                // The first pad's evidence chooses; every pad then runs that tier.
+                Some(model) => match model.select_tier_for(&use_case) {
+                    Ok(choice) => self
+                        .set_tier_everywhere(choice.tier)
+                        .map(|()| ReplyPayload::ModelTier(choice.tier)),
+                    Err(_) => Err(ErrorCode::NotSupported),
+                },
+                None => Err(ErrorCode::NotSupported),
+            },
+            Command::ReadCalibration { taxel_index } => match self.control.pad(FIRST_PAD) {
+                Some(model) => match calibration_record(model.calibration(), taxel_index) {
                     Ok(record) => Ok(ReplyPayload::Calibration(record)),
                     Err(_) => Err(ErrorCode::InvalidArgument),
-                }
-            }
+                },
+                None => Err(ErrorCode::NotSupported),
+            },
             Command::WriteCalibration(record) => {
                 let updated = taxel_calibration_spec(&record.calibration)
                     .ok()
-                    .and_then(|spec| {
-                        let calibration = self.control.pad().calibration().clone();
+                    .zip(self.control.pad(FIRST_PAD))
+                    .and_then(|(spec, model)| {
+                        let calibration = model.calibration().clone();
                         let taxel = usize::from(record.taxel_index);
                         calibration
                             .with_taxel(taxel, &spec, record.calibration_id)
                             .ok()
                     });
-                match updated {
-                    Some(calibration) => {
-                        self.control.pad_mut().set_calibration(calibration);
+                match (updated, self.control.pad_mut(FIRST_PAD)) {
+                    (Some(calibration), Some(model)) => {
+                        model.set_calibration(calibration);
                         self.calibration_source = CalibrationSource::Host;
                         Ok(ReplyPayload::Ack)
                     }
-                    None => Err(ErrorCode::InvalidArgument),
+                    (_, None) => Err(ErrorCode::NotSupported),
+                    (None, Some(_)) => Err(ErrorCode::InvalidArgument),
                 }
             }
-            Command::SaveCalibration => {
-                let spec = self.control.pad().calibration().to_spec();
-                match self.persistence.save(&spec).await {
-                    Ok(()) => {
-                        self.calibration_source = CalibrationSource::Flash;
-                        Ok(ReplyPayload::Ack)
+            Command::SaveCalibration => match self.control.pad(FIRST_PAD) {
+                Some(model) => {
+                    let spec = model.calibration().to_spec();
+                    match self.persistence.save(&spec).await {
+                        Ok(()) => {
+                            self.calibration_source = CalibrationSource::Flash;
+                            Ok(ReplyPayload::Ack)
+                        }
+                        Err(PersistenceFailed) => Err(ErrorCode::FlashError),
                     }
-                    Err(PersistenceFailed) => Err(ErrorCode::FlashError),
                 }
-            }
-            Command::RestoreDefaults => {
-                self.control
-                    .pad_mut()
-                    .set_calibration(Calibration::default());
-                self.calibration_source = CalibrationSource::Defaults;
-                Ok(ReplyPayload::Ack)
-            }
+                None => Err(ErrorCode::NotSupported),
+            },
+            Command::RestoreDefaults => match self.control.pad_mut(FIRST_PAD) {
+                Some(model) => {
+                    model.set_calibration(Calibration::default());
+                    self.calibration_source = CalibrationSource::Defaults;
+                    Ok(ReplyPayload::Ack)
+                }
+                None => Err(ErrorCode::NotSupported),
+            },
             Command::SetTextMode { enabled } => {
                 self.text_mode = enabled;
                 Ok(ReplyPayload::Ack)
             }
             Command::ReadBaseline { taxel_index } => {
-                match self
-                    .control
-                    .pad()
-                    .baseline_records()
-                    .get(usize::from(taxel_index))
+                let records = self.control.pad(FIRST_PAD).map(PadModel::baseline_records);
+                match records
+                    .as_ref()
+                    .and_then(|records| records.get(usize::from(taxel_index)))
                 {
                     Some(record) => Ok(ReplyPayload::Baseline(TaxelBaselineWire {
                         taxel_index,

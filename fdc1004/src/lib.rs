@@ -498,6 +498,13 @@ where
         Ok(())
     }
 
+    /// Whether an FDC1004 answers with its manufacturer ID: one register read, no wait, for
+    /// deciding whether a converter that went missing is worth the full [`Fdc1004::init`]
+    /// (with its power-up wait) yet.
+    pub async fn answers(&mut self) -> Result<bool, Error<I2C::Error>> {
+        Ok(self.read_register(register::MANUFACTURER_ID).await? == MANUFACTURER_ID_VALUE)
+    }
+
     /// Recovery after an error (DONE timeout, all-zero or shifted readings): the full
     /// [`Fdc1004::init`] sequence again, including the power-up wait and software reset.
     pub async fn reinit(&mut self) -> Result<(), Error<I2C::Error>> {

@@ -574,3 +574,25 @@ fn one_code_at_capdac_31_is_resolved_in_the_code_domain_not_in_absolute_f32_pico
         1.0 / 131_072.0
     );
 }
+
+/// `answers` is one read of the manufacturer ID, with no wait: true for Texas Instruments'
+/// 0x5449, false for another value, the bus error for a NACK.
+#[test]
+fn answers_reads_the_manufacturer_id_without_waiting() {
+    let nack = ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address);
+    let mut converter = Fdc1004::new(
+        I2cMock::new(&[
+            read(MANUFACTURER_ID, 0x5449),
+            read(MANUFACTURER_ID, 0xFFFF),
+            read(MANUFACTURER_ID, 0).with_error(nack),
+        ]),
+        CheckedDelay::new(&[]),
+        Config::default(),
+    );
+    assert_eq!(block_on(converter.answers()), Ok(true));
+    assert_eq!(block_on(converter.answers()), Ok(false));
+    assert_eq!(block_on(converter.answers()), Err(Error::I2c(nack)));
+    let (mut i2c, mut delay) = converter.release();
+    i2c.done();
+    delay.done();
+}

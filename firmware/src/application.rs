@@ -1,19 +1,20 @@
-//! The acquisition task: builds the portable device application (`device::Device` around
-//! `acquisition::Acquisition`) from the board's parts and runs it, one converter cycle per step,
-//! reporting progress to the watchdog.
+//! The acquisition task: finds the pads on the sensor bus, builds the portable device
+//! application (`device::Device` around `acquisition::Acquisition`) from the board's parts and
+//! runs it, one sample set of every pad per step, reporting progress to the watchdog.
 
+use acquisition::discovery::{discover, PadTemperature};
+use acquisition::pad_bus::PadBus;
 use acquisition::Clock;
-use defmt::{info, warn};
+use defmt::{error, info, warn};
 use device::{BoardParts, DeviceIdentity, ResetKind, BOARD};
-use embassy_embedded_hal::shared_bus::asynch::i2c::I2cDevice;
 use embassy_stm32::peripherals::ADC1;
 use embassy_stm32::Peri;
 use embassy_time::{Delay, Instant};
-use tmp117::{Address, Tmp117};
+use tmp117::Tmp117;
 
 use crate::die_temperature::DieTemperature;
 use crate::host_port::UsbHostPort;
-use crate::i2c::SharedBus;
+use crate::i2c::{self, I2cBus};
 use crate::retained;
 use crate::storage::FlashPersistence;
 use crate::watchdog;
@@ -30,22 +31,39 @@ impl Clock for EmbassyClock {
 /// Builds the device application and runs it forever.
 #[embassy_executor::task]
 pub async fn acquisition_task(
-    i2c_bus: &'static SharedBus,
+    mut bus: I2cBus,
     adc: Peri<'static, ADC1>,
     mut persistence: FlashPersistence,
     reset: ResetKind,
 ) -> ! {
-    let mut tmp117 = Tmp117::new(I2cDevice::new(i2c_bus), Address::Gnd);
-    match tmp117.init().await {
-        Ok(()) => info!("TMP117 found"),
-        Err(tmp117_error) => warn!("TMP117 not found: {}", tmp117_error),
+    let topology = discover(&mut bus, &mut Delay, BOARD.multiplexer).await;
+    info!("sensor bus: {}", topology);
+    let Some(shared) = i2c::share(bus, &topology) else {
+        error!("the sensor bus was already shared");
+        // Only a second start of this task gets here; the watchdog resets the board.
+        loop {
+            embassy_time::Timer::after_secs(1).await;
+        }
+    };
+    for slot in &topology.pads {
+        let (channel, address) = match slot.temperature {
+            PadTemperature::Own(address) => (slot.channel, address),
+            PadTemperature::Shared(address) => (None, address),
+            PadTemperature::DieOnly => continue,
+        };
+        if let Err(tmp117_error) = Tmp117::new(PadBus::new(shared, channel), address)
+            .init()
+            .await
+        {
+            warn!("TMP117 {} not set up: {}", address, tmp117_error);
+        }
     }
     let die_temperature = DieTemperature::new(adc).await;
     let stored = persistence.load().await;
     let parts = BoardParts {
-        converter_i2c: I2cDevice::new(i2c_bus),
+        bus: shared,
+        topology,
         delay: Delay,
-        temperature: tmp117,
         fallback_temperature: die_temperature,
         clock: EmbassyClock,
         persistence,

@@ -1,7 +1,9 @@
 //! The sensor bus: I2C1 at 400 kHz with DMA, every transaction bounded in time by
-//! `acquisition::TimeoutI2c`, shared by the FDC1004 and the TMP117 drivers through
-//! `embassy-embedded-hal` bus handles.
+//! `acquisition::TimeoutI2c`; after discovery it is shared by every pad's FDC1004 and TMP117
+//! through `acquisition::pad_bus` handles, which select the pad's multiplexer channel.
 
+use acquisition::discovery::Topology;
+use acquisition::pad_bus::MuxedBus;
 use acquisition::TimeoutI2c;
 use embassy_stm32::i2c::{Config, I2c, Master};
 use embassy_stm32::mode::Async;
@@ -23,13 +25,20 @@ const I2C_TRANSACTION_TIMEOUT_US: u32 = 20_000;
 /// The bus with its timeout.
 pub type I2cBus = TimeoutI2c<I2c<'static, Async, Master>, Delay>;
 
-/// The bus behind a mutex; every driver gets its own `I2cDevice` handle to it. Only the
-/// acquisition task uses it, hence the no-op mutex.
-pub type SharedBus = Mutex<NoopRawMutex, I2cBus>;
+/// The bus with its multiplexer behind a mutex; every pad's drivers get their own handle to it.
+/// Only the acquisition task uses it, hence the no-op mutex.
+pub type SharedBus = Mutex<NoopRawMutex, MuxedBus<I2cBus>>;
 
-/// Sets up I2C1; call once (a second call returns `None`).
-pub fn shared_bus(peripherals: I2cPeripherals) -> Option<&'static SharedBus> {
+/// Shares the bus between the pads discovery found on it; call once (a second call returns
+/// `None`).
+pub fn share(bus: I2cBus, topology: &Topology) -> Option<&'static SharedBus> {
     static BUS: StaticCell<SharedBus> = StaticCell::new();
+    BUS.try_init(Mutex::new(MuxedBus::new(bus, topology.mux)))
+        .map(|bus| &*bus)
+}
+
+/// Sets up I2C1.
+pub fn bus(peripherals: I2cPeripherals) -> I2cBus {
     let mut config = Config::default();
     config.frequency = Hertz(I2C_FREQUENCY_HZ);
     // The sensor board carries the pull-ups; the ~40 kOhm internal ones are too weak for 400 kHz.
@@ -44,6 +53,5 @@ pub fn shared_bus(peripherals: I2cPeripherals) -> Option<&'static SharedBus> {
         Irqs,
         config,
     );
-    let bus = TimeoutI2c::new(i2c, Delay, I2C_TRANSACTION_TIMEOUT_US);
-    BUS.try_init(Mutex::new(bus)).map(|bus| &*bus)
+    TimeoutI2c::new(i2c, Delay, I2C_TRANSACTION_TIMEOUT_US)
 }

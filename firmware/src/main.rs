@@ -36,17 +36,12 @@ async fn main(spawner: Spawner) {
         }
         None => error!("the USB device was already built"),
     }
-    match i2c::shared_bus(board.i2c) {
-        Some(i2c_bus) => {
-            let persistence = storage::FlashPersistence::new(board.flash);
-            spawn(
-                &spawner,
-                "acquisition",
-                application::acquisition_task(i2c_bus, board.adc, persistence, reset),
-            );
-        }
-        None => error!("the I2C bus was already set up"),
-    }
+    let persistence = storage::FlashPersistence::new(board.flash);
+    spawn(
+        &spawner,
+        "acquisition",
+        application::acquisition_task(i2c::bus(board.i2c), board.adc, persistence, reset),
+    );
 
     watchdog::supervise(board.led).await
 }

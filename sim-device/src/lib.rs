@@ -14,6 +14,6 @@ pub use memory_port::MemoryPort;
 pub use pty::PtyPort;
 pub use scene_file::{FaultKind, SceneFault, SceneFile, SceneFileError, DEFAULT_SCENE_TOML};
 pub use simulated_device::{
-    simulated_board_serial, ClockError, SimulatedDevice, SimulatedDeviceConfig,
+    pads_topology, simulated_board_serial, ClockError, SimulatedDevice, SimulatedDeviceConfig,
     SimulatedDeviceError, FACTORY_CALIBRATION_ID,
 };

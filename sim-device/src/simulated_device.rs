@@ -3,26 +3,47 @@
 //! sensor, and calibration storage on a RAM model of the flash.
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
+use acquisition::discovery::discover;
+use acquisition::pad_bus::MuxedBus;
 use acquisition::TemperatureSource;
-use acquisition::{Acquisition, Clock, ProcessedSample};
+use acquisition::{Clock, ProcessedSample};
 use calibration_store::CalibrationStore;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::mutex::Mutex;
 
 use crate::flash::{SimulatedFlash, FLASH_REGION_LEN};
 use device::{
-    BoardParts, CalibrationPersistence, Device, DeviceIdentity, HostPort, PersistenceFailed,
-    ResetKind, RetainedState, BOARD, RETAINED_LEN,
+    BoardAcquisition, BoardParts, CalibrationPersistence, Device, DeviceIdentity, HostPort,
+    PersistenceFailed, ResetKind, RetainedState, BOARD, RETAINED_LEN,
 };
 use model_core::CalibrationSpec;
 use sensor_sim::{
-    Pacing, Scene, ScenePoint, SimDelay, SimI2c, Simulation, SimulationConfig, Window,
+    MultiplexerConfig, Pacing, Scene, ScenePoint, SharedTmp117Config, SimDelay, SimI2c, Simulation,
+    SimulationConfig, Topology, Window,
 };
-use tmp117::{Address, Tmp117};
 
 use crate::scene_file::SceneFile;
 
 /// The id of the simulated pad's factory calibration (0 is the built-in default's).
 pub const FACTORY_CALIBRATION_ID: u32 = 1;
+
+/// `pads` simulated pads: one directly on the bus (no multiplexer), or 2..=8 behind a TCA9548A
+/// at the board's multiplexer address on channels 0.., each without a TMP117 of its own and
+/// with a TMP117 on the main bus that every pad shares.
+pub fn pads_topology(pads: usize) -> Topology {
+    if pads <= 1 {
+        return Topology::SinglePad;
+    }
+    let channels: Vec<u8> = (0..pads.min(acquisition::discovery::MAX_PADS))
+        .filter_map(|channel| u8::try_from(channel).ok())
+        .collect();
+    Topology::Multiplexed(MultiplexerConfig {
+        shared_tmp117: Some(SharedTmp117Config::default()),
+        ..MultiplexerConfig::with_pads_on_channels(BOARD.multiplexer.seven_bit(), &channels)
+    })
+}
 
 /// The simulated clock.
 pub struct SimulatedClock {
@@ -82,9 +103,12 @@ impl SimulatedPersistence {
     }
 }
 
+/// The simulated sensor bus as the pads share it.
+pub type SimulatedBus = Arc<Mutex<CriticalSectionRawMutex, MuxedBus<SimI2c>>>;
+
 /// The acquisition loop on the simulated bus.
 pub type SimulatedAcquisition =
-    Acquisition<SimI2c, SimDelay, Tmp117<SimI2c>, SimulatedDieTemperature, SimulatedClock>;
+    BoardAcquisition<SimulatedBus, SimDelay, SimulatedDieTemperature, SimulatedClock>;
 
 /// How to run the simulated device.
 #[derive(Debug, Clone)]
@@ -95,6 +119,9 @@ pub struct SimulatedDeviceConfig {
     pub seed: u64,
     /// Simulated seconds per wall-clock second; `None` runs as fast as the host computes.
     pub speed: Option<f64>,
+    /// What sits on the simulated bus: one pad (the default), or several behind a multiplexer;
+    /// every pad plays the scene.
+    pub topology: Topology,
 }
 
 /// Why the simulated device could not start.
@@ -189,15 +216,23 @@ impl SimulatedDevice {
     ) -> Result<Self, SimulatedDeviceError> {
         let simulation = Simulation::new(SimulationConfig {
             seed: config.seed,
+            topology: config.topology.clone(),
             ..SimulationConfig::default()
         })
         .map_err(|error| SimulatedDeviceError::Simulation(format!("{error:?}")))?;
         let period_us = (config.scene.period_s() * 1e6) as u64;
-        simulation.set_scene(RepeatingScene {
-            scene: config.scene.scene.clone(),
-            period_us,
-            repeat: config.scene.repeat,
-        });
+        for pad in 0..simulation.pad_count() {
+            simulation
+                .set_pad_scene(
+                    pad,
+                    RepeatingScene {
+                        scene: config.scene.scene.clone(),
+                        period_us,
+                        repeat: config.scene.repeat,
+                    },
+                )
+                .map_err(|error| SimulatedDeviceError::Simulation(format!("{error:?}")))?;
+        }
         if let Some(speed) = config.speed {
             simulation
                 .set_pacing(Pacing::RealTime { speed })
@@ -266,8 +301,9 @@ impl SimulatedDevice {
         &mut self.device
     }
 
-    /// One converter cycle with its requests and frames.
-    pub fn step<H: HostPort>(&mut self, host: &mut H) -> ProcessedSample {
+    /// One sample set with its requests and frames; returns the first pad's sample (`None`
+    /// when no pad was found).
+    pub fn step<H: HostPort>(&mut self, host: &mut H) -> Option<ProcessedSample> {
         self.schedule_scene_faults();
         let sample = embassy_futures::block_on(self.device.step(host));
         if let Some(state) = self.device.retained_state_change() {
@@ -324,10 +360,16 @@ fn boot_simulated(
     clock_error: ClockError,
 ) -> Device<SimulatedAcquisition, SimulatedPersistence> {
     let stored = embassy_futures::block_on(persistence.0.load());
+    let mut bus = simulation.i2c();
+    let topology = embassy_futures::block_on(discover(
+        &mut bus,
+        &mut simulation.delay(),
+        BOARD.multiplexer,
+    ));
     let parts = BoardParts {
-        converter_i2c: simulation.i2c(),
+        bus: Arc::new(Mutex::new(MuxedBus::new(bus, topology.mux))),
+        topology,
         delay: simulation.delay(),
-        temperature: Tmp117::new(simulation.i2c(), Address::Gnd),
         fallback_temperature: SimulatedDieTemperature(simulation.clone()),
         clock: SimulatedClock {
             simulation: simulation.clone(),

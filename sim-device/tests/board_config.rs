@@ -19,6 +19,7 @@ fn the_simulated_converter_is_configured_as_the_board() {
         scene: SceneFile::default_scene().unwrap(),
         seed: 2,
         speed: None,
+        topology: sim_device::pads_topology(1),
     })
     .unwrap();
     let mut port = MemoryPort::new(usize::MAX);

@@ -25,6 +25,7 @@ impl Host {
             scene: SceneFile::default_scene().unwrap(),
             seed: 9,
             speed: None,
+            topology: sim_device::pads_topology(1),
         })
         .unwrap();
         let mut host = Self {
@@ -654,6 +655,7 @@ fn the_built_in_default_is_one_calibration_and_the_factory_one_is_in_flash() {
         scene: SceneFile::default_scene().unwrap(),
         seed: 9,
         speed: None,
+        topology: sim_device::pads_topology(1),
     })
     .unwrap();
     blank.steps(20);
@@ -686,7 +688,8 @@ fn baselines_are_read_back_and_every_tare_is_announced() {
         .device
         .device_mut()
         .control()
-        .pad()
+        .pad(0)
+        .unwrap()
         .baseline_records()
         .iter()
         .map(|record| record.as_ref().map(device::baseline_wire))
@@ -718,10 +721,10 @@ fn baselines_are_read_back_and_every_tare_is_announced() {
         for frame in host.steps(1) {
             match frame {
                 DeviceFrame::Event(EventFrame {
-                    event: DeviceEvent::TareFinished { tared_mask },
+                    event: DeviceEvent::TareFinished { tared_mask, pad },
                     ..
                 }) => {
-                    assert_eq!(tared_mask, 0b1111);
+                    assert_eq!((pad.get(), tared_mask), (0, 0b1111));
                     announced = true;
                 }
                 DeviceFrame::Sample(_) if announced => event_then_sample = true,
@@ -763,6 +766,7 @@ fn dropped_sample_sets_counts_the_sample_sets_that_were_not_sent() {
         scene: SceneFile::default_scene().unwrap(),
         seed: 4,
         speed: None,
+        topology: sim_device::pads_topology(1),
     })
     .unwrap();
     let mut port = MemoryPort::new(2_000);
@@ -788,6 +792,7 @@ fn dropped_sample_sets_counts_the_sample_sets_that_were_not_sent() {
         "every set is either in the port or counted"
     );
     assert!(counters.frames_dropped_no_host > counters.sample_sets_dropped);
-    let frame = device::counters_frame(&device.device_mut().control().counters(), &counters);
+    let control = device.device_mut().control();
+    let frame = device::counters_frame(&control.counters(), control.converter_reinits(), &counters);
     assert_eq!(frame.dropped_sample_sets, counters.sample_sets_dropped);
 }

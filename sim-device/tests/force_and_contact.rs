@@ -80,6 +80,7 @@ fn run() -> (Vec<SampleFrame>, Vec<(bool, u64)>) {
         },
         seed: 11,
         speed: None,
+        topology: sim_device::pads_topology(1),
     })
     .unwrap();
     let mut link = MemoryPort::new(usize::MAX);

@@ -45,6 +45,7 @@ fn loaded_device() -> SimulatedDevice {
         },
         seed: 5,
         speed: None,
+        topology: sim_device::pads_topology(1),
     })
     .unwrap()
 }
@@ -52,7 +53,7 @@ fn loaded_device() -> SimulatedDevice {
 fn run_until(device: &mut SimulatedDevice, until_s: f64) -> model_core::PadOutput {
     let mut last = None;
     while device.simulation().now_us() < (until_s * 1e6) as u64 {
-        last = Some(device.step(&mut Sink).output);
+        last = device.step(&mut Sink).map(|sample| sample.output);
     }
     last.unwrap()
 }

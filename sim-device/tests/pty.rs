@@ -18,6 +18,7 @@ fn device() -> SimulatedDevice {
         scene: SceneFile::default_scene().unwrap(),
         seed: 7,
         speed: None,
+        topology: sim_device::pads_topology(1),
     })
     .unwrap()
 }

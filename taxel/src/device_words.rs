@@ -94,17 +94,17 @@ pub fn counters_words(counters: &CountersFrame) -> String {
 /// A device event in words, with its device time.
 pub fn event_words(event: &EventFrame) -> String {
     let what = match event.event {
-        DeviceEvent::ConverterReinitialised { reinit_count } => format!(
+        DeviceEvent::ConverterReinitialised { reinit_count, .. } => format!(
             "the converter was reset after an error (re-initialisation {reinit_count}); samples were lost"
         ),
-        DeviceEvent::TemperatureSourceChanged { source } => format!(
+        DeviceEvent::TemperatureSourceChanged { source, .. } => format!(
             "temperature now from the {}",
             temperature_source_words(source)
         ),
         DeviceEvent::CalibrationFlashCorrupt => {
             "the calibration in flash was corrupt; the built-in default is in use".to_owned()
         }
-        DeviceEvent::TareFinished { tared_mask } => {
+        DeviceEvent::TareFinished { tared_mask, .. } => {
             let tared: Vec<&str> = TAXEL_NAMES
                 .iter()
                 .enumerate()
@@ -120,8 +120,17 @@ pub fn event_words(event: &EventFrame) -> String {
         DeviceEvent::ContactStarted { pad } => format!("pad {}: contact started", pad.get()),
         DeviceEvent::ContactEnded { pad } => format!("pad {}: contact ended", pad.get()),
     };
+    // The pad of a per-pad event, named for every pad but the first, so that a single-pad
+    // device's events read as they always did (contact events name their pad anyway).
+    let pad = match event.event {
+        DeviceEvent::ConverterReinitialised { pad, .. }
+        | DeviceEvent::TemperatureSourceChanged { pad, .. }
+        | DeviceEvent::TareFinished { pad, .. } => Some(pad.get()).filter(|&pad| pad > 0),
+        _ => None,
+    };
+    let pad = pad.map(|pad| format!("pad {pad}: ")).unwrap_or_default();
     format!(
-        "device event at {} s: {what}",
+        "device event at {} s: {pad}{what}",
         format_time_us(event.timestamp_us)
     )
 }

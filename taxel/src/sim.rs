@@ -154,6 +154,7 @@ pub fn run(args: &SimArgs) -> anyhow::Result<ExitCode> {
             scene,
             seed: args.seed,
             speed,
+            topology: sim_device::pads_topology(1),
         },
         args.duration,
     )?;
@@ -203,6 +204,7 @@ pub fn run_demo(args: &DemoArgs) -> anyhow::Result<ExitCode> {
             scene,
             seed: 1,
             speed: Some(args.speed),
+            topology: sim_device::pads_topology(1),
         },
         None,
     )?;

@@ -148,6 +148,7 @@ fn a_tare_during_a_recording_is_followed_by_the_conversion() {
         scene: SceneFile::default_scene().unwrap(),
         seed: 5,
         speed: Some(20.0),
+        topology: sim_device::pads_topology(1),
     })
     .unwrap();
     let mut port = PtyPort::open().unwrap();
@@ -265,6 +266,7 @@ fn calibration_pull_writes_the_device_calibration() {
         scene: sim_device::SceneFile::default_scene().unwrap(),
         seed: 1,
         speed: None,
+        topology: sim_device::pads_topology(1),
     })
     .unwrap()
     .simulation()

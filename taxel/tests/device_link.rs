@@ -33,6 +33,7 @@ fn frames_with_garbage() -> (Vec<DeviceFrame>, Vec<u8>, u64) {
         DeviceFrame::Event(EventFrame {
             timestamp_us: 1_500,
             event: DeviceEvent::TemperatureSourceChanged {
+                pad: wire::PadIndex::default(),
                 source: TemperatureSource::McuInternal,
             },
         }),

@@ -44,6 +44,7 @@ fn board(seed: u64, clock_error: ClockError, host_start_us: u64) -> Board {
             scene: SceneFile::default_scene().unwrap(),
             seed,
             speed: None,
+            topology: sim_device::pads_topology(1),
         },
         clock_error,
     )

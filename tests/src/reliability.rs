@@ -230,6 +230,7 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
         scene: scene_file,
         seed: 1000 + u64::from(repetition),
         speed: None,
+        topology: sim_device::pads_topology(1),
     })
     .map_err(|error| error.to_string())?;
     let shift_us = u64::from(repetition) * 37_000;

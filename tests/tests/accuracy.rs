@@ -72,6 +72,7 @@ fn record(scene: &ScriptedScene, faults: &[(Fault, f64, f64)], seed: u64) -> Vec
         },
         seed,
         speed: None,
+        topology: sim_device::pads_topology(1),
     })
     .unwrap();
     let simulation = device.simulation().clone();

@@ -34,6 +34,7 @@ fn a_recording_of_the_simulated_device_matches_its_scene() {
         scene,
         seed: 3,
         speed: Some(25.0),
+        topology: sim_device::pads_topology(1),
     })
     .unwrap();
     let mut port = PtyPort::open().unwrap();
@@ -141,6 +142,7 @@ fn a_calibration_uploaded_and_saved_over_the_serial_path_survives_a_reboot() {
         scene: SceneFile::default_scene().unwrap(),
         seed: 4,
         speed: Some(20.0),
+        topology: sim_device::pads_topology(1),
     })
     .unwrap();
     let mut port = PtyPort::open().unwrap();

@@ -184,14 +184,19 @@ impl ReplyFrame {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DeviceEvent {
-    /// The converter was reset and reconfigured after an error; samples were lost.
+    /// A pad's converter was reset and reconfigured after an error; samples were lost.
     ConverterReinitialised {
-        /// The total count since boot, as in [`CountersFrame::converter_reinits`].
+        /// The pad (version 3).
+        pad: PadIndex,
+        /// The pad's count since boot (the sum over pads is
+        /// [`CountersFrame::converter_reinits`]).
         reinit_count: u32,
     },
-    /// The temperature source changed: a fallback when it is no longer the TMP117, a recovery
+    /// A pad's temperature source changed: a fallback when it is no longer a TMP117, a recovery
     /// when it is again.
     TemperatureSourceChanged {
+        /// The pad (version 3).
+        pad: PadIndex,
         /// The source now in use.
         source: TemperatureSource,
     },
@@ -200,7 +205,9 @@ pub enum DeviceEvent {
     /// The baselines changed: a tare finished (at boot, on command) or baselines were restored
     /// after a reset. Samples after this event use the new baselines (added within version 2).
     TareFinished {
-        /// Bit n set: taxel n has a baseline now.
+        /// The pad (version 3).
+        pad: PadIndex,
+        /// Bit n set: taxel n of the pad has a baseline now.
         tared_mask: u8,
     },
     /// A pad came into contact: its force stayed above the contact threshold for the debounce
@@ -228,8 +235,9 @@ pub struct EventFrame {
 }
 
 impl EventFrame {
-    /// The largest body: timestamp 10 (varint u64) + event tag 1 + count 5 (varint u32).
-    pub const MAX_BODY_LEN: usize = 10 + 1 + 5;
+    /// The largest body: timestamp 10 (varint u64) + event tag 1 + pad 1 + count 5 (varint
+    /// u32).
+    pub const MAX_BODY_LEN: usize = 10 + 1 + 1 + 5;
     /// The largest encoded frame, delimiter included.
     pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
 }

@@ -32,7 +32,7 @@ fn worst_case_of_every_frame_has_the_documented_length() {
 
     let event = encode(&DeviceFrame::Event(worst_case_event()));
     assert_eq!(event.len(), EventFrame::MAX_ENCODED_LEN);
-    assert_eq!(event.len(), 22);
+    assert_eq!(event.len(), 23);
 
     let reply = encode(&DeviceFrame::Reply(worst_case_reply()));
     assert_eq!(reply.len(), ReplyFrame::MAX_ENCODED_LEN);

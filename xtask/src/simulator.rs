@@ -242,6 +242,7 @@ fn simulated_device() -> Result<SimulatedDevice> {
         scene,
         seed: SEED,
         speed: None,
+        topology: sim_device::pads_topology(1),
     })
     .map_err(|error| anyhow!("starting the simulated device: {error}"))
 }
@@ -306,9 +307,16 @@ fn replay(steps: u32) -> Result<(Latency, u64)> {
     let config = device::BOARD.device;
     let mut contact = model_core::ContactDetector::new(config.contact);
     for step in 0..WARM_UP_STEPS + steps {
-        let mut pad = device.device_mut().control().pad().clone();
+        let mut pad = device
+            .device_mut()
+            .control()
+            .pad(0)
+            .cloned()
+            .ok_or_else(|| anyhow!("the simulated device found no pad"))?;
         let sets_before = port.sample_frames;
-        let sample = device.step(&mut port);
+        let sample = device
+            .step(&mut port)
+            .ok_or_else(|| anyhow!("the simulated device read no pad"))?;
         let started = Instant::now();
         let mut replayed = sample;
         replayed.output = pad.process(&sample.input);

@@ -241,9 +241,14 @@ pub fn reply_frame() -> impl Strategy<Value = ReplyFrame> {
 
 pub fn device_event() -> impl Strategy<Value = DeviceEvent> {
     prop_oneof![
-        any::<u32>().prop_map(|reinit_count| DeviceEvent::ConverterReinitialised { reinit_count }),
-        temperature_source().prop_map(|source| DeviceEvent::TemperatureSourceChanged { source }),
+        (pad_index(), any::<u32>()).prop_map(|(pad, reinit_count)| {
+            DeviceEvent::ConverterReinitialised { pad, reinit_count }
+        }),
+        (pad_index(), temperature_source())
+            .prop_map(|(pad, source)| DeviceEvent::TemperatureSourceChanged { pad, source }),
         Just(DeviceEvent::CalibrationFlashCorrupt),
+        (pad_index(), any::<u8>())
+            .prop_map(|(pad, tared_mask)| DeviceEvent::TareFinished { pad, tared_mask }),
         pad_index().prop_map(|pad| DeviceEvent::ContactStarted { pad }),
         pad_index().prop_map(|pad| DeviceEvent::ContactEnded { pad }),
     ]
@@ -445,6 +450,7 @@ pub fn worst_case_event() -> EventFrame {
     EventFrame {
         timestamp_us: u64::MAX,
         event: DeviceEvent::ConverterReinitialised {
+            pad: PadIndex::new(PadIndex::MAX).unwrap(),
             reinit_count: u32::MAX,
         },
     }
