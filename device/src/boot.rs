@@ -39,6 +39,9 @@ pub struct BoardConfig {
     pub tare_sets_at_power_on: u16,
     /// The device application's settings.
     pub device: DeviceConfig,
+    /// The sensor bus's I2C clock, Hz: fast mode, which the FDC1004, the TMP117 and the
+    /// TCA9548A all support.
+    pub i2c_frequency_hz: u32,
     /// Where discovery looks for a TCA9548A multiplexer (A2..A0 to ground: 0x70); without one
     /// the bus carries a single pad.
     pub multiplexer: tca9548a::Address,
@@ -46,6 +49,7 @@ pub struct BoardConfig {
 
 /// The board's configuration.
 pub const BOARD: BoardConfig = BoardConfig {
+    i2c_frequency_hz: 400_000,
     multiplexer: tca9548a::Address::from_pins(false, false, false),
     capdac: [0; 4],
     converter_rate: Rate::Hz400,

@@ -15,9 +15,6 @@ use static_cell::StaticCell;
 
 use crate::board::{I2cPeripherals, Irqs};
 
-/// FDC1004 and TMP117 both support fast mode.
-const I2C_FREQUENCY_HZ: u32 = 400_000;
-
 /// Longest wait for one transaction; the longest the drivers issue (a register read: 1 byte out,
 /// 2 bytes in) takes about 100 µs at 400 kHz.
 const I2C_TRANSACTION_TIMEOUT_US: u32 = 20_000;
@@ -40,7 +37,7 @@ pub fn share(bus: I2cBus, topology: &Topology) -> Option<&'static SharedBus> {
 /// Sets up I2C1.
 pub fn bus(peripherals: I2cPeripherals) -> I2cBus {
     let mut config = Config::default();
-    config.frequency = Hertz(I2C_FREQUENCY_HZ);
+    config.frequency = Hertz(device::BOARD.i2c_frequency_hz);
     // The sensor board carries the pull-ups; the ~40 kOhm internal ones are too weak for 400 kHz.
     config.scl_pullup = false;
     config.sda_pullup = false;

@@ -15,5 +15,5 @@ pub use pty::PtyPort;
 pub use scene_file::{FaultKind, SceneFault, SceneFile, SceneFileError, DEFAULT_SCENE_TOML};
 pub use simulated_device::{
     pads_topology, simulated_board_serial, ClockError, SimulatedDevice, SimulatedDeviceConfig,
-    SimulatedDeviceError, FACTORY_CALIBRATION_ID,
+    SimulatedDeviceError, BUS_FREQUENCY_HZ, FACTORY_CALIBRATION_ID,
 };

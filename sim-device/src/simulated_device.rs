@@ -122,7 +122,13 @@ pub struct SimulatedDeviceConfig {
     /// What sits on the simulated bus: one pad (the default), or several behind a multiplexer;
     /// every pad plays the scene.
     pub topology: Topology,
+    /// The I2C clock the simulated transactions take their time from, Hz (the board's is
+    /// [`BUS_FREQUENCY_HZ`]); `None`: transactions take no simulated time.
+    pub bus_frequency_hz: Option<u32>,
 }
+
+/// The board's I2C clock ([`device::BoardConfig::i2c_frequency_hz`]).
+pub const BUS_FREQUENCY_HZ: Option<u32> = Some(BOARD.i2c_frequency_hz);
 
 /// Why the simulated device could not start.
 #[derive(Debug)]
@@ -217,6 +223,7 @@ impl SimulatedDevice {
         let simulation = Simulation::new(SimulationConfig {
             seed: config.seed,
             topology: config.topology.clone(),
+            bus_frequency_hz: config.bus_frequency_hz,
             ..SimulationConfig::default()
         })
         .map_err(|error| SimulatedDeviceError::Simulation(format!("{error:?}")))?;

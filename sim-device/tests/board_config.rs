@@ -20,6 +20,7 @@ fn the_simulated_converter_is_configured_as_the_board() {
         seed: 2,
         speed: None,
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap();
     let mut port = MemoryPort::new(usize::MAX);

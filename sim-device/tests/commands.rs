@@ -26,6 +26,7 @@ impl Host {
             seed: 9,
             speed: None,
             topology: sim_device::pads_topology(1),
+            bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
         })
         .unwrap();
         let mut host = Self {
@@ -656,6 +657,7 @@ fn the_built_in_default_is_one_calibration_and_the_factory_one_is_in_flash() {
         seed: 9,
         speed: None,
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap();
     blank.steps(20);
@@ -767,6 +769,7 @@ fn dropped_sample_sets_counts_the_sample_sets_that_were_not_sent() {
         seed: 4,
         speed: None,
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap();
     let mut port = MemoryPort::new(2_000);

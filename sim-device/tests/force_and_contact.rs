@@ -81,6 +81,7 @@ fn run() -> (Vec<SampleFrame>, Vec<(bool, u64)>) {
         seed: 11,
         speed: None,
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap();
     let mut link = MemoryPort::new(usize::MAX);

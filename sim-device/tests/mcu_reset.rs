@@ -46,6 +46,7 @@ fn loaded_device() -> SimulatedDevice {
         seed: 5,
         speed: None,
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap()
 }

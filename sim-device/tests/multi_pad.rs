@@ -70,6 +70,7 @@ fn run(
         seed: 21,
         speed: None,
         topology: pads_topology(pads),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap();
     for pad in 0..pads {

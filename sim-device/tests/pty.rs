@@ -19,6 +19,7 @@ fn device() -> SimulatedDevice {
         seed: 7,
         speed: None,
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap()
 }

@@ -155,6 +155,7 @@ pub fn run(args: &SimArgs) -> anyhow::Result<ExitCode> {
             seed: args.seed,
             speed,
             topology: sim_device::pads_topology(1),
+            bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
         },
         args.duration,
     )?;
@@ -205,6 +206,7 @@ pub fn run_demo(args: &DemoArgs) -> anyhow::Result<ExitCode> {
             seed: 1,
             speed: Some(args.speed),
             topology: sim_device::pads_topology(1),
+            bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
         },
         None,
     )?;

@@ -149,6 +149,7 @@ fn a_tare_during_a_recording_is_followed_by_the_conversion() {
         seed: 5,
         speed: Some(20.0),
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap();
     let mut port = PtyPort::open().unwrap();
@@ -267,6 +268,7 @@ fn calibration_pull_writes_the_device_calibration() {
         seed: 1,
         speed: None,
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap()
     .simulation()

@@ -45,6 +45,7 @@ fn board(seed: u64, clock_error: ClockError, host_start_us: u64) -> Board {
             seed,
             speed: None,
             topology: sim_device::pads_topology(1),
+            bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
         },
         clock_error,
     )

@@ -231,6 +231,7 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
         seed: 1000 + u64::from(repetition),
         speed: None,
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .map_err(|error| error.to_string())?;
     let shift_us = u64::from(repetition) * 37_000;

@@ -73,6 +73,7 @@ fn record(scene: &ScriptedScene, faults: &[(Fault, f64, f64)], seed: u64) -> Vec
         seed,
         speed: None,
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap();
     let simulation = device.simulation().clone();

@@ -35,6 +35,7 @@ fn a_recording_of_the_simulated_device_matches_its_scene() {
         seed: 3,
         speed: Some(25.0),
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap();
     let mut port = PtyPort::open().unwrap();
@@ -143,6 +144,7 @@ fn a_calibration_uploaded_and_saved_over_the_serial_path_survives_a_reboot() {
         seed: 4,
         speed: Some(20.0),
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap();
     let mut port = PtyPort::open().unwrap();

@@ -20,6 +20,7 @@ mod host;
 mod m4;
 mod measured;
 mod mix;
+mod pad_rates;
 mod report;
 mod simulator;
 mod speed_plot;
@@ -53,6 +54,8 @@ commands:
   sim-bench [steps]
             throughput and latency of the simulated device over `steps` sample sets (default
             200000), always in a release build
+  pad-rates the sample-set rate per pad for 1 to 8 pads at 100 and 400 kHz on the simulated
+            bus, as the report's table
   report    rewrite MEASURED_INSTRUCTIONS if it changed, then write docs/PERFORMANCE.md and
             docs/speed-vs-error.svg (takes minutes: criterion)";
 
@@ -68,6 +71,9 @@ fn main() -> ExitCode {
             }
         },
         Some("report") => report(),
+        Some("pad-rates") => {
+            pad_rates::measure().map(|rates| print!("{}", pad_rates::table(&rates)))
+        }
         Some("sim-bench") => sim_bench(std::env::args().nth(2).as_deref()),
         Some("help" | "--help" | "-h") => {
             println!("{USAGE}");
@@ -358,6 +364,11 @@ fn report() -> Result<()> {
     if let Err(error) = &firmware {
         eprintln!("warning: no firmware footprint: {error}");
     }
+    println!("measuring the sample-set rate per pad count on the simulated bus");
+    let pad_rates = pad_rates::measure().map_err(|error| format!("{error:#}"));
+    if let Err(error) = &pad_rates {
+        eprintln!("warning: no rate per pad count: {error}");
+    }
     let simulator = simulator::run_release(&root, simulator::DEFAULT_STEPS)
         .map_err(|error| format!("{error:#}"));
     if let Err(error) = &simulator {
@@ -408,6 +419,7 @@ fn report() -> Result<()> {
         machine,
         firmware,
         simulator,
+        pad_rates,
     };
     let docs = root.join("docs");
     std::fs::create_dir_all(&docs)?;

@@ -243,6 +243,7 @@ fn simulated_device() -> Result<SimulatedDevice> {
         seed: SEED,
         speed: None,
         topology: sim_device::pads_topology(1),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .map_err(|error| anyhow!("starting the simulated device: {error}"))
 }

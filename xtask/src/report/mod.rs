@@ -13,6 +13,7 @@ use crate::bench_output::BenchRun;
 use crate::firmware::{Footprint, FLASH_BUDGET_BYTES, STATIC_RAM_BUDGET_BYTES};
 use crate::host::{HostTime, LeaveOneOut, UseCaseSelection};
 use crate::mix::{Mix, MixReport};
+use crate::pad_rates::PadRate;
 use crate::simulator::{Latency, SimulatorFigures};
 use crate::speed_plot::{Guide, Link, Plot, Point};
 
@@ -94,6 +95,8 @@ pub struct ReportData {
     pub firmware: Result<Footprint, String>,
     /// The simulator's throughput and latency (or why they are missing).
     pub simulator: Result<SimulatorFigures, String>,
+    /// The sample-set rate per pad count and bus clock (or why it is missing).
+    pub pad_rates: Result<Vec<PadRate>, String>,
 }
 
 fn lookup<T: Copy>(pairs: &[(Tier, T)], tier: Tier) -> Option<T> {
@@ -364,7 +367,7 @@ pub fn markdown(data: &ReportData) -> String {
     use_cases(out, data);
     drift(out, data);
     firmware(out, data);
-    usb_bandwidth(out);
+    several_pads(out, data);
     simulator(out, data);
     text
 }

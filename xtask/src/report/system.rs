@@ -77,25 +77,31 @@ pub(super) fn firmware(out: &mut String, data: &ReportData) {
 /// 1 ms frame (USB 2.0 specification, table 5-10 for full-speed bulk).
 const FULL_SPEED_BULK_BYTES_PER_S: u64 = 19 * 64 * 1000;
 
-/// The link load of sample frames per pad count, from the encoder's largest sample frame.
-pub(super) fn usb_bandwidth(out: &mut String) {
-    let _ = writeln!(
-        out,
-        "## USB bandwidth per pad count
-"
-    );
+/// The sample-set rate per pad count on the simulated bus, and the link load of sample frames.
+pub(super) fn several_pads(out: &mut String, data: &ReportData) {
+    let _ = writeln!(out, "## Several pads: sample-set rate and USB bandwidth\n");
+    match &data.pad_rates {
+        Ok(rates) => out.push_str(&crate::pad_rates::table(rates)),
+        Err(reason) => {
+            let _ = writeln!(out, "Rate per pad count not available: {reason}\n");
+        }
+    }
     let frame_bytes = wire::SampleFrame::MAX_ENCODED_LEN as u64;
     let packet_bytes = wire::USB_FULL_SPEED_PACKET_LEN as u64;
     let packets_per_frame = frame_bytes.div_ceil(packet_bytes);
     let _ = writeln!(
         out,
-        "Computed, not measured: every pad sends one sample frame per sample set, at most {frame_bytes}          bytes ({packets_per_frame} packets of at most {packet_bytes} bytes), at the converter's          400 conversions/s = 100 sample sets/s (four conversions per set). A full-speed bulk          endpoint moves at most {FULL_SPEED_BULK_BYTES_PER_S} bytes/s (19 packets of 64 bytes          per 1 ms frame); events, counters and replies are a few frames per second on top.
-"
+        "USB bandwidth, computed: every pad sends one sample frame per sample set, at most \
+         {frame_bytes} bytes ({packets_per_frame} packets of at most {packet_bytes} bytes), at \
+         the converter's 400 conversions/s = 100 sample sets/s (four conversions per set). A \
+         full-speed bulk endpoint moves at most {FULL_SPEED_BULK_BYTES_PER_S} bytes/s (19 \
+         packets of 64 bytes per 1 ms frame); events, counters and replies are a few frames per \
+         second on top.\n"
     );
     let _ = writeln!(
         out,
-        "| pads | sample frames/s | bytes/s, worst case | packets/s, worst case | share of full-speed bulk |
-|---|---|---|---|---|"
+        "| pads | sample frames/s | bytes/s, worst case | packets/s, worst case | share of \
+         full-speed bulk |\n|---|---|---|---|---|"
     );
     for pads in [1u64, 2, 4, 6, 8] {
         let frames_per_s = pads * 100;
@@ -109,9 +115,9 @@ pub(super) fn usb_bandwidth(out: &mut String) {
     }
     let _ = writeln!(
         out,
-        "
-The device never waits for the host: a frame that does not fit its output queue is          dropped and counted (`dropped_sample_sets`), so a slow host costs sample sets, never          the acquisition's timing. The sample-set rate each pad reaches on the I2C bus with          several pads is not measured yet: the device reads one pad today.
-"
+        "\nThe device never waits for the host: a frame that does not fit its output queue is \
+         dropped and counted (`dropped_sample_sets`), so a slow host costs sample sets, never \
+         the acquisition's timing.\n"
     );
 }
 
