@@ -196,6 +196,7 @@ where
         parts.persistence,
         parts.identity,
         calibration_source,
+        &parts.topology.pads,
         config.device,
     );
     let report = BootReport {

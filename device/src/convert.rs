@@ -110,9 +110,10 @@ pub enum CalibrationConversionError {
     TooManyPoints,
 }
 
-/// One taxel's calibration as a wire record.
+/// One taxel's calibration, of pad `pad`, as a wire record.
 pub fn calibration_record(
     calibration: &Calibration,
+    pad: PadIndex,
     taxel_index: u8,
 ) -> Result<TaxelCalibrationRecord, CalibrationConversionError> {
     let taxel = calibration
@@ -126,6 +127,7 @@ pub fn calibration_record(
             .map_err(|_| CalibrationConversionError::TooManyPoints)?;
     }
     Ok(TaxelCalibrationRecord {
+        pad,
         taxel_index,
         calibration_id: calibration.id(),
         calibration: TaxelCalibrationWire {

@@ -34,7 +34,7 @@ pub use persistence::{CalibrationPersistence, PersistenceFailed};
 pub use retained::{boot_plan, BootPlan, ResetKind, RetainedState, RETAINED_LEN};
 pub use supervisor::{Supervisor, SupervisorAction};
 
-use acquisition::discovery::MAX_PADS;
+use acquisition::discovery::{PadSlot, PadTemperature, MAX_PADS};
 use acquisition::{ProcessedSample, TemperatureOrigin};
 use model_core::{
     pad_force, BaselineError, BaselineRecord, Calibration, ContactConfig, ContactDetector,
@@ -42,8 +42,8 @@ use model_core::{
 };
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
-    InfoFrame, PadIndex, ReplyFrame, ReplyPayload, Request, SampleFrame, TaxelBaselineWire,
-    PROTOCOL_VERSION,
+    InfoFrame, PadIndex, PadInfoFrame, ReplyFrame, ReplyPayload, Request, SampleFrame,
+    TaxelBaselineWire, TemperatureSensor, PROTOCOL_VERSION,
 };
 
 /// Largest encoded output: a CSV line or the largest frame, whichever is longer.
@@ -160,6 +160,9 @@ impl Default for DeviceConfig {
 
 /// What the application remembers about one pad between sample sets.
 struct PadReporting {
+    channel: Option<u8>,
+    temperature_sensor: TemperatureSensor,
+    calibration_source: CalibrationSource,
     contact: ContactDetector,
     last_converter_reinits: u32,
     last_temperature_origin: Option<TemperatureOrigin>,
@@ -168,8 +171,19 @@ struct PadReporting {
 }
 
 impl PadReporting {
-    fn new(contact: ContactConfig) -> Self {
+    fn new(slot: &PadSlot, calibration_source: CalibrationSource, contact: ContactConfig) -> Self {
         Self {
+            channel: slot.channel.map(|channel| channel.index()),
+            temperature_sensor: match slot.temperature {
+                PadTemperature::Own(address) => TemperatureSensor::OwnTmp117 {
+                    address: address.seven_bit(),
+                },
+                PadTemperature::Shared(address) => TemperatureSensor::SharedTmp117 {
+                    address: address.seven_bit(),
+                },
+                PadTemperature::DieOnly => TemperatureSensor::DieOnly,
+            },
+            calibration_source,
             contact: ContactDetector::new(contact),
             last_converter_reinits: 0,
             last_temperature_origin: None,
@@ -185,7 +199,6 @@ pub struct Device<A, P> {
     persistence: P,
     identity: DeviceIdentity,
     config: DeviceConfig,
-    calibration_source: CalibrationSource,
     streaming: bool,
     text_mode: bool,
     host_connected: bool,
@@ -197,31 +210,30 @@ pub struct Device<A, P> {
     pads: heapless::Vec<PadReporting, MAX_PADS>,
 }
 
-/// The pad that the calibration commands, the Info frame's calibration and the retained record
-/// are about (the wire's calibration commands carry no pad index yet).
+/// The pad whose calibration the Info frame shows and whose baselines the retained record keeps.
 const FIRST_PAD: usize = 0;
 
 impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
     /// The application around an acquisition loop whose models already hold the calibration
-    /// that `calibration_source` describes.
+    /// that `calibration_source` describes; `slots` says where each of the loop's pads is.
     pub fn new(
         control: A,
         persistence: P,
         identity: DeviceIdentity,
         calibration_source: CalibrationSource,
+        slots: &[PadSlot],
         config: DeviceConfig,
     ) -> Self {
         let mut pads = heapless::Vec::new();
-        for _ in 0..control.pad_count() {
-            // Cannot fail past MAX_PADS, which the loop never exceeds.
-            let _ = pads.push(PadReporting::new(config.contact));
+        for slot in slots.iter().take(control.pad_count()) {
+            // Cannot fail: at most MAX_PADS slots are taken.
+            let _ = pads.push(PadReporting::new(slot, calibration_source, config.contact));
         }
         Self {
             control,
             persistence,
             identity,
             config,
-            calibration_source,
             streaming: config.streaming_at_start,
             text_mode: false,
             host_connected: false,
@@ -293,13 +305,37 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             firmware_version: self.identity.firmware_version,
             board_serial: self.identity.board_serial,
             calibration_id: first.map_or(0, |pad| pad.calibration().id()),
-            calibration_source: self.calibration_source,
+            calibration_source: self.calibration_source(FIRST_PAD),
             rate: self.control.sample_rate(),
             model_tier: first.map_or(Tier::default(), PadModel::tier),
             streaming: self.streaming,
             text_mode: self.text_mode,
             pad_count: u8::try_from(self.control.pad_count()).unwrap_or(u8::MAX),
         }
+    }
+
+    /// Where a pad's calibration came from (`Defaults` for a pad that does not exist).
+    fn calibration_source(&self, pad: usize) -> CalibrationSource {
+        self.pads
+            .get(pad)
+            .map_or(CalibrationSource::Defaults, |reporting| {
+                reporting.calibration_source
+            })
+    }
+
+    /// A pad's description, `None` for a pad that does not exist.
+    pub fn pad_info(&self, pad: PadIndex) -> Option<PadInfoFrame> {
+        let index = usize::from(pad.get());
+        let model = self.control.pad(index)?;
+        let reporting = self.pads.get(index)?;
+        Some(PadInfoFrame {
+            pad,
+            channel: reporting.channel,
+            temperature_sensor: reporting.temperature_sensor,
+            calibration_id: model.calibration().id(),
+            calibration_source: reporting.calibration_source,
+            model_tier: model.tier(),
+        })
     }
 
     /// One sample set with everything around it: requests received since the last step are
@@ -554,6 +590,33 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         Ok(())
     }
 
+    /// Saves the pads' calibration. Flash holds one calibration, which every pad boots with:
+    /// when the pads' calibrations differ, nothing is written and the reply is NotSupported
+    /// (each pad keeps its own in RAM until a reboot).
+    async fn save_calibrations(&mut self) -> Result<ReplyPayload, ErrorCode> {
+        let Some(first) = self.control.pad(FIRST_PAD) else {
+            return Err(ErrorCode::NotSupported);
+        };
+        let spec = first.calibration().to_spec();
+        let all_alike = (0..self.control.pad_count()).all(|pad| {
+            self.control
+                .pad(pad)
+                .is_some_and(|model| model.calibration().to_spec() == spec)
+        });
+        if !all_alike {
+            return Err(ErrorCode::NotSupported);
+        }
+        match self.persistence.save(&spec).await {
+            Ok(()) => {
+                for reporting in self.pads.iter_mut() {
+                    reporting.calibration_source = CalibrationSource::Flash;
+                }
+                Ok(ReplyPayload::Ack)
+            }
+            Err(PersistenceFailed) => Err(ErrorCode::FlashError),
+        }
+    }
+
     async fn apply(
         &mut self,
         request_id: u16,
@@ -606,17 +669,19 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 },
                 None => Err(ErrorCode::NotSupported),
             },
-            Command::ReadCalibration { taxel_index } => match self.control.pad(FIRST_PAD) {
-                Some(model) => match calibration_record(model.calibration(), taxel_index) {
-                    Ok(record) => Ok(ReplyPayload::Calibration(record)),
-                    Err(_) => Err(ErrorCode::InvalidArgument),
-                },
-                None => Err(ErrorCode::NotSupported),
-            },
+            Command::ReadCalibration { pad, taxel_index } => {
+                match self.control.pad(usize::from(pad.get())) {
+                    Some(model) => calibration_record(model.calibration(), pad, taxel_index)
+                        .map(ReplyPayload::Calibration)
+                        .map_err(|_| ErrorCode::InvalidArgument),
+                    None => Err(ErrorCode::InvalidArgument),
+                }
+            }
             Command::WriteCalibration(record) => {
+                let index = usize::from(record.pad.get());
                 let updated = taxel_calibration_spec(&record.calibration)
                     .ok()
-                    .zip(self.control.pad(FIRST_PAD))
+                    .zip(self.control.pad(index))
                     .and_then(|(spec, model)| {
                         let calibration = model.calibration().clone();
                         let taxel = usize::from(record.taxel_index);
@@ -624,54 +689,56 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                             .with_taxel(taxel, &spec, record.calibration_id)
                             .ok()
                     });
-                match (updated, self.control.pad_mut(FIRST_PAD)) {
-                    (Some(calibration), Some(model)) => {
+                match (
+                    updated,
+                    self.control.pad_mut(index),
+                    self.pads.get_mut(index),
+                ) {
+                    (Some(calibration), Some(model), Some(reporting)) => {
                         model.set_calibration(calibration);
-                        self.calibration_source = CalibrationSource::Host;
+                        reporting.calibration_source = CalibrationSource::Host;
                         Ok(ReplyPayload::Ack)
                     }
-                    (_, None) => Err(ErrorCode::NotSupported),
-                    (None, Some(_)) => Err(ErrorCode::InvalidArgument),
+                    _ => Err(ErrorCode::InvalidArgument),
                 }
             }
-            Command::SaveCalibration => match self.control.pad(FIRST_PAD) {
-                Some(model) => {
-                    let spec = model.calibration().to_spec();
-                    match self.persistence.save(&spec).await {
-                        Ok(()) => {
-                            self.calibration_source = CalibrationSource::Flash;
-                            Ok(ReplyPayload::Ack)
-                        }
-                        Err(PersistenceFailed) => Err(ErrorCode::FlashError),
+            Command::SaveCalibration => self.save_calibrations().await,
+            Command::RestoreDefaults => {
+                for pad in 0..self.control.pad_count() {
+                    if let Some(model) = self.control.pad_mut(pad) {
+                        model.set_calibration(Calibration::default());
                     }
                 }
-                None => Err(ErrorCode::NotSupported),
-            },
-            Command::RestoreDefaults => match self.control.pad_mut(FIRST_PAD) {
-                Some(model) => {
-                    model.set_calibration(Calibration::default());
-                    self.calibration_source = CalibrationSource::Defaults;
-                    Ok(ReplyPayload::Ack)
+                for reporting in self.pads.iter_mut() {
+                    reporting.calibration_source = CalibrationSource::Defaults;
                 }
-                None => Err(ErrorCode::NotSupported),
-            },
+                Ok(ReplyPayload::Ack)
+            }
             Command::SetTextMode { enabled } => {
                 self.text_mode = enabled;
                 Ok(ReplyPayload::Ack)
             }
-            Command::ReadBaseline { taxel_index } => {
-                let records = self.control.pad(FIRST_PAD).map(PadModel::baseline_records);
+            Command::ReadBaseline { pad, taxel_index } => {
+                let records = self
+                    .control
+                    .pad(usize::from(pad.get()))
+                    .map(PadModel::baseline_records);
                 match records
                     .as_ref()
                     .and_then(|records| records.get(usize::from(taxel_index)))
                 {
                     Some(record) => Ok(ReplyPayload::Baseline(TaxelBaselineWire {
+                        pad,
                         taxel_index,
                         baseline: record.as_ref().map(baseline_wire),
                     })),
                     None => Err(ErrorCode::InvalidArgument),
                 }
             }
+            Command::PadInfo { pad } => self
+                .pad_info(pad)
+                .map(ReplyPayload::PadInfo)
+                .ok_or(ErrorCode::InvalidArgument),
         };
         Some(result)
     }

@@ -24,7 +24,9 @@ fn the_calibrated_c0_survives_the_wire_both_ways() {
     let calibration = calibration_with_c0();
     assert_eq!(calibration.id(), 12);
     for (taxel, expected) in calibration.taxels().iter().enumerate() {
-        let record = calibration_record(&calibration, taxel as u8).unwrap();
+        let pad = wire::PadIndex::new(3).unwrap();
+        let record = calibration_record(&calibration, pad, taxel as u8).unwrap();
+        assert_eq!(record.pad, pad);
         assert_eq!(
             record.calibration.unloaded_sensor_pf,
             expected.unloaded_sensor_pf()
@@ -37,7 +39,7 @@ fn the_calibrated_c0_survives_the_wire_both_ways() {
     }
     assert_eq!(calibration.taxels()[2].unloaded_sensor_pf(), None);
     assert_eq!(
-        calibration_record(&calibration, 4),
+        calibration_record(&calibration, wire::PadIndex::default(), 4),
         Err(CalibrationConversionError::NoSuchTaxel)
     );
 }

@@ -4,134 +4,14 @@
 // Test helpers may unwrap and panic: a failure is the test failing.
 #![allow(clippy::unwrap_used, clippy::panic)]
 
+mod support;
+
 use sim_device::{MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+use support::Host;
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, DeviceFrameDecoder, ErrorCode,
-    EventFrame, InfoFrame, ReplyPayload, Request, SampleFrame, SampleRate, TaxelCalibrationRecord,
-    UseCase,
+    EventFrame, ReplyPayload, Request, SampleFrame, SampleRate, TaxelCalibrationRecord, UseCase,
 };
-
-struct Host {
-    device: SimulatedDevice,
-    link: MemoryPort,
-    decoder: DeviceFrameDecoder,
-    next_request_id: u16,
-    samples: Vec<SampleFrame>,
-}
-
-impl Host {
-    fn new() -> Self {
-        let device = SimulatedDevice::new(SimulatedDeviceConfig {
-            scene: SceneFile::default_scene().unwrap(),
-            seed: 9,
-            speed: None,
-            topology: sim_device::pads_topology(1),
-            bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-        })
-        .unwrap();
-        let mut host = Self {
-            device,
-            link: MemoryPort::new(usize::MAX),
-            decoder: DeviceFrameDecoder::new(),
-            next_request_id: 1,
-            samples: Vec::new(),
-        };
-        host.steps(20);
-        host
-    }
-
-    /// Runs `count` converter cycles and decodes what came out.
-    fn steps(&mut self, count: usize) -> Vec<DeviceFrame> {
-        let mut frames = Vec::new();
-        for _ in 0..count {
-            self.device.step(&mut self.link);
-            let bytes = self.link.take_for_host(usize::MAX);
-            for frame in self.decoder.feed(&bytes).flatten() {
-                if let DeviceFrame::Sample(sample) = &frame {
-                    self.samples.push(*sample);
-                }
-                frames.push(frame);
-            }
-        }
-        frames
-    }
-
-    fn send_bytes(&mut self, bytes: &[u8]) {
-        self.link.to_device.extend(bytes);
-    }
-
-    /// Sends a command and waits up to 200 cycles for its reply.
-    fn request(&mut self, command: Command) -> Result<ReplyPayload, ErrorCode> {
-        let request_id = self.next_request_id;
-        self.next_request_id += 1;
-        let mut encoded = [0u8; 256];
-        let length = wire::encode_frame(
-            &Request {
-                request_id,
-                command,
-            },
-            &mut encoded,
-        )
-        .unwrap();
-        self.send_bytes(&encoded[..length]);
-        self.reply_to(request_id)
-    }
-
-    /// Steps up to 200 cycles until the reply to `request_id` arrives.
-    fn reply_to(&mut self, request_id: u16) -> Result<ReplyPayload, ErrorCode> {
-        for _ in 0..200 {
-            for frame in self.steps(1) {
-                if let DeviceFrame::Reply(reply) = frame {
-                    if reply.request_id == request_id {
-                        return reply.result;
-                    }
-                }
-            }
-        }
-        panic!("no reply to request {request_id}");
-    }
-
-    /// Sends command `command` with one varint argument, as a client of another implementation
-    /// could (any value, not only the ones the typed commands can hold), and waits for the reply.
-    fn request_with_varint(
-        &mut self,
-        command: u8,
-        argument: u16,
-    ) -> Result<ReplyPayload, ErrorCode> {
-        let request_id = self.next_request_id;
-        self.next_request_id += 1;
-        let mut payload = vec![
-            wire::PROTOCOL_VERSION,
-            wire::kind::REQUEST,
-            request_id as u8,
-        ];
-        assert!(request_id < 0x80);
-        payload.push(command);
-        let mut value = argument;
-        while value >= 0x80 {
-            payload.push((value as u8) | 0x80);
-            value >>= 7;
-        }
-        payload.push(value as u8);
-        payload.extend(wire::crc16(&payload).to_le_bytes());
-        // COBS, as PROTOCOL.md section 2.1 describes it.
-        let mut frame = Vec::new();
-        for run in payload.split(|&byte| byte == 0) {
-            frame.push(run.len() as u8 + 1);
-            frame.extend(run);
-        }
-        frame.push(0);
-        self.send_bytes(&frame);
-        self.reply_to(request_id)
-    }
-
-    fn info(&mut self) -> InfoFrame {
-        match self.request(Command::Info) {
-            Ok(ReplyPayload::Info(info)) => info,
-            other => panic!("{other:?}"),
-        }
-    }
-}
 
 #[test]
 fn info_and_counters_describe_the_device() {
@@ -405,7 +285,10 @@ fn tiers_and_use_cases_are_chosen_or_refused() {
 #[test]
 fn a_calibration_is_read_written_saved_kept_across_a_reboot_and_restored() {
     let mut host = Host::new();
-    let mut record = match host.request(Command::ReadCalibration { taxel_index: 1 }) {
+    let mut record = match host.request(Command::ReadCalibration {
+        pad: wire::PadIndex::default(),
+        taxel_index: 1,
+    }) {
         Ok(ReplyPayload::Calibration(record)) => record,
         other => panic!("{other:?}"),
     };
@@ -419,7 +302,10 @@ fn a_calibration_is_read_written_saved_kept_across_a_reboot_and_restored() {
     let point_count = factory.taxels()[1].curve().points().len();
     assert_eq!(record.calibration.points.len(), point_count);
     assert_eq!(
-        host.request(Command::ReadCalibration { taxel_index: 9 }),
+        host.request(Command::ReadCalibration {
+            pad: wire::PadIndex::default(),
+            taxel_index: 9
+        }),
         Err(ErrorCode::InvalidArgument)
     );
     record.calibration_id = 77;
@@ -451,7 +337,10 @@ fn a_calibration_is_read_written_saved_kept_across_a_reboot_and_restored() {
         (info.calibration_id, info.calibration_source),
         (77, CalibrationSource::Flash)
     );
-    match host.request(Command::ReadCalibration { taxel_index: 1 }) {
+    match host.request(Command::ReadCalibration {
+        pad: wire::PadIndex::default(),
+        taxel_index: 1,
+    }) {
         Ok(ReplyPayload::Calibration(read_back)) => {
             assert_eq!(
                 read_back.calibration.points[point_count - 1].1,
@@ -485,7 +374,10 @@ fn latest_flags(host: &mut Host, taxel: usize, steps: usize) -> u16 {
 fn a_calibrated_c0_is_carried_end_to_end_and_a_tare_far_from_it_is_flagged() {
     const FAR: u16 = wire::flags::BASELINE_FAR_FROM_CALIBRATION;
     let mut host = Host::new();
-    let mut record = match host.request(Command::ReadCalibration { taxel_index: 1 }) {
+    let mut record = match host.request(Command::ReadCalibration {
+        pad: wire::PadIndex::default(),
+        taxel_index: 1,
+    }) {
         Ok(ReplyPayload::Calibration(record)) => record,
         other => panic!("{other:?}"),
     };
@@ -505,7 +397,10 @@ fn a_calibrated_c0_is_carried_end_to_end_and_a_tare_far_from_it_is_flagged() {
     );
     assert_ne!(latest_flags(&mut host, 1, 5) & FAR, 0);
     assert_eq!(latest_flags(&mut host, 0, 1) & FAR, 0, "c11 has no C0");
-    match host.request(Command::ReadCalibration { taxel_index: 1 }) {
+    match host.request(Command::ReadCalibration {
+        pad: wire::PadIndex::default(),
+        taxel_index: 1,
+    }) {
         Ok(ReplyPayload::Calibration(read_back)) => {
             assert_eq!(read_back.calibration.unloaded_sensor_pf, Some(far_c0_pf));
         }
@@ -523,7 +418,10 @@ fn a_calibrated_c0_is_carried_end_to_end_and_a_tare_far_from_it_is_flagged() {
         Ok(ReplyPayload::Ack)
     );
     host.device.restart_mcu().unwrap();
-    match host.request(Command::ReadCalibration { taxel_index: 1 }) {
+    match host.request(Command::ReadCalibration {
+        pad: wire::PadIndex::default(),
+        taxel_index: 1,
+    }) {
         Ok(ReplyPayload::Calibration(read_back)) => {
             assert_eq!(read_back.calibration, record.calibration);
         }
@@ -624,12 +522,15 @@ fn malformed_and_unknown_requests_are_answered_or_counted_never_fatal() {
 
 fn calibration_records(host: &mut Host) -> Vec<TaxelCalibrationRecord> {
     (0..4)
-        .map(
-            |taxel_index| match host.request(Command::ReadCalibration { taxel_index }) {
+        .map(|taxel_index| {
+            match host.request(Command::ReadCalibration {
+                pad: wire::PadIndex::default(),
+                taxel_index,
+            }) {
                 Ok(ReplyPayload::Calibration(record)) => record,
                 other => panic!("{other:?}"),
-            },
-        )
+            }
+        })
         .collect()
 }
 
@@ -639,7 +540,9 @@ fn calibration_records(host: &mut Host) -> Vec<TaxelCalibrationRecord> {
 fn the_built_in_default_is_one_calibration_and_the_factory_one_is_in_flash() {
     let defaults = model_core::Calibration::default();
     let expected: Vec<TaxelCalibrationRecord> = (0..4)
-        .map(|taxel| device::calibration_record(&defaults, taxel).unwrap())
+        .map(|taxel| {
+            device::calibration_record(&defaults, wire::PadIndex::default(), taxel).unwrap()
+        })
         .collect();
 
     let mut host = Host::new();
@@ -667,15 +570,18 @@ fn the_built_in_default_is_one_calibration_and_the_factory_one_is_in_flash() {
 
 fn baselines(host: &mut Host) -> Vec<Option<wire::BaselineWire>> {
     (0..4)
-        .map(
-            |taxel_index| match host.request(Command::ReadBaseline { taxel_index }) {
+        .map(|taxel_index| {
+            match host.request(Command::ReadBaseline {
+                pad: wire::PadIndex::default(),
+                taxel_index,
+            }) {
                 Ok(ReplyPayload::Baseline(reply)) => {
                     assert_eq!(reply.taxel_index, taxel_index);
                     reply.baseline
                 }
                 other => panic!("{other:?}"),
-            },
-        )
+            }
+        })
         .collect()
 }
 
@@ -698,7 +604,10 @@ fn baselines_are_read_back_and_every_tare_is_announced() {
         .collect();
     assert_eq!(boot, model);
     assert_eq!(
-        host.request(Command::ReadBaseline { taxel_index: 4 }),
+        host.request(Command::ReadBaseline {
+            pad: wire::PadIndex::default(),
+            taxel_index: 4
+        }),
         Err(ErrorCode::InvalidArgument)
     );
 

@@ -85,7 +85,10 @@ fn a_client_on_the_terminal_end_gets_info_samples_and_replies() {
     let length = wire::encode_frame(
         &Request {
             request_id: 41,
-            command: Command::ReadCalibration { taxel_index: 2 },
+            command: Command::ReadCalibration {
+                pad: wire::PadIndex::default(),
+                taxel_index: 2,
+            },
         },
         &mut request,
     )

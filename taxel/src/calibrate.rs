@@ -629,7 +629,9 @@ mod tests {
         for (taxel, expected_pf) in [4.5f32, 4.3, 4.7, 4.4].into_iter().enumerate() {
             let unloaded_pf = calibration.taxels()[taxel].unloaded_sensor_pf().unwrap();
             assert!((unloaded_pf - expected_pf).abs() < 1e-5, "{unloaded_pf}");
-            let record = device::calibration_record(&calibration, taxel as u8).unwrap();
+            let record =
+                device::calibration_record(&calibration, wire::PadIndex::default(), taxel as u8)
+                    .unwrap();
             assert_eq!(record.calibration.unloaded_sensor_pf, Some(unloaded_pf));
             assert_eq!(record.check(), Ok(()));
         }

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use anyhow::{bail, Context};
 use model_core::{BaselineRecord, Calibration, CalibrationSpec, TAXEL_COUNT, TAXEL_NAMES};
-use wire::{Command, ReplyPayload};
+use wire::{Command, PadIndex, ReplyPayload};
 
 use crate::calibration_file::{self, describe_calibration_error};
 use crate::device_link::{self, BoardArgs, DeviceLink, RequestError};
@@ -75,6 +75,7 @@ pub enum CalibrationAction {
 /// the calibration id the device reports in its Info.
 pub fn pull<P: Read + Write>(
     link: &mut DeviceLink<P>,
+    pad: PadIndex,
     calibration_id: u32,
     timeout: Duration,
 ) -> anyhow::Result<Calibration> {
@@ -83,7 +84,8 @@ pub fn pull<P: Read + Write>(
         ..CalibrationSpec::default()
     };
     for (taxel_index, taxel) in (0u8..).zip(spec.taxels.iter_mut()) {
-        let record = match link.request(Command::ReadCalibration { taxel_index }, timeout) {
+        let command = Command::ReadCalibration { pad, taxel_index };
+        let record = match link.request(command, timeout) {
             Ok(ReplyPayload::Calibration(record)) => record,
             Ok(_) => return Err(RequestError::UnexpectedReply("ReadCalibration").into()),
             Err(error) => {
@@ -101,15 +103,17 @@ pub fn pull<P: Read + Write>(
     })
 }
 
-/// Reads the baselines the device's model uses now (four ReadBaseline requests); `None` for a
-/// taxel that is not tared.
+/// Reads the baselines a pad's model uses now (four ReadBaseline requests); `None` for a taxel
+/// that is not tared.
 pub fn pull_baselines<P: Read + Write>(
     link: &mut DeviceLink<P>,
+    pad: PadIndex,
     timeout: Duration,
 ) -> anyhow::Result<[Option<BaselineRecord>; TAXEL_COUNT]> {
     let mut baselines = [None; TAXEL_COUNT];
     for (taxel_index, baseline) in (0u8..).zip(baselines.iter_mut()) {
-        *baseline = match link.request(Command::ReadBaseline { taxel_index }, timeout) {
+        let command = Command::ReadBaseline { pad, taxel_index };
+        *baseline = match link.request(command, timeout) {
             Ok(ReplyPayload::Baseline(reply)) => {
                 reply.baseline.as_ref().map(device::baseline_record)
             }
@@ -120,8 +124,9 @@ pub fn pull_baselines<P: Read + Write>(
     Ok(baselines)
 }
 
-/// Writes the calibration to the device, taxel by taxel, then saves it to flash if `save`.
-/// Each request waits for its reply; a refusal or a timeout stops the upload.
+/// Writes the calibration to every pad of the device (as many as its Info says, one when the
+/// link has not seen it), taxel by taxel, then saves it to flash if `save`. Each request waits
+/// for its reply; a refusal or a timeout stops the upload.
 pub fn upload<P: Read + Write>(
     link: &mut DeviceLink<P>,
     calibration: &Calibration,
@@ -134,15 +139,22 @@ pub fn upload<P: Read + Write>(
         Ok(_) => bail!("{what}: the device answered with a reply of another kind"),
         Err(error) => Err(anyhow::Error::new(error).context(what.to_owned())),
     };
-    for (taxel_index, name) in (0u8..).zip(TAXEL_NAMES) {
-        let record = device::calibration_record(calibration, taxel_index)
-            .map_err(|error| anyhow::anyhow!("taxel {name}: {error:?}"))?;
-        let what = format!("WriteCalibration for taxel {name}");
-        expect_ack(
-            link.request(Command::WriteCalibration(record), timeout),
-            &what,
-        )?;
-        progress(&format!("{what}: acknowledged"));
+    let pads = (0..link.pad_count().unwrap_or(1)).filter_map(PadIndex::new);
+    for pad in pads {
+        for (taxel_index, name) in (0u8..).zip(TAXEL_NAMES) {
+            let record = device::calibration_record(calibration, pad, taxel_index)
+                .map_err(|error| anyhow::anyhow!("taxel {name}: {error:?}"))?;
+            let what = if pad.get() == 0 {
+                format!("WriteCalibration for taxel {name}")
+            } else {
+                format!("WriteCalibration for pad {} taxel {name}", pad.get())
+            };
+            expect_ack(
+                link.request(Command::WriteCalibration(record), timeout),
+                &what,
+            )?;
+            progress(&format!("{what}: acknowledged"));
+        }
     }
     if save {
         expect_ack(
@@ -170,7 +182,7 @@ pub fn run(args: &CalibrationArgs) -> anyhow::Result<ExitCode> {
                 .synchronise(timeout)
                 .with_context(|| format!("asking the device on {path} who it is"))?;
             noteln!("device on {path}: {}", info_words(&info));
-            let calibration = pull(&mut link, info.calibration_id, timeout)?;
+            let calibration = pull(&mut link, PadIndex::default(), info.calibration_id, timeout)?;
             calibration_file::write(output, &calibration)?;
             noteln!(
                 "wrote calibration id {} ({}) to {}",

@@ -12,6 +12,13 @@
 //! [`crate::recording`]): its calibration, tier and baselines. When it is there, the conversion
 //! uses it and says so, so that converting a recording with the defaults reproduces the
 //! device's pressures; options given on the command line replace its parts.
+//!
+//! A recording of several pads (pad-prefixed columns, see [`crate::pad_set`]) is recognised
+//! from its header and converted pad by pad into the same prefixed layout ([`multi_pad`]).
+
+mod csv_input;
+pub mod multi_pad;
+mod pad_run;
 
 use std::fs::File;
 use std::io::{self, BufReader, BufWriter, Read, Write};
@@ -19,30 +26,22 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context};
-use model_core::{
-    BaselineRecord, Calibration, PadModel, SampleInput, TareStatus, TaxelFlags, TaxelReading, Tier,
-    TAXEL_COUNT, TAXEL_NAMES,
-};
+use model_core::{Calibration, Tier, TAXEL_COUNT};
 use wire::DeviceFrame;
 
 use crate::csv_format::{
-    detect_dialect, find_column, find_columns, flag_names, format_optional, format_time_us,
-    parse_flag_names, parse_number, parse_time_s, CsvDialect, CAPACITANCE_COLUMNS, FLAGS_COLUMNS,
+    detect_dialect, format_optional, format_time_us, parse_time_s, CsvDialect, FLAGS_COLUMNS,
     PRESSURE_COLUMNS, TEMPERATURE_COLUMN, TIME_COLUMN,
 };
 use crate::device_link::FrameReceiver;
 use crate::noteln;
 use crate::output_file::{refuse_same_file, OutputFile};
-use crate::recording::{device_state_path, BaselineChange, RecordedDeviceState, SEQUENCE_COLUMN};
+use crate::recording::{device_state_path, BaselineChange, RecordedDeviceState};
+use csv_input::{parse_sample, CsvColumns};
+use pad_run::{frame_input, PadRun};
 
 /// Exit status when at least one input row could not be read.
 pub const EXIT_BAD_ROWS: u8 = 3;
-
-/// Flags a recording's sample frames carry that come from the acquisition, not the model, and
-/// so must be kept when the model runs again.
-const ACQUISITION_FLAGS: TaxelFlags = TaxelFlags::CONVERTER_ERROR
-    .union(TaxelFlags::STUCK)
-    .union(TaxelFlags::SATURATED);
 
 /// The long help of the subcommand.
 pub const LONG_ABOUT: &str =
@@ -62,6 +61,16 @@ device's; --calibration, --tier and --tare-rows replace its parts, --no-device-s
 it. Without it: the built-in default calibration (the article's curve), the monotone-cubic \
 tier, and a baseline (tare) that is the mean of the first --tare-rows readable rows (default \
 1), which are themselves reported as not_tared. Which calibration was used is said on stderr.\n\n\
+A recording of a device with several pads (header seq,pad0_time_s,pad0_temp_c,\
+pad0_c11_pf..., then pad1_..., as `taxel record` writes it) is recognised from its header: \
+each pad is converted with a model of its own (its own tare with --tare-rows), and the output \
+is seq, then for each pad N: padN_time_s,padN_temp_c,padN_p11_kpa..padN_p22_kpa,\
+padN_flags11..padN_flags22. A pad whose frame is missing from a set has every cell empty, in the \
+input and the output. The device state describes pad 0 (the device cannot yet report the other \
+pads' calibrations and baselines): its calibration and baselines are used for every pad, so \
+the other pads' pressures may differ from the device's. A raw log of several pads is converted \
+the same way when its device-state file says how many pads there are; without it, pad 0 only. \
+A header whose pads are out of order or incomplete is an error.\n\n\
 Exit status: 0 when every row was read, 3 when some rows could not be read (each is reported \
 on stderr with its line number and written as empty cells), 1 on any other error (no data rows \
 or frames at all, a missing column, a file that cannot be read or written).\n\n\
@@ -138,6 +147,9 @@ pub struct ConvertOptions {
     pub tier: Tier,
     /// The baselines.
     pub tare: TareSource,
+    /// The pads of the recording, from its device state: a raw log of several pads is converted
+    /// to the pad-prefixed layout (a CSV file says it in its header).
+    pub pad_count: u8,
 }
 
 impl Default for ConvertOptions {
@@ -146,6 +158,7 @@ impl Default for ConvertOptions {
             calibration: Calibration::default(),
             tier: Tier::default(),
             tare: TareSource::Rows(1),
+            pad_count: 1,
         }
     }
 }
@@ -174,6 +187,12 @@ pub struct ConvertSummary {
     pub tare_warnings: Vec<String>,
     /// How the file was read, when not the default dialect (for the user).
     pub dialect: Option<CsvDialect>,
+    /// The pads of the input (1 for the single-pad layout).
+    pub pad_count: u8,
+    /// Several pads: frames missing from the recording's sample sets (their cells empty).
+    pub missing_pad_frames: u64,
+    /// Raw logs converted as one pad: frames of other pads, skipped.
+    pub frames_of_other_pads: u64,
 }
 
 /// Header of the output.
@@ -184,255 +203,60 @@ pub fn output_header() -> Vec<&'static str> {
     header
 }
 
+/// The next record of a CSV reader with its line number; `None` at the end. A row the reader
+/// cannot split gives the reason (and an empty record); an I/O failure is an error.
+fn next_record<R: Read>(
+    reader: &mut csv::Reader<R>,
+    record: &mut csv::StringRecord,
+) -> anyhow::Result<Option<(u64, Result<(), String>)>> {
+    let line_hint = reader.position().line();
+    match reader.read_record(record) {
+        Ok(false) => Ok(None),
+        Ok(true) => {
+            let line = record
+                .position()
+                .map_or(line_hint, |position| position.line());
+            Ok(Some((line, Ok(()))))
+        }
+        Err(error) => {
+            let line = error
+                .position()
+                .map_or(line_hint, |position| position.line());
+            if matches!(error.kind(), csv::ErrorKind::Io(_)) {
+                return Err(error).context(format!("reading line {line}"));
+            }
+            record.clear();
+            Ok(Some((line, Err(format!("unreadable row: {error}")))))
+        }
+    }
+}
+
+/// A cell as the output writes it: ','-separated with '.' decimals whatever the input was.
+fn as_written(cell: &str, dialect: CsvDialect) -> String {
+    if dialect.decimal_comma {
+        cell.replace(',', ".")
+    } else {
+        cell.to_owned()
+    }
+}
+
+/// The time cell of a row that could not be converted: kept when it is a readable time.
+fn readable_time(cell: &str, dialect: CsvDialect) -> String {
+    parse_time_s(cell, dialect.decimal_comma)
+        .map(|time_s| {
+            if dialect.decimal_comma {
+                format!("{time_s}")
+            } else {
+                cell.to_owned()
+            }
+        })
+        .unwrap_or_default()
+}
+
 fn csv_writer<W: Write>(output: W) -> csv::Writer<W> {
     csv::WriterBuilder::new()
         .terminator(csv::Terminator::CRLF)
         .from_writer(output)
-}
-
-fn new_model(options: &ConvertOptions) -> anyhow::Result<PadModel> {
-    let mut pad = PadModel::new(options.calibration.clone());
-    pad.set_tier(options.tier).map_err(|_| {
-        anyhow::anyhow!(
-            "tier {} is not available for this calibration (the saturating fit needs a concave curve on every taxel)",
-            options.tier.name()
-        )
-    })?;
-    if let TareSource::Rows(rows) = options.tare {
-        pad.start_tare(rows);
-    }
-    Ok(pad)
-}
-
-/// Installs the recorded baselines in force at each sample's sequence number.
-#[derive(Debug, Default)]
-struct RecordedBaselines {
-    changes: Vec<BaselineChange>,
-    installed: Option<usize>,
-    warnings: Vec<String>,
-}
-
-impl RecordedBaselines {
-    fn new(tare: &TareSource) -> Self {
-        match tare {
-            TareSource::Recorded(changes) => Self {
-                changes: changes.clone(),
-                ..Self::default()
-            },
-            TareSource::Rows(_) => Self::default(),
-        }
-    }
-
-    /// Before a sample: installs the baselines that apply from `sequence` on (the first ones
-    /// when the data has no sequence numbers).
-    fn before_sample(&mut self, pad: &mut PadModel, sequence: Option<u32>) {
-        let wanted = match sequence {
-            Some(sequence) => self
-                .changes
-                .iter()
-                .rposition(|change| change.from_sequence <= sequence)
-                .or(if self.changes.is_empty() {
-                    None
-                } else {
-                    Some(0)
-                }),
-            None if self.changes.is_empty() => None,
-            None => Some(0),
-        };
-        if wanted.is_none() || wanted == self.installed {
-            return;
-        }
-        self.installed = wanted;
-        let Some(change) = wanted.and_then(|index| self.changes.get(index)) else {
-            return;
-        };
-        install_baselines(pad, &change.taxels, &mut self.warnings);
-    }
-}
-
-fn install_baselines(
-    pad: &mut PadModel,
-    baselines: &[Option<BaselineRecord>; TAXEL_COUNT],
-    warnings: &mut Vec<String>,
-) {
-    let restored = pad.restore_baselines(baselines);
-    for (taxel, baseline) in baselines.iter().enumerate() {
-        if baseline.is_some() && restored & (1 << taxel) == 0 {
-            warnings.push(format!(
-                "the recorded baseline of taxel {} is not valid with this calibration; it stays not_tared",
-                TAXEL_NAMES[taxel]
-            ));
-        }
-    }
-}
-
-/// Runs one sample through the model and returns the output cells after `time_s,temp_c`.
-fn model_cells(
-    pad: &mut PadModel,
-    sample: &SampleInput,
-    tare_watch: &mut TareWatch,
-) -> Vec<String> {
-    let output = pad.process(sample);
-    tare_watch.observe(pad);
-    let mut cells: Vec<String> = output
-        .taxels
-        .iter()
-        .map(|taxel| format_optional(taxel.pressure_kpa()))
-        .collect();
-    cells.extend(output.taxels.iter().map(|taxel| flag_names(taxel.flags())));
-    cells
-}
-
-/// Notices when the tare finishes and whether every taxel got a baseline.
-#[derive(Debug, Default)]
-struct TareWatch {
-    reported: bool,
-    warnings: Vec<String>,
-}
-
-impl TareWatch {
-    fn observe(&mut self, pad: &PadModel) {
-        if self.reported {
-            return;
-        }
-        if let TareStatus::Finished { tared_mask } = pad.tare_status() {
-            self.reported = true;
-            let errors = pad.last_tare_errors();
-            for taxel in 0..TAXEL_COUNT {
-                if tared_mask & (1 << taxel) == 0 {
-                    self.warnings.push(format!(
-                        "taxel {} could not be tared ({}); it stays not_tared",
-                        TAXEL_NAMES[taxel],
-                        errors[taxel]
-                            .map(|error| crate::device_words::baseline_error_words(&error))
-                            .unwrap_or_else(|| "no usable reading".to_owned())
-                    ));
-                }
-            }
-        }
-    }
-
-    fn finish(mut self, pad: &PadModel) -> Vec<String> {
-        if let TareStatus::Running { remaining } = pad.tare_status() {
-            self.warnings.push(format!(
-                "the tare never finished ({remaining} more readable rows were needed); every pressure is empty (not_tared)"
-            ));
-        }
-        self.warnings
-    }
-}
-
-/// Where the cells of a CSV input are: the six columns the model needs, and in a recording
-/// also the sequence number and the flags the acquisition set.
-#[derive(Debug, Clone)]
-struct CsvColumns {
-    needed: [usize; 6],
-    sequence: Option<usize>,
-    flags: Option<[usize; TAXEL_COUNT]>,
-    field_count: usize,
-    dialect: CsvDialect,
-}
-
-impl CsvColumns {
-    fn find(header: &csv::StringRecord, dialect: CsvDialect) -> anyhow::Result<Self> {
-        let wanted = [
-            TIME_COLUMN,
-            TEMPERATURE_COLUMN,
-            CAPACITANCE_COLUMNS[0],
-            CAPACITANCE_COLUMNS[1],
-            CAPACITANCE_COLUMNS[2],
-            CAPACITANCE_COLUMNS[3],
-        ];
-        let needed = find_columns(header, wanted).map_err(|missing| {
-            if header.iter().all(|field| field.trim().is_empty()) {
-                anyhow::anyhow!("the file is empty: it has no header row")
-            } else {
-                anyhow::anyhow!(
-                    "the header lacks the column(s) {} (found: {})",
-                    missing.join(", "),
-                    shortened(&header.iter().collect::<Vec<_>>().join(","))
-                )
-            }
-        })?;
-        Ok(Self {
-            needed,
-            sequence: find_column(header, SEQUENCE_COLUMN),
-            flags: find_columns(header, FLAGS_COLUMNS).ok(),
-            field_count: header.len(),
-            dialect,
-        })
-    }
-}
-
-/// At most 80 characters of a text that goes into a message.
-fn shortened(text: &str) -> String {
-    const LIMIT: usize = 80;
-    if text.chars().count() <= LIMIT {
-        text.to_owned()
-    } else {
-        format!("{}…", text.chars().take(LIMIT).collect::<String>())
-    }
-}
-
-/// One CSV row read as a model input, with its sequence number if the file has them.
-struct ParsedRow {
-    input: SampleInput,
-    sequence: Option<u32>,
-}
-
-/// Parses one CSV record into a model input, or says why it cannot.
-fn parse_sample(record: &csv::StringRecord, columns: &CsvColumns) -> Result<ParsedRow, String> {
-    if record.len() != columns.field_count {
-        return Err(format!(
-            "expected {} fields, found {}",
-            columns.field_count,
-            record.len()
-        ));
-    }
-    let decimal_comma = columns.dialect.decimal_comma;
-    let cell = |index: usize| record.get(index).unwrap_or("");
-    let time_s = parse_time_s(cell(columns.needed[0]), decimal_comma)?;
-    let temperature_c = parse_number(cell(columns.needed[1]), decimal_comma)
-        .map_err(|error| format!("{TEMPERATURE_COLUMN}: {error}"))?
-        .map(|value| value as f32)
-        .filter(|value| !value.is_nan());
-    let mut readings = [TaxelReading::Unavailable; TAXEL_COUNT];
-    for (taxel, reading) in readings.iter_mut().enumerate() {
-        let value = parse_number(cell(columns.needed[2 + taxel]), decimal_comma)
-            .map_err(|error| format!("{}: {error}", CAPACITANCE_COLUMNS[taxel]))?;
-        if let Some(capacitance_pf) = value {
-            *reading = TaxelReading::CapacitancePf(capacitance_pf as f32);
-        }
-    }
-    let sequence = match columns.sequence {
-        Some(index) => Some(cell(index).trim().parse::<u32>().map_err(|_| {
-            format!(
-                "{SEQUENCE_COLUMN}: '{}' is not a sequence number",
-                cell(index).trim()
-            )
-        })?),
-        None => None,
-    };
-    let mut input = SampleInput::new(readings, temperature_c);
-    if let Some(flag_columns) = columns.flags {
-        // A recording's flags say which readings the acquisition already knew to be bad.
-        for (taxel, column) in flag_columns.iter().enumerate() {
-            let flags = parse_flag_names(cell(*column))
-                .map_err(|name| format!("{}: unknown flag '{name}'", FLAGS_COLUMNS[taxel]))?
-                .intersection(ACQUISITION_FLAGS);
-            input.reading_flags[taxel] = flags;
-            if flags.contains(TaxelFlags::CONVERTER_ERROR) {
-                input.readings[taxel] = TaxelReading::Unavailable;
-            }
-        }
-    }
-    // The plausibility rule wants a non-negative time in microseconds.
-    let input = if time_s >= 0.0 {
-        input.at_time_us((time_s * 1.0e6) as u64)
-    } else {
-        input
-    };
-    Ok(ParsedRow { input, sequence })
 }
 
 /// Converts a CSV input. Bad rows are written as empty cells and listed in the summary; a
@@ -446,68 +270,36 @@ pub fn convert_csv<R: Read, W: Write>(
         detect_dialect(BufReader::new(input), TIME_COLUMN).context("reading the header row")?;
     let mut reader = dialect.reader(input);
     let header = reader.headers().context("reading the header row")?.clone();
+    if let Some(pad_count) = multi_pad::header_pad_count(&header)? {
+        return multi_pad::convert_csv(reader, &header, dialect, pad_count, output, options);
+    }
     let columns = CsvColumns::find(&header, dialect)?;
-    let mut pad = new_model(options)?;
-    let mut baselines = RecordedBaselines::new(&options.tare);
-    let mut tare_watch = TareWatch::default();
+    let mut run = PadRun::new(options)?;
     let mut writer = csv_writer(output);
     writer.write_record(output_header())?;
     let mut summary = ConvertSummary {
         dialect: (dialect != CsvDialect::default()).then_some(dialect),
+        pad_count: 1,
         ..ConvertSummary::default()
     };
     let mut record = csv::StringRecord::new();
     let empty_cells = vec![String::new(); 2 * TAXEL_COUNT];
     let time_column = columns.needed[0];
-    loop {
-        let line_hint = reader.position().line();
-        let (line, parsed) = match reader.read_record(&mut record) {
-            Ok(false) => break,
-            Ok(true) => {
-                let line = record
-                    .position()
-                    .map_or(line_hint, |position| position.line());
-                (line, parse_sample(&record, &columns))
-            }
-            Err(error) => {
-                let line = error
-                    .position()
-                    .map_or(line_hint, |position| position.line());
-                if matches!(error.kind(), csv::ErrorKind::Io(_)) {
-                    return Err(error).context(format!("reading line {line}"));
-                }
-                record.clear();
-                (line, Err(format!("unreadable row: {error}")))
-            }
-        };
+    while let Some((line, readable)) = next_record(&mut reader, &mut record)? {
+        let parsed = readable.and_then(|()| parse_sample(&record, &columns));
         let time_cell = record.get(time_column).unwrap_or("");
         let temperature_cell = record.get(columns.needed[1]).unwrap_or("");
         match parsed {
             Ok(row) => {
-                baselines.before_sample(&mut pad, row.sequence);
-                // The output is ','-separated with '.' decimals whatever the input was.
-                let as_written = |cell: &str| {
-                    if dialect.decimal_comma {
-                        cell.replace(',', ".")
-                    } else {
-                        cell.to_owned()
-                    }
-                };
-                let mut cells = vec![as_written(time_cell), as_written(temperature_cell)];
-                cells.extend(model_cells(&mut pad, &row.input, &mut tare_watch));
+                let mut cells = vec![
+                    as_written(time_cell, dialect),
+                    as_written(temperature_cell, dialect),
+                ];
+                cells.extend(run.cells(row.sequence, &row.input));
                 writer.write_record(&cells)?;
             }
             Err(reason) => {
-                let readable_time = parse_time_s(time_cell, dialect.decimal_comma)
-                    .map(|time_s| {
-                        if dialect.decimal_comma {
-                            format!("{time_s}")
-                        } else {
-                            time_cell.to_owned()
-                        }
-                    })
-                    .unwrap_or_default();
-                let mut cells = vec![readable_time, String::new()];
+                let mut cells = vec![readable_time(time_cell, dialect), String::new()];
                 cells.extend(empty_cells.iter().cloned());
                 writer.write_record(&cells)?;
                 summary.bad_rows.push(BadRow { line, reason });
@@ -519,25 +311,71 @@ pub fn convert_csv<R: Read, W: Write>(
         bail!("the file has a header but no data rows: nothing to convert");
     }
     writer.flush()?;
-    summary.tare_warnings = baselines.warnings;
-    summary.tare_warnings.extend(tare_watch.finish(&pad));
+    summary.tare_warnings = run.warnings();
     Ok(summary)
 }
 
 /// Converts a raw byte log: every sample frame becomes a row; undecodable bytes are skipped and
 /// counted. A log without a single sample frame is an error.
 pub fn convert_raw<R: Read, W: Write>(
-    mut input: R,
+    input: R,
     output: W,
     options: &ConvertOptions,
 ) -> anyhow::Result<ConvertSummary> {
-    let mut pad = new_model(options)?;
-    let mut baselines = RecordedBaselines::new(&options.tare);
-    let mut tare_watch = TareWatch::default();
+    if options.pad_count > 1 {
+        return multi_pad::convert_raw(input, output, options);
+    }
+    let mut run = PadRun::new(options)?;
     let mut writer = csv_writer(output);
     writer.write_record(output_header())?;
-    let mut summary = ConvertSummary::default();
+    let mut summary = ConvertSummary {
+        pad_count: 1,
+        ..ConvertSummary::default()
+    };
+    let statistics = read_frames(input, None, |frame| {
+        let DeviceFrame::Sample(sample) = frame else {
+            return Ok(());
+        };
+        if sample.pad.get() != 0 {
+            summary.frames_of_other_pads += 1;
+            return Ok(());
+        }
+        let input = frame_input(&sample);
+        let mut cells = vec![
+            format_time_us(sample.timestamp_us),
+            format_optional(input.temperature_c),
+        ];
+        cells.extend(run.cells(Some(sample.sequence), &input));
+        writer.write_record(&cells)?;
+        summary.rows_written += 1;
+        Ok(())
+    })?;
+    summary.undecodable_frames = statistics.frames_rejected;
+    summary.undecodable_bytes = statistics.bytes_rejected;
+    if summary.rows_written == 0 {
+        bail!(
+            "no sample frame in {} bytes ({} undecodable frames): this is not a raw log written by `taxel record` (a CSV file is converted without --raw)",
+            statistics.bytes_received,
+            statistics.frames_rejected
+        );
+    }
+    writer.flush()?;
+    summary.tare_warnings = run.warnings();
+    Ok(summary)
+}
+
+/// Decodes a raw byte log and hands every frame to `take`, in order; returns the decoding
+/// counters (a partial frame at the end counted as rejected). With a pad count, frames of other
+/// pads are set aside by the receiver (and counted in its statistics).
+fn read_frames<R: Read>(
+    mut input: R,
+    pad_count: Option<u8>,
+    mut take: impl FnMut(DeviceFrame) -> anyhow::Result<()>,
+) -> anyhow::Result<crate::device_link::LinkStatistics> {
     let mut receiver = FrameReceiver::new();
+    if let Some(pad_count) = pad_count {
+        receiver.set_pad_count(pad_count);
+    }
     let mut buffer = vec![0u8; 64 * 1024];
     let mut frames = Vec::new();
     loop {
@@ -549,47 +387,11 @@ pub fn convert_raw<R: Read, W: Write>(
         };
         receiver.push_bytes(&buffer[..count], &mut frames);
         for frame in frames.drain(..) {
-            let DeviceFrame::Sample(sample) = frame else {
-                continue;
-            };
-            let mut input = SampleInput::new(
-                [TaxelReading::Unavailable; TAXEL_COUNT],
-                sample.temperature_c.filter(|value| !value.is_nan()),
-            )
-            .at_time_us(sample.timestamp_us);
-            for (taxel, recorded) in sample.taxels.iter().enumerate() {
-                let acquisition_flags =
-                    TaxelFlags::from_bits_retain(recorded.flags).intersection(ACQUISITION_FLAGS);
-                input.reading_flags[taxel] = acquisition_flags;
-                if !acquisition_flags.contains(TaxelFlags::CONVERTER_ERROR) {
-                    input.readings[taxel] = TaxelReading::CapacitancePf(recorded.capacitance_pf);
-                }
-            }
-            baselines.before_sample(&mut pad, Some(sample.sequence));
-            let mut cells = vec![
-                format_time_us(sample.timestamp_us),
-                format_optional(input.temperature_c),
-            ];
-            cells.extend(model_cells(&mut pad, &input, &mut tare_watch));
-            writer.write_record(&cells)?;
-            summary.rows_written += 1;
+            take(frame)?;
         }
     }
     receiver.finish();
-    let statistics = receiver.statistics();
-    summary.undecodable_frames = statistics.frames_rejected;
-    summary.undecodable_bytes = statistics.bytes_rejected;
-    if summary.rows_written == 0 {
-        bail!(
-            "no sample frame in {} bytes ({} undecodable frames): this is not a raw log written by `taxel record` (a CSV file is converted without --raw)",
-            statistics.bytes_received,
-            statistics.frames_rejected
-        );
-    }
-    writer.flush()?;
-    summary.tare_warnings = baselines.warnings;
-    summary.tare_warnings.extend(tare_watch.finish(&pad));
-    Ok(summary)
+    Ok(receiver.statistics().clone())
 }
 
 fn open_input(path: &Path) -> anyhow::Result<Box<dyn Read>> {
@@ -669,6 +471,12 @@ pub fn resolve_options(args: &ConvertArgs) -> anyhow::Result<(ConvertOptions, St
     if let TareSource::Rows(rows) = tare {
         said.push(format!("a tare on the first {rows} readable row(s)"));
     }
+    let pad_count = state.as_ref().map_or(1, |state| state.pad_count.max(1));
+    if pad_count > 1 {
+        said.push(format!(
+            "for each of the {pad_count} pads (the device state describes pad 0: the other pads' pressures may differ from the device's)"
+        ));
+    }
     let source = match &state_path {
         Some(path) => format!(
             "converting with {} (from {})",
@@ -682,6 +490,7 @@ pub fn resolve_options(args: &ConvertArgs) -> anyhow::Result<(ConvertOptions, St
             calibration,
             tier,
             tare,
+            pad_count,
         },
         source,
     ))
@@ -729,10 +538,27 @@ pub fn run(args: &ConvertArgs) -> anyhow::Result<ExitCode> {
     for warning in &summary.tare_warnings {
         noteln!("warning: {warning}");
     }
+    if summary.missing_pad_frames > 0 {
+        noteln!(
+            "{} pad frames were missing from the recording's sample sets (those pads' cells are empty in their rows)",
+            summary.missing_pad_frames
+        );
+    }
+    if summary.frames_of_other_pads > 0 {
+        noteln!(
+            "warning: {} sample frames of pads other than pad 0 were skipped: the raw log holds several pads, and without its device-state file (which says how many) only pad 0 is converted",
+            summary.frames_of_other_pads
+        );
+    }
     if args.raw.is_some() {
         noteln!(
-            "{} sample frames converted; {} undecodable frames ({} bytes) skipped",
+            "{} {} converted; {} undecodable frames ({} bytes) skipped",
             summary.rows_written,
+            if summary.pad_count > 1 {
+                "sample sets"
+            } else {
+                "sample frames"
+            },
             summary.undecodable_frames,
             summary.undecodable_bytes
         );

@@ -11,9 +11,11 @@ use std::io::{self, Read, Write};
 use std::time::{Duration, Instant};
 
 use wire::{
-    encode_frame_to_vec, Command, DecodeError, DeviceFrame, DeviceFrameDecoder, EncodeError,
-    ErrorCode, InfoFrame, ReplyFrame, ReplyPayload, Request,
+    encode_frame_to_vec, Command, DeviceFrame, EncodeError, ErrorCode, InfoFrame, ReplyFrame,
+    ReplyPayload, Request,
 };
+
+pub use crate::frame_receiver::{FrameReceiver, LinkStatistics};
 
 /// The pad's USB vendor id (pid.codes).
 pub const DEFAULT_VID: u16 = 0x1209;
@@ -341,95 +343,6 @@ pub fn check_is_serial_port(path: &str) -> Result<(), LinkError> {
     }
 }
 
-/// Counters of what a [`FrameReceiver`] saw.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct LinkStatistics {
-    /// Bytes received.
-    pub bytes_received: u64,
-    /// Frames decoded.
-    pub frames_decoded: u64,
-    /// Frames rejected (garbage, corruption, unknown kind or version).
-    pub frames_rejected: u64,
-    /// Bytes that belonged to no decoded frame (rejected frames and their delimiters).
-    pub bytes_rejected: u64,
-    /// The last decoding error.
-    pub last_error: Option<DecodeError>,
-    /// Sample frames of pads other than pad 0, set aside: this host version shows, records and
-    /// re-processes one pad (a device with several pads says so in its Info frame).
-    pub samples_of_other_pads: u64,
-    /// The protocol version of the last intact frame of a version this host does not speak,
-    /// unless a frame of its own version has been decoded since.
-    pub other_protocol_version: Option<u8>,
-}
-
-/// The decoding half of the link: bytes in, device frames out, resynchronising at every 0x00.
-#[derive(Debug, Clone, Default)]
-pub struct FrameReceiver {
-    decoder: DeviceFrameDecoder,
-    bytes_in_chunk: u64,
-    statistics: LinkStatistics,
-}
-
-impl FrameReceiver {
-    /// A receiver with nothing pending.
-    pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// Decodes bytes and appends every frame they complete to `frames`.
-    pub fn push_bytes(&mut self, bytes: &[u8], frames: &mut impl Extend<DeviceFrame>) {
-        self.statistics.bytes_received += bytes.len() as u64;
-        for &byte in bytes {
-            self.bytes_in_chunk += 1;
-            match self.decoder.push(byte) {
-                Some(Ok(DeviceFrame::Sample(sample))) if sample.pad.get() != 0 => {
-                    self.statistics.frames_decoded += 1;
-                    self.statistics.samples_of_other_pads += 1;
-                    self.statistics.other_protocol_version = None;
-                    self.bytes_in_chunk = 0;
-                }
-                Some(Ok(frame)) => {
-                    self.statistics.frames_decoded += 1;
-                    // A frame of our version since: the device speaks it (a stale frame of
-                    // another version from before a firmware update is history).
-                    self.statistics.other_protocol_version = None;
-                    self.bytes_in_chunk = 0;
-                    frames.extend([frame]);
-                }
-                Some(Err(error)) => {
-                    if let DecodeError::UnsupportedVersion { found, .. } = error {
-                        self.statistics.other_protocol_version = Some(found);
-                    }
-                    self.statistics.frames_rejected += 1;
-                    self.statistics.bytes_rejected += self.bytes_in_chunk;
-                    self.statistics.last_error = Some(error);
-                    self.bytes_in_chunk = 0;
-                }
-                None if byte == 0 => {
-                    // A lone delimiter (the host-side leading 00, or two in a row) is framing.
-                    self.bytes_in_chunk = 0;
-                }
-                None => {}
-            }
-        }
-    }
-
-    /// Call at the end of a finite stream: a partial frame left over is counted as rejected.
-    pub fn finish(&mut self) {
-        if self.bytes_in_chunk > 0 {
-            self.statistics.frames_rejected += 1;
-            self.statistics.bytes_rejected += self.bytes_in_chunk;
-            self.bytes_in_chunk = 0;
-            self.decoder.reset();
-        }
-    }
-
-    /// What was seen so far.
-    pub fn statistics(&self) -> &LinkStatistics {
-        &self.statistics
-    }
-}
-
 /// A link to one device over any byte stream.
 pub struct DeviceLink<P> {
     port: P,
@@ -491,6 +404,11 @@ impl<P: Read + Write> DeviceLink<P> {
     /// Decoding counters.
     pub fn statistics(&self) -> &LinkStatistics {
         self.receiver.statistics()
+    }
+
+    /// How many pads the device reads, once its Info has been seen (see [`FrameReceiver`]).
+    pub fn pad_count(&self) -> Option<u8> {
+        self.receiver.pad_count()
     }
 
     /// Frames dropped because the caller did not take them while a request waited.
@@ -658,35 +576,6 @@ mod tests {
         fn flush(&mut self) -> std::io::Result<()> {
             Ok(())
         }
-    }
-
-    #[test]
-    fn samples_of_other_pads_are_set_aside_and_counted() {
-        let sample = |pad| {
-            DeviceFrame::Sample(wire::SampleFrame {
-                pad: wire::PadIndex::new(pad).unwrap(),
-                sequence: 7,
-                timestamp_us: 1_000,
-                temperature_c: None,
-                temperature_source: wire::TemperatureSource::None,
-                taxels: [wire::TaxelSample {
-                    pressure_kpa: None,
-                    capacitance_pf: 4.5,
-                    flags: 0,
-                }; 4],
-                summary: wire::PadSummary::default(),
-            })
-        };
-        let mut bytes = Vec::new();
-        for pad in [0, 1, 0, 7] {
-            bytes.extend(encode_frame_to_vec(&sample(pad)).unwrap());
-        }
-        let mut receiver = FrameReceiver::new();
-        let mut frames = Vec::new();
-        receiver.push_bytes(&bytes, &mut frames);
-        assert_eq!(frames, [sample(0), sample(0)]);
-        assert_eq!(receiver.statistics().samples_of_other_pads, 2);
-        assert_eq!(receiver.statistics().frames_rejected, 0);
     }
 
     #[test]

@@ -33,6 +33,18 @@ flags11..flags22,marker (RFC 4180, '.' decimal separator; empty pressure = fault
 documented names joined by '|'). The raw log (FILE.raw) holds every byte received, for `taxel \
 convert --raw`. FILE.device.json holds what the device computed the pressures with: its \
 identity, tier, calibration and baselines, so that `taxel convert` reproduces them.\n\n\
+A device that reads several pads (its Info says how many) sends one frame per pad per sample \
+set; the CSV then has one row per sample set: seq, then for each pad n in order the columns \
+padN_time_s,padN_temp_c,padN_temp_source,padN_c11_pf..padN_c22_pf,padN_p11_kpa..padN_p22_kpa,\
+padN_flags11..padN_flags22 (as above, of pad N), padN_force_n (total normal force, N), \
+padN_cop_x_mm,padN_cop_y_mm (centre of pressure in the pad's frame, mm; empty when there is \
+none), padN_partial (1 when faulted taxels were left out of force and centre) and padN_contact \
+(1 while the device says the pad is in contact), then marker. A row is written when every pad's \
+frame of its set arrived, or when a later set began or the recording ended without them: a pad \
+whose frame is missing has every cell empty, padN_time_s included (a pad that arrived always \
+has its time and 0/1 in partial and contact), and the end says how many rows lack which pad. \
+--samples then counts sample sets (rows). FILE.device.json describes pad 0 (the device cannot \
+yet report the other pads' calibrations and baselines) and says how many pads there are.\n\n\
 Frames that were waiting in the port from before the connection are discarded. At the end the \
 tool says how many sample sets were received, lost on the link (sequence gaps the device's \
 counters do not explain) and dropped by the device (its counters, since the start).\n\n\
@@ -53,7 +65,8 @@ pub struct RecordArgs {
     /// Raw byte log to write (default: the CSV file name with `.raw` appended).
     #[arg(long, value_name = "FILE")]
     pub raw: Option<PathBuf>,
-    /// Stop after this many sample frames.
+    /// Stop after this many rows: sample frames of a single-pad device, sample sets of a
+    /// device with several pads.
     #[arg(long, value_name = "N")]
     pub samples: Option<u64>,
     /// How long to wait for each reply from the device, ms.
@@ -75,9 +88,9 @@ pub enum StopReason {
 /// What a recording captured.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RecordSummary {
-    /// Sample frames written to the CSV.
+    /// Sample frames received (every pad's).
     pub samples: u64,
-    /// Sample sets missing from the sequence numbers while streaming.
+    /// Sample frames missing from the sequence numbers while streaming, summed over the pads.
     pub sequence_gap_samples: u64,
     /// Where every sample set went (received, lost on the link, dropped by the device).
     pub accounting: StreamAccounting,
@@ -119,9 +132,11 @@ pub fn record_link<P: Read + Write, S: SampleSink + ?Sized>(
     })
 }
 
-/// Records from an open link until `stop` is set, `max_samples` are written in this call, or
-/// the link fails. Other frames are reported through `status` in words; counters go to the
-/// accounting. The sink and the link's raw log are flushed at least every `flush_interval` and
+/// Records from an open link until `stop` is set, `max_samples` rows are written in this call
+/// (frames, for a sink that does not count rows), or the link fails. A frame that would close
+/// the sample set in progress once the limit is reached is left unread by the sink, so that the
+/// last row is that set's. Other frames are reported through `status` in words; counters go to
+/// the accounting. The sink and the link's raw log are flushed at least every `flush_interval` and
 /// at the end, also when writing fails (one file failing must not cost the other its data).
 pub fn record_accounted<P: Read + Write, S: SampleSink + ?Sized>(
     link: &mut DeviceLink<P>,
@@ -159,6 +174,11 @@ fn record_until_stopped<P: Read + Write, S: SampleSink + ?Sized>(
 ) -> anyhow::Result<StopReason> {
     let mut last_flush = Instant::now();
     let received_before = accounting.received();
+    let rows_before = sink.rows();
+    let written = |sink: &S, accounting: &StreamAccounting| match (sink.rows(), rows_before) {
+        (Some(rows), Some(before)) => rows.saturating_sub(before),
+        _ => accounting.received().saturating_sub(received_before),
+    };
     let mut baselines = BaselineFollower::default();
     // The device repeats these unsolicited; only changes are worth a line.
     let mut last_info = None;
@@ -167,11 +187,16 @@ fn record_until_stopped<P: Read + Write, S: SampleSink + ?Sized>(
         if stop.load(Ordering::Relaxed) {
             break StopReason::Interrupted;
         }
-        if max_samples.is_some_and(|limit| accounting.received() - received_before >= limit) {
+        if max_samples.is_some_and(|limit| written(sink, accounting) >= limit) {
             break StopReason::SampleLimit;
         }
         match link.next_frame() {
             Ok(Some(DeviceFrame::Sample(sample))) => {
+                if max_samples.is_some_and(|limit| {
+                    sink.would_close_set(&sample) && written(sink, accounting) + 1 >= limit
+                }) {
+                    break StopReason::SampleLimit;
+                }
                 baselines.before_sample(sink, &sample);
                 sink.write_sample(&sample).with_context(|| {
                     format!("writing the CSV after {} samples", accounting.received())
@@ -241,12 +266,13 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
     noteln!("device on {port_path}: {}", info_words(&info));
     if info.pad_count > 1 {
         noteln!(
-            "the device reads {} pads; this version of taxel records pad 0 only",
+            "the device reads {} pads: one row per sample set; the device state recorded is pad 0's",
             info.pad_count
         );
     }
     let device_state = read_device_state(&mut link, &info, timeout)?;
-    let (mut recording, raw_writer) = Recording::create(&args.output, Some(&raw_path))?;
+    let (mut recording, raw_writer) =
+        Recording::create_with_pads(&args.output, Some(&raw_path), info.pad_count.max(1))?;
     recording.set_device_state(device_state);
     if let Some(writer) = raw_writer {
         link.set_raw_log(Box::new(writer));
@@ -303,6 +329,15 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
         writer.flush().context("writing the raw log")?;
     }
     let files = recording.finish(None)?;
+    if let Some(words) = &files.incomplete {
+        noteln!("{words}");
+    }
+    let beyond = link.statistics().samples_beyond_pad_count;
+    if beyond > 0 {
+        noteln!(
+            "warning: {beyond} sample frames named a pad the device does not have (protocol violation); set aside"
+        );
+    }
     let reason = match &stop_reason {
         StopReason::Interrupted => "stopped by Ctrl-C".to_owned(),
         StopReason::SampleLimit => "sample limit reached".to_owned(),

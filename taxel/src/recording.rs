@@ -1,14 +1,19 @@
 //! A recording of the device's stream, as `taxel record` and the live view's record key write
 //! it: three files written under temporary names and renamed when the recording ends cleanly.
 //!
-//! - `NAME.csv`: one row per sample frame: `seq,time_s,temp_c,temp_source,c11_pf..c22_pf,
-//!   p11_kpa..p22_kpa,flags11..flags22,marker` (RFC 4180, '.' decimals; an empty pressure is a
-//!   faulted taxel; `marker` is empty except on the first sample after a marker was dropped).
+//! - `NAME.csv`: for a device with one pad, one row per sample frame: `seq,time_s,temp_c,
+//!   temp_source,c11_pf..c22_pf,p11_kpa..p22_kpa,flags11..flags22,marker` (RFC 4180, '.'
+//!   decimals; an empty pressure is a faulted taxel; `marker` is empty except on the first
+//!   sample after a marker was dropped). For a device with several pads, one row per sample
+//!   set with every pad's columns prefixed `pad<n>_` (see [`crate::pad_set`] and
+//!   [`crate::record_rows`]).
 //! - `NAME.csv.raw`: every byte received, for `taxel convert --raw`.
 //! - `NAME.csv.device.json`: the device's state the pressures were computed with: identity,
 //!   tier, the whole calibration in use and the baselines (tares) with the sequence number
 //!   from which each applies. `taxel convert` finds it beside the CSV and uses it, so a
-//!   re-processed recording agrees with the device.
+//!   re-processed recording agrees with the device. The device cannot yet report the
+//!   calibration and baselines of pads other than pad 0: with several pads, this file describes
+//!   pad 0 (and says how many pads there are).
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -18,7 +23,7 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use model_core::{BaselineRecord, Calibration, CalibrationSpec, TAXEL_COUNT};
 use serde::{Deserialize, Serialize};
-use wire::{InfoFrame, SampleFrame};
+use wire::{InfoFrame, PadIndex, SampleFrame};
 
 use crate::csv_format::{
     format_number, format_optional, format_time_us, temperature_source_name, wire_flag_names,
@@ -27,6 +32,7 @@ use crate::csv_format::{
 use crate::device_link::DeviceLink;
 use crate::device_words::{board_serial_hex, calibration_source_words, tier_words};
 use crate::output_file::{OutputFile, PendingRename};
+use crate::record_rows::RecordRows;
 
 /// The marker column of a recording.
 pub const MARKER_COLUMN: &str = "marker";
@@ -132,6 +138,18 @@ pub struct RecordedDeviceState {
     pub calibration: CalibrationSpec,
     /// The baselines, in the order they took effect; empty when the device could not say.
     pub baselines: Vec<BaselineChange>,
+    /// How many pads the device reads. Written only when above 1, so that a single-pad
+    /// device's file stays as it was; calibration and baselines above are pad 0's.
+    #[serde(default = "one_pad", skip_serializing_if = "is_one_pad")]
+    pub pad_count: u8,
+}
+
+fn one_pad() -> u8 {
+    1
+}
+
+fn is_one_pad(pad_count: &u8) -> bool {
+    *pad_count == 1
 }
 
 impl RecordedDeviceState {
@@ -149,6 +167,7 @@ impl RecordedDeviceState {
             converter_rate_sps: info.rate.sps(),
             calibration: calibration.to_spec(),
             baselines: Vec::new(),
+            pad_count: info.pad_count.max(1),
         }
     }
 
@@ -207,11 +226,13 @@ pub fn read_device_state<P: std::io::Read + Write>(
     info: &InfoFrame,
     timeout: Duration,
 ) -> anyhow::Result<RecordedDeviceState> {
-    let calibration = crate::calibration_transfer::pull(link, info.calibration_id, timeout)?;
+    let calibration =
+        crate::calibration_transfer::pull(link, PadIndex::default(), info.calibration_id, timeout)?;
     let mut state = RecordedDeviceState::new(info, &calibration);
     let mut attempts = 0;
     let baselines = loop {
-        let baselines = crate::calibration_transfer::pull_baselines(link, timeout)?;
+        let baselines =
+            crate::calibration_transfer::pull_baselines(link, PadIndex::default(), timeout)?;
         let tare_finished_meanwhile = link.take_queued().iter().any(|frame| {
             matches!(
                 frame,
@@ -250,7 +271,11 @@ impl BaselineFollower {
         timeout: Duration,
     ) -> anyhow::Result<()> {
         if matches!(event.event, wire::DeviceEvent::TareFinished { .. }) {
-            self.pending = Some(crate::calibration_transfer::pull_baselines(link, timeout)?);
+            self.pending = Some(crate::calibration_transfer::pull_baselines(
+                link,
+                PadIndex::default(),
+                timeout,
+            )?);
         }
         Ok(())
     }
@@ -266,12 +291,23 @@ impl BaselineFollower {
     }
 }
 
-/// Where recorded samples go: a [`Recording`], or any CSV writer (tests, pipes).
+/// Where recorded samples go: a [`Recording`], [`RecordRows`] over any writer, or any CSV
+/// writer (one pad only: it writes one single-pad row per frame).
 pub trait SampleSink {
-    /// Writes one sample row.
+    /// Takes one sample frame (a sink of several pads writes its set's row once complete).
     fn write_sample(&mut self, sample: &SampleFrame) -> anyhow::Result<()>;
     /// Pushes buffered rows out.
     fn flush(&mut self) -> anyhow::Result<()>;
+    /// Rows written so far, when the sink counts them (one per sample set).
+    fn rows(&self) -> Option<u64> {
+        None
+    }
+    /// Whether taking `sample` would first close the sample set in progress (a frame of a later
+    /// set); never with one pad.
+    fn would_close_set(&self, sample: &SampleFrame) -> bool {
+        let _ = sample;
+        false
+    }
     /// The device's baselines changed (a tare finished); they apply from the sample with
     /// `change.from_sequence` on. Sinks that keep no device state ignore it.
     fn baselines_changed(&mut self, change: BaselineChange) {
@@ -281,6 +317,12 @@ pub trait SampleSink {
 
 impl<W: Write> SampleSink for csv::Writer<W> {
     fn write_sample(&mut self, sample: &SampleFrame) -> anyhow::Result<()> {
+        if sample.pad.get() != 0 {
+            bail!(
+                "a frame of pad {} reached a single-pad CSV writer",
+                sample.pad.get()
+            );
+        }
         self.write_record(sample_cells(sample, ""))
             .context("writing the CSV")
     }
@@ -299,6 +341,14 @@ impl SampleSink for Recording {
         Recording::flush(self)
     }
 
+    fn rows(&self) -> Option<u64> {
+        Some(self.rows.rows())
+    }
+
+    fn would_close_set(&self, sample: &SampleFrame) -> bool {
+        self.rows.would_close_set(sample)
+    }
+
     fn baselines_changed(&mut self, change: BaselineChange) {
         if let Some(state) = self.device_state.as_mut() {
             state.baselines.push(change);
@@ -309,14 +359,11 @@ impl SampleSink for Recording {
 /// The files of a recording and what went into them.
 #[derive(Debug)]
 pub struct Recording {
-    csv: csv::Writer<BufWriter<File>>,
+    rows: RecordRows<BufWriter<File>>,
     csv_pending: PendingRename,
     raw: Option<PendingRename>,
     device_state: Option<RecordedDeviceState>,
     device_state_path: PathBuf,
-    pending_marker: Option<String>,
-    markers: u64,
-    samples: u64,
 }
 
 /// Where a finished recording is.
@@ -328,25 +375,34 @@ pub struct RecordingFiles {
     pub raw: Option<PathBuf>,
     /// The device-state file, if the device's state was known.
     pub device_state: Option<PathBuf>,
-    /// Sample rows written.
+    /// Rows written: sample frames with one pad, sample sets with several.
     pub samples: u64,
     /// Markers written.
     pub markers: u64,
+    /// With several pads: words on the rows that lack a pad's frame, if any.
+    pub incomplete: Option<String>,
 }
 
 impl Recording {
-    /// Starts a recording into `csv_path` and, if given, a raw log whose writer is returned to
-    /// be handed to the link ([`DeviceLink::set_raw_log`]). Nothing existing is touched until
-    /// [`Recording::finish`].
+    /// Starts a recording of a single-pad device into `csv_path` and, if given, a raw log whose
+    /// writer is returned to be handed to the link ([`DeviceLink::set_raw_log`]). Nothing
+    /// existing is touched until [`Recording::finish`].
     pub fn create(
         csv_path: &Path,
         raw_path: Option<&Path>,
     ) -> anyhow::Result<(Self, Option<BufWriter<File>>)> {
+        Self::create_with_pads(csv_path, raw_path, 1)
+    }
+
+    /// Starts a recording of a device of `pad_count` pads (one row per sample set; with one
+    /// pad, the same as [`Recording::create`]).
+    pub fn create_with_pads(
+        csv_path: &Path,
+        raw_path: Option<&Path>,
+        pad_count: u8,
+    ) -> anyhow::Result<(Self, Option<BufWriter<File>>)> {
         let (csv_writer, csv_pending) = OutputFile::create(csv_path)?.into_parts();
-        let mut csv = csv::WriterBuilder::new()
-            .terminator(csv::Terminator::CRLF)
-            .from_writer(csv_writer);
-        csv.write_record(record_header())
+        let rows = RecordRows::from_writer(csv_writer, pad_count)
             .with_context(|| format!("writing {}", csv_path.display()))?;
         let (raw_writer, raw) = match raw_path {
             Some(path) => {
@@ -357,14 +413,11 @@ impl Recording {
         };
         Ok((
             Self {
-                csv,
+                rows,
                 csv_pending,
                 raw,
                 device_state: None,
                 device_state_path: device_state_path(csv_path),
-                pending_marker: None,
-                markers: 0,
-                samples: 0,
             },
             raw_writer,
         ))
@@ -382,49 +435,45 @@ impl Recording {
 
     /// Puts a marker on the next sample row (markers dropped before it are joined with '|').
     pub fn mark(&mut self, label: &str) {
-        self.markers += 1;
-        match &mut self.pending_marker {
-            Some(pending) => {
-                pending.push('|');
-                pending.push_str(label);
-            }
-            None => self.pending_marker = Some(label.to_owned()),
-        }
+        self.rows.mark(label);
     }
 
-    /// Writes one sample row.
+    /// Takes one sample frame: writes its row (one pad), or its set's row once complete
+    /// (several pads).
     pub fn write_sample(&mut self, sample: &SampleFrame) -> anyhow::Result<()> {
-        let marker = self.pending_marker.take().unwrap_or_default();
-        self.csv
-            .write_record(sample_cells(sample, &marker))
-            .with_context(|| format!("writing the CSV after {} samples", self.samples))?;
-        self.samples += 1;
-        Ok(())
+        self.rows.write_frame(sample)
     }
 
-    /// Sample rows written so far.
+    /// Rows written so far.
     pub fn samples(&self) -> u64 {
-        self.samples
+        self.rows.rows()
+    }
+
+    /// The rows, for their counts.
+    pub fn rows(&self) -> &RecordRows<BufWriter<File>> {
+        &self.rows
     }
 
     /// Pushes buffered rows to the file (the file still has its temporary name).
     pub fn flush(&mut self) -> anyhow::Result<()> {
-        self.csv.flush().context("writing the CSV")
+        self.rows.flush()
     }
 
     /// Ends the recording: writes the device state, then renames every file to its name. The
     /// raw log's writer (taken back from the link) must be given back here.
     pub fn finish(self, raw_writer: Option<BufWriter<File>>) -> anyhow::Result<RecordingFiles> {
         let Self {
-            csv,
+            mut rows,
             csv_pending,
             raw,
             device_state,
             device_state_path,
-            markers,
-            samples,
-            ..
         } = self;
+        rows.end_of_stream()?;
+        let markers = rows.markers();
+        let samples = rows.rows();
+        let incomplete = rows.incomplete_words();
+        let csv = rows.finish()?;
         let csv_file = csv
             .into_inner()
             .map_err(|error| anyhow::anyhow!("writing the CSV: {}", error.error()))?
@@ -463,6 +512,7 @@ impl Recording {
             device_state: device_state_written,
             samples,
             markers,
+            incomplete,
         })
     }
 
@@ -470,14 +520,15 @@ impl Recording {
     /// recording that failed half-way keeps its data); returns those names.
     pub fn abandon(self, raw_writer: Option<BufWriter<File>>) -> Vec<PathBuf> {
         let Self {
-            mut csv,
+            mut rows,
             csv_pending,
             raw,
             ..
         } = self;
         let mut kept = Vec::new();
-        let _ = csv.flush();
-        drop(csv);
+        let _ = rows.end_of_stream();
+        let _ = rows.flush();
+        drop(rows);
         if let Ok(path) = csv_pending.keep() {
             kept.push(path);
         }
@@ -496,6 +547,36 @@ impl Recording {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_pad_count_is_in_the_device_state_only_with_several_pads() {
+        let info = |pad_count| InfoFrame {
+            protocol_version: wire::PROTOCOL_VERSION,
+            firmware_version: wire::FirmwareVersion {
+                major: 1,
+                minor: 2,
+                patch: 3,
+            },
+            board_serial: [1; 12],
+            calibration_id: 0,
+            calibration_source: wire::CalibrationSource::Defaults,
+            rate: wire::SampleRate::Sps400,
+            model_tier: wire::Tier::MonotoneCubic,
+            streaming: false,
+            text_mode: false,
+            pad_count,
+        };
+        let one = RecordedDeviceState::new(&info(1), &Calibration::default());
+        let text = serde_json::to_string(&one).unwrap();
+        assert!(!text.contains("pad_count"), "{text}");
+        let read: RecordedDeviceState = serde_json::from_str(&text).unwrap();
+        assert_eq!(read.pad_count, 1);
+        let eight = RecordedDeviceState::new(&info(8), &Calibration::default());
+        let text = serde_json::to_string(&eight).unwrap();
+        assert!(text.contains("\"pad_count\":8"), "{text}");
+        let read: RecordedDeviceState = serde_json::from_str(&text).unwrap();
+        assert_eq!(read, eight);
+    }
 
     #[test]
     fn device_state_sits_beside_the_csv_for_either_file() {

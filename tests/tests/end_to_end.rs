@@ -185,7 +185,8 @@ fn a_calibration_uploaded_and_saved_over_the_serial_path_survives_a_reboot() {
         (4242, CalibrationSource::Flash)
     );
     // Something only RAM holds: a calibration written but not saved. A reboot must lose it.
-    let mut unsaved = device::calibration_record(&calibration, 0).unwrap();
+    let mut unsaved =
+        device::calibration_record(&calibration, wire::PadIndex::default(), 0).unwrap();
     unsaved.calibration_id = 999;
     assert_eq!(
         link.request(Command::WriteCalibration(unsaved), timeout)
@@ -214,7 +215,11 @@ fn a_calibration_uploaded_and_saved_over_the_serial_path_survives_a_reboot() {
         (after.calibration_id, after.calibration_source),
         (4242, CalibrationSource::Flash)
     );
-    match link.request(Command::ReadCalibration { taxel_index: 3 }, timeout) {
+    let read = Command::ReadCalibration {
+        pad: wire::PadIndex::default(),
+        taxel_index: 3,
+    };
+    match link.request(read, timeout) {
         Ok(ReplyPayload::Calibration(record)) => {
             assert!((record.calibration.parasitic_pf - 1.3).abs() < 1e-6);
         }

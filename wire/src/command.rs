@@ -5,19 +5,22 @@ use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
 use crate::error::DecodeError;
-use crate::TAXEL_COUNT;
+use crate::{PadIndex, TAXEL_COUNT};
 
 /// The most calibration points one taxel calibration holds.
 pub const CALIBRATION_POINTS_MAX: usize = 16;
 
 /// The number of [`Command`] variants; a discriminant at or above it is
 /// [`ErrorCode::UnknownCommand`].
-pub const COMMAND_COUNT: u32 = 14;
+pub const COMMAND_COUNT: u32 = 15;
 
-/// The discriminants of the commands whose argument is a typed value ([`SampleRate`], [`Tier`])
-/// that refuses numbers outside its range when it is decoded.
+/// The discriminants of the commands whose arguments are typed values ([`SampleRate`], [`Tier`],
+/// [`PadIndex`]) that refuse numbers outside their range when they are decoded.
 const SET_RATE_DISCRIMINANT: u32 = 4;
 const SET_MODEL_TIER_DISCRIMINANT: u32 = 6;
+const READ_CALIBRATION_DISCRIMINANT: u32 = 8;
+const READ_BASELINE_DISCRIMINANT: u32 = 13;
+const PAD_INFO_DISCRIMINANT: u32 = 14;
 
 /// Why the device refused a request.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -120,6 +123,8 @@ pub struct TaxelCalibrationWire {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TaxelCalibrationRecord {
+    /// The pad (version 3).
+    pub pad: PadIndex,
     /// The taxel, 0..=3 for C11, C12, C21, C22.
     pub taxel_index: u8,
     /// The calibration id reported by [`crate::InfoFrame::calibration_id`] once this is in use.
@@ -129,9 +134,9 @@ pub struct TaxelCalibrationRecord {
 }
 
 impl TaxelCalibrationRecord {
-    /// The largest encoding: taxel 1 + id 5 (varint u32) + point count 1 + 16 points x 8
-    /// + parasitic 4 + unloaded capacitance 5 (option tag and f32).
-    pub const MAX_LEN: usize = 1 + 5 + 1 + CALIBRATION_POINTS_MAX * 8 + 4 + 5;
+    /// The largest encoding: pad 1 + taxel 1 + id 5 (varint u32) + point count 1 + 16 points
+    /// x 8 + parasitic 4 + unloaded capacitance 5 (option tag and f32).
+    pub const MAX_LEN: usize = 1 + 1 + 5 + 1 + CALIBRATION_POINTS_MAX * 8 + 4 + 5;
 
     /// Checks what the wire can check: a taxel index below 4, at least two points, finite
     /// values, pressure and relative change both strictly increasing, a finite, non-negative
@@ -200,17 +205,22 @@ pub enum Command {
     /// Lets the device choose the tier for a use case. Replies
     /// [`crate::ReplyPayload::ModelTier`], or [`ErrorCode::NotSupported`] if no tier fits.
     SetUseCase(UseCase),
-    /// Replies [`crate::ReplyPayload::Calibration`] for one taxel.
+    /// Replies [`crate::ReplyPayload::Calibration`] for one taxel of one pad.
     ReadCalibration {
+        /// The pad (version 3).
+        pad: PadIndex,
         /// The taxel, 0..=3.
         taxel_index: u8,
     },
-    /// Replaces one taxel's calibration in RAM (calibration source becomes Host). Replies Ack.
+    /// Replaces one taxel's calibration of one pad in RAM (that pad's calibration source
+    /// becomes Host). Replies Ack.
     WriteCalibration(TaxelCalibrationRecord),
-    /// Writes the calibration in use to flash. Replies Ack, or [`ErrorCode::FlashError`].
+    /// Writes the calibration in use to flash, which every pad boots with. Replies Ack,
+    /// [`ErrorCode::FlashError`], or [`ErrorCode::NotSupported`] (nothing written) while the
+    /// pads hold different calibrations.
     SaveCalibration,
-    /// Replaces the calibration in RAM by the built-in defaults (flash is untouched until
-    /// [`Command::SaveCalibration`]). Replies Ack.
+    /// Replaces every pad's calibration in RAM by the built-in defaults (flash is untouched
+    /// until [`Command::SaveCalibration`]). Replies Ack.
     RestoreDefaults,
     /// Switches text mode (CSV lines instead of binary frames) on or off. Replies Ack, sent
     /// as a binary frame in either mode.
@@ -218,11 +228,19 @@ pub enum Command {
         /// Text mode on.
         enabled: bool,
     },
-    /// Replies [`crate::ReplyPayload::Baseline`] for one taxel: the unloaded reference the model
-    /// uses now (added within version 2).
+    /// Replies [`crate::ReplyPayload::Baseline`] for one taxel of one pad: the unloaded
+    /// reference the model uses now (added within version 2).
     ReadBaseline {
+        /// The pad (version 3).
+        pad: PadIndex,
         /// The taxel, 0..=3.
         taxel_index: u8,
+    },
+    /// Replies [`crate::ReplyPayload::PadInfo`]: where a pad is and what it runs with (version
+    /// 3).
+    PadInfo {
+        /// The pad.
+        pad: PadIndex,
     },
 }
 
@@ -234,7 +252,8 @@ impl Command {
             Command::SetUseCase(use_case) if !use_case.is_valid() => {
                 Err(ErrorCode::InvalidArgument)
             }
-            Command::ReadCalibration { taxel_index } | Command::ReadBaseline { taxel_index }
+            Command::ReadCalibration { taxel_index, .. }
+            | Command::ReadBaseline { taxel_index, .. }
                 if usize::from(*taxel_index) >= TAXEL_COUNT =>
             {
                 Err(ErrorCode::InvalidArgument)
@@ -277,19 +296,27 @@ impl Request {
                         .ok()
                         .map(|(discriminant, _)| discriminant);
                     let unknown = discriminant.is_some_and(|command| command >= COMMAND_COUNT);
-                    // Only these two commands carry a typed argument that refuses values; any
-                    // other refusal (too many points, a bad enum) is a malformed body.
+                    // Only these commands carry typed arguments that refuse values; any other
+                    // refusal (too many points, a bad enum, a pad index inside a calibration
+                    // record) is a malformed body.
                     let typed_argument = matches!(
                         discriminant,
-                        Some(SET_RATE_DISCRIMINANT | SET_MODEL_TIER_DISCRIMINANT)
+                        Some(
+                            SET_RATE_DISCRIMINANT
+                                | SET_MODEL_TIER_DISCRIMINANT
+                                | READ_CALIBRATION_DISCRIMINANT
+                                | READ_BASELINE_DISCRIMINANT
+                                | PAD_INFO_DISCRIMINANT
+                        )
                     );
                     Err(DecodeError::InvalidRequest {
                         request_id,
                         error: if unknown {
                             ErrorCode::UnknownCommand
                         } else if typed_argument && error == postcard::Error::SerdeDeCustom {
-                            // A typed argument refused its value (a rate or a tier id that
-                            // does not exist): the body parsed, the argument is out of range.
+                            // A typed argument refused its value (a rate, a tier id or a pad
+                            // index that does not exist): the body parsed, the argument is out
+                            // of range.
                             ErrorCode::InvalidArgument
                         } else {
                             ErrorCode::Malformed

@@ -128,6 +128,49 @@ pub enum ReplyPayload {
     ModelTier(Tier),
     /// The answer to [`crate::Command::ReadBaseline`] (added within version 2).
     Baseline(TaxelBaselineWire),
+    /// The answer to [`crate::Command::PadInfo`] (version 3).
+    PadInfo(PadInfoFrame),
+}
+
+/// Where a pad's temperature comes from, as the device found it at boot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TemperatureSensor {
+    /// A TMP117 on the pad's own board, behind its multiplexer channel.
+    OwnTmp117 {
+        /// Its 7-bit address, 0x48..=0x4B.
+        address: u8,
+    },
+    /// The TMP117 on the main bus, shared by every pad without one of its own.
+    SharedTmp117 {
+        /// Its 7-bit address, 0x48..=0x4B.
+        address: u8,
+    },
+    /// No TMP117: the MCU's die sensor, every sample flagged TEMPERATURE_FALLBACK.
+    DieOnly,
+}
+
+/// One pad: where it is and what it runs with (version 3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PadInfoFrame {
+    /// The pad.
+    pub pad: PadIndex,
+    /// The TCA9548A channel it hangs on, 0..=7; `None`: on the bus itself (no multiplexer).
+    pub channel: Option<u8>,
+    /// Its temperature sensor.
+    pub temperature_sensor: TemperatureSensor,
+    /// Its calibration's id.
+    pub calibration_id: u32,
+    /// Where its calibration came from.
+    pub calibration_source: CalibrationSource,
+    /// Its model tier.
+    pub model_tier: Tier,
+}
+
+impl PadInfoFrame {
+    /// The largest body: pad 1 + channel 2 + sensor 2 + id 5 + source 1 + tier 1.
+    pub const MAX_BODY_LEN: usize = 1 + 2 + 2 + 5 + 1 + 1;
 }
 
 /// A taxel's baseline as the model holds it: the tared capacitance, split into two parts that
@@ -148,6 +191,8 @@ pub struct BaselineWire {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TaxelBaselineWire {
+    /// The pad (version 3).
+    pub pad: PadIndex,
     /// The taxel, 0..=3.
     pub taxel_index: u8,
     /// Its baseline, `None` when it is not tared.

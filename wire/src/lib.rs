@@ -33,7 +33,8 @@ pub use command::{
 };
 pub use device::{
     BaselineWire, CalibrationSource, CountersFrame, DeviceEvent, DeviceFrame, EventFrame,
-    FirmwareVersion, InfoFrame, ReplyFrame, ReplyPayload, TaxelBaselineWire,
+    FirmwareVersion, InfoFrame, PadInfoFrame, ReplyFrame, ReplyPayload, TaxelBaselineWire,
+    TemperatureSensor,
 };
 pub use error::{DecodeError, EncodeError};
 pub use frame::{

@@ -5,7 +5,7 @@ mod common;
 
 use common::*;
 use wire::{
-    decode_frame, Command, DecodeError, ErrorCode, Request, RequestDecoder, SampleRate,
+    decode_frame, Command, DecodeError, ErrorCode, PadIndex, Request, RequestDecoder, SampleRate,
     TaxelCalibrationRecord, TaxelCalibrationWire, Tier, UseCase, COMMAND_COUNT, PROTOCOL_VERSION,
 };
 
@@ -20,6 +20,7 @@ fn use_case() -> UseCase {
 
 fn record(points: &[(f32, f32)]) -> TaxelCalibrationRecord {
     TaxelCalibrationRecord {
+        pad: pad(2),
         taxel_index: 3,
         calibration_id: 42,
         calibration: TaxelCalibrationWire {
@@ -52,12 +53,21 @@ fn command_discriminants_are_the_documented_ones() {
         Command::Tare { sample_sets: 1 },
         Command::SetModelTier { tier: Tier::Linear },
         Command::SetUseCase(use_case()),
-        Command::ReadCalibration { taxel_index: 0 },
+        Command::ReadCalibration {
+            pad: PadIndex::default(),
+            taxel_index: 0,
+        },
         Command::WriteCalibration(record(&TABLE_1)),
         Command::SaveCalibration,
         Command::RestoreDefaults,
         Command::SetTextMode { enabled: true },
-        Command::ReadBaseline { taxel_index: 0 },
+        Command::ReadBaseline {
+            pad: PadIndex::default(),
+            taxel_index: 0,
+        },
+        Command::PadInfo {
+            pad: PadIndex::default(),
+        },
     ];
     assert_eq!(commands.len() as u32, COMMAND_COUNT);
     for (discriminant, command) in commands.into_iter().enumerate() {
@@ -82,8 +92,9 @@ fn command_discriminants_are_the_documented_ones() {
     }
 }
 
-/// The taxel calibration record as PROTOCOL.md 6.2 lays it out: taxel, id, points, parasitic,
-/// then (since version 2) the unloaded capacitance as an option: `01` and the f32, or `00`.
+/// The taxel calibration record as PROTOCOL.md 6.2 lays it out: pad (version 3), taxel, id,
+/// points, parasitic, then (since version 2) the unloaded capacitance as an option: `01` and the
+/// f32, or `00`.
 #[test]
 fn the_calibration_record_ends_with_the_optional_unloaded_capacitance() {
     for unloaded_sensor_pf in [Some(4.5f32), None] {
@@ -96,7 +107,16 @@ fn the_calibration_record_ends_with_the_optional_unloaded_capacitance() {
         let mut payload = encode(&request);
         let decoded: Request = decode_frame(&mut payload).unwrap();
         assert_eq!(decoded, request);
-        let mut expected = vec![wire::PROTOCOL_VERSION, wire::kind::REQUEST, 5, 9, 3, 42, 2];
+        let mut expected = vec![
+            wire::PROTOCOL_VERSION,
+            wire::kind::REQUEST,
+            5,
+            9,
+            2,
+            3,
+            42,
+            2,
+        ];
         for value in [0.0f32, 0.0, 10.0, 0.0829, 1.5] {
             expected.extend_from_slice(&value.to_le_bytes());
         }
@@ -180,11 +200,19 @@ fn arguments_out_of_range_are_invalid() {
     assert_eq!(Command::Tare { sample_sets: 0 }.check_arguments(), invalid);
     assert_eq!(Command::Tare { sample_sets: 1 }.check_arguments(), Ok(()));
     assert_eq!(
-        Command::ReadCalibration { taxel_index: 3 }.check_arguments(),
+        Command::ReadCalibration {
+            pad: PadIndex::default(),
+            taxel_index: 3
+        }
+        .check_arguments(),
         Ok(())
     );
     assert_eq!(
-        Command::ReadCalibration { taxel_index: 4 }.check_arguments(),
+        Command::ReadCalibration {
+            pad: PadIndex::default(),
+            taxel_index: 4
+        }
+        .check_arguments(),
         invalid
     );
     assert_eq!(Command::SetUseCase(use_case()).check_arguments(), Ok(()));

@@ -9,7 +9,7 @@ mod common;
 
 use common::*;
 use wire::{
-    Command, DeviceFrame, ErrorCode, ReplyFrame, ReplyPayload, Request, SampleRate,
+    Command, DeviceFrame, ErrorCode, PadIndex, ReplyFrame, ReplyPayload, Request, SampleRate,
     TaxelCalibrationRecord, TaxelCalibrationWire, Tier, WireMessage,
 };
 
@@ -54,6 +54,7 @@ fn examples() -> Vec<(&'static str, Vec<u8>)> {
             encode(&Request {
                 request_id: 4,
                 command: Command::WriteCalibration(TaxelCalibrationRecord {
+                    pad: pad(2),
                     taxel_index: 1,
                     calibration_id: 7,
                     calibration: TaxelCalibrationWire {
@@ -189,6 +190,7 @@ fn document_size_table_is_the_encoder_worst_case() {
         reply_len(u16::MAX, ReplyPayload::Counters(worst_case_counters())),
         reply_len(u16::MAX, ReplyPayload::ModelTier(Tier::Polynomial)),
         reply_len(u16::MAX, ReplyPayload::Baseline(worst_case_baseline())),
+        reply_len(u16::MAX, ReplyPayload::PadInfo(worst_case_pad_info())),
     ];
     let calibration = |points| {
         reply_len(
@@ -211,7 +213,7 @@ fn document_size_table_is_the_encoder_worst_case() {
             encode(&DeviceFrame::Event(worst_case_event())).len(),
         ),
         (
-            "Reply (Ack, error, Info, Counters, ModelTier, Baseline)",
+            "Reply (Ack, error, Info, Counters, ModelTier, Baseline, PadInfo)",
             other_replies.into_iter().max().unwrap_or(0),
         ),
         ("Reply (Calibration, up to 4 points)", calibration(4)),
@@ -226,15 +228,16 @@ fn document_size_table_is_the_encoder_worst_case() {
     }
 }
 
-/// Section 1.1's cases: a 5-point calibration with its C0, request id 300 and calibration id
+/// Section 1.1's cases: a 5-point calibration with its C0, request id 3 and calibration id
 /// 70 000 is exactly 64 bytes (13 points: 128), and its packets end with a zero-length packet;
-/// the built-in 6-point default read with request id 1 is 65 bytes and needs none.
+/// the built-in 6-point default read with request id 1 is 66 bytes and needs none.
 #[test]
 fn calibration_replies_of_a_multiple_of_64_bytes_end_with_a_zero_length_packet() {
     let reply = |points: usize, unloaded_sensor_pf, request_id, calibration_id| {
         encode(&DeviceFrame::Reply(ReplyFrame {
             request_id,
             result: Ok(ReplyPayload::Calibration(TaxelCalibrationRecord {
+                pad: PadIndex::default(),
                 taxel_index: 0,
                 calibration_id,
                 calibration: TaxelCalibrationWire {
@@ -252,16 +255,16 @@ fn calibration_replies_of_a_multiple_of_64_bytes_end_with_a_zero_length_packet()
             .map(<[u8]>::len)
             .collect::<Vec<_>>()
     };
-    let five = reply(5, Some(4.5), 300, 70_000);
+    let five = reply(5, Some(4.5), 3, 70_000);
     assert_eq!(five.len(), 64);
     assert_eq!(packets(&five), [64, 0]);
-    let thirteen = reply(13, Some(4.5), 300, 70_000);
+    let thirteen = reply(13, Some(4.5), 3, 70_000);
     assert_eq!(thirteen.len(), 128);
     assert_eq!(packets(&thirteen), [64, 64, 0]);
     let default = reply(6, None, 1, 0);
-    assert_eq!(default.len(), 65);
-    assert_eq!(packets(&default), [64, 1]);
-    assert!(PROTOCOL.contains("a 5-point calibration that records C0, with request id 300"));
+    assert_eq!(default.len(), 66);
+    assert_eq!(packets(&default), [64, 2]);
+    assert!(PROTOCOL.contains("a 5-point calibration that records C0, with request id 3 "));
 }
 
 /// The sample example obeys the rules it illustrates: a faulted taxel has no pressure, and a

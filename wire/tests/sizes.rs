@@ -37,7 +37,7 @@ fn worst_case_of_every_frame_has_the_documented_length() {
     let reply = encode(&DeviceFrame::Reply(worst_case_reply()));
     assert_eq!(reply.len(), ReplyFrame::MAX_ENCODED_LEN);
     assert_eq!(reply.len(), DeviceFrame::MAX_ENCODED_LEN);
-    assert_eq!(reply.len(), 155);
+    assert_eq!(reply.len(), 156);
 
     let reply_len = |payload: ReplyPayload| {
         encode(&DeviceFrame::Reply(ReplyFrame {
@@ -61,11 +61,11 @@ fn worst_case_of_every_frame_has_the_documented_length() {
 
     let request = encode(&worst_case_request());
     assert_eq!(request.len(), Request::MAX_ENCODED_LEN);
-    assert_eq!(request.len(), 154);
+    assert_eq!(request.len(), 155);
 
-    assert_eq!(MAX_FRAME_ENCODED_LEN, 155);
+    assert_eq!(MAX_FRAME_ENCODED_LEN, 156);
     assert_eq!(Frame::MAX_ENCODED_LEN, MAX_FRAME_ENCODED_LEN);
-    assert_eq!(MAX_PAYLOAD_LEN, 153);
+    assert_eq!(MAX_PAYLOAD_LEN, 154);
     // Below 254 bytes, COBS adds exactly one code byte: no frame needs an `FF` run.
     const { assert!(MAX_PAYLOAD_LEN < 254) };
 }
@@ -104,7 +104,7 @@ fn device_frames_fit_one_short_usb_packet_except_long_calibration_replies_and_sa
     });
     assert!(encode(&fits).len() <= ONE_SHORT_PACKET);
     // PROTOCOL.md section 8: "Reply (Calibration, up to 4 points)".
-    assert_eq!(encode(&fits).len(), 59);
+    assert_eq!(encode(&fits).len(), 60);
     let too_long = DeviceFrame::Reply(ReplyFrame {
         request_id: u16::MAX,
         result: Ok(ReplyPayload::Calibration(calibration_record_with_points(

@@ -51,6 +51,8 @@ Keys: t = tare (keep the pad unloaded), p = pause (freeze the display), r = star
 recording to a file (taxel-YYYYMMDD-HHMMSS.csv in --record-dir, with its .device.json, as \
 `taxel record` writes), m = drop a marker into the recording, q = quit (a recording in progress \
 is finished).\n\n\
+A device with several pads: the view shows pad 0 and accounts every pad's frames; the record \
+key records every pad, one row per sample set (see `taxel record --help`).\n\n\
 Layouts: heat map and time series side by side from 120x32, stacked from 80x24, one line per \
 taxel from 40x12 (flags and faults stay visible); smaller terminals get a notice.\n\n\
 Unplugging is survived: the view waits for the board to come back (found again by its serial \
@@ -306,7 +308,12 @@ fn start_recording<P: Read + Write>(
             csv_path.display()
         );
     }
-    let (mut recording, _) = Recording::create(&csv_path, None)?;
+    let pad_count = link
+        .pad_count()
+        .or(state.info.map(|info| info.pad_count))
+        .unwrap_or(1)
+        .max(1);
+    let (mut recording, _) = Recording::create_with_pads(&csv_path, None, pad_count)?;
     match state.info {
         Some(info) => match read_device_state(link, &info, VIEW_REQUEST_TIMEOUT) {
             Ok(device_state) => recording.set_device_state(device_state),

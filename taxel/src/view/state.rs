@@ -1,5 +1,5 @@
 //! What the live view shows, kept apart from drawing and from the port so it is testable: the
-//! sample on display, the recent history per taxel, the device's identity and counters, the
+//! sample on display (pad 0's, on a device with several pads), the recent history per taxel, the device's identity and counters, the
 //! honest accounting of sample sets, and the recording in progress.
 
 use std::collections::VecDeque;
@@ -98,6 +98,10 @@ impl ViewState {
 
     fn apply_sample(&mut self, sample: &SampleFrame) {
         self.accounting.sample(sample);
+        // The view draws pad 0; the other pads' frames are accounted (and recorded) only.
+        if sample.pad.get() != 0 {
+            return;
+        }
         if self
             .recent_timestamps_us
             .back()

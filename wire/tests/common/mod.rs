@@ -86,6 +86,11 @@ pub fn pad_summary(float: BoxedStrategy<f32>) -> impl Strategy<Value = PadSummar
         )
 }
 
+/// Pad `index` (0..=7).
+pub fn pad(index: u8) -> PadIndex {
+    PadIndex::new(index).unwrap()
+}
+
 pub fn pad_index() -> impl Strategy<Value = PadIndex> {
     (0..=PadIndex::MAX).prop_map(|index| PadIndex::new(index).unwrap())
 }
@@ -199,8 +204,9 @@ pub fn calibration() -> impl Strategy<Value = TaxelCalibrationWire> {
 }
 
 pub fn calibration_record() -> impl Strategy<Value = TaxelCalibrationRecord> {
-    (any::<u8>(), any::<u32>(), calibration()).prop_map(
-        |(taxel_index, calibration_id, calibration)| TaxelCalibrationRecord {
+    (pad_index(), any::<u8>(), any::<u32>(), calibration()).prop_map(
+        |(pad, taxel_index, calibration_id, calibration)| TaxelCalibrationRecord {
+            pad,
             taxel_index,
             calibration_id,
             calibration,
@@ -228,7 +234,39 @@ pub fn reply_payload() -> impl Strategy<Value = ReplyPayload> {
         counters_frame().prop_map(ReplyPayload::Counters),
         calibration_record().prop_map(ReplyPayload::Calibration),
         tier().prop_map(ReplyPayload::ModelTier),
+        pad_info().prop_map(ReplyPayload::PadInfo),
     ]
+}
+
+pub fn temperature_sensor() -> impl Strategy<Value = wire::TemperatureSensor> {
+    prop_oneof![
+        any::<u8>().prop_map(|address| wire::TemperatureSensor::OwnTmp117 { address }),
+        any::<u8>().prop_map(|address| wire::TemperatureSensor::SharedTmp117 { address }),
+        Just(wire::TemperatureSensor::DieOnly),
+    ]
+}
+
+pub fn pad_info() -> impl Strategy<Value = wire::PadInfoFrame> {
+    (
+        pad_index(),
+        proptest::option::of(any::<u8>()),
+        temperature_sensor(),
+        any::<u32>(),
+        calibration_source(),
+        tier(),
+    )
+        .prop_map(
+            |(pad, channel, temperature_sensor, calibration_id, calibration_source, model_tier)| {
+                wire::PadInfoFrame {
+                    pad,
+                    channel,
+                    temperature_sensor,
+                    calibration_id,
+                    calibration_source,
+                    model_tier,
+                }
+            },
+        )
 }
 
 pub fn reply_frame() -> impl Strategy<Value = ReplyFrame> {
@@ -304,11 +342,15 @@ pub fn command() -> impl Strategy<Value = Command> {
         any::<u16>().prop_map(|sample_sets| Command::Tare { sample_sets }),
         tier().prop_map(|tier| Command::SetModelTier { tier }),
         use_case().prop_map(Command::SetUseCase),
-        any::<u8>().prop_map(|taxel_index| Command::ReadCalibration { taxel_index }),
+        (pad_index(), any::<u8>())
+            .prop_map(|(pad, taxel_index)| Command::ReadCalibration { pad, taxel_index }),
         calibration_record().prop_map(Command::WriteCalibration),
         Just(Command::SaveCalibration),
         Just(Command::RestoreDefaults),
         any::<bool>().prop_map(|enabled| Command::SetTextMode { enabled }),
+        (pad_index(), any::<u8>())
+            .prop_map(|(pad, taxel_index)| Command::ReadBaseline { pad, taxel_index }),
+        pad_index().prop_map(|pad| Command::PadInfo { pad }),
     ]
 }
 
@@ -414,6 +456,7 @@ pub fn worst_case_counters() -> CountersFrame {
 /// capacitance included.
 pub fn calibration_record_with_points(point_count: usize) -> TaxelCalibrationRecord {
     TaxelCalibrationRecord {
+        pad: PadIndex::new(PadIndex::MAX).unwrap(),
         taxel_index: u8::MAX,
         calibration_id: u32::MAX,
         calibration: TaxelCalibrationWire {
@@ -437,12 +480,24 @@ pub fn worst_case_reply() -> ReplyFrame {
 
 pub fn worst_case_baseline() -> wire::TaxelBaselineWire {
     wire::TaxelBaselineWire {
+        pad: PadIndex::new(PadIndex::MAX).unwrap(),
         taxel_index: u8::MAX,
         baseline: Some(wire::BaselineWire {
             offset_pf: f32::MAX,
             fine_pf: f32::MAX,
             temperature_c: f32::MAX,
         }),
+    }
+}
+
+pub fn worst_case_pad_info() -> wire::PadInfoFrame {
+    wire::PadInfoFrame {
+        pad: PadIndex::new(PadIndex::MAX).unwrap(),
+        channel: Some(u8::MAX),
+        temperature_sensor: wire::TemperatureSensor::SharedTmp117 { address: u8::MAX },
+        calibration_id: u32::MAX,
+        calibration_source: CalibrationSource::DefaultsAfterCorruptFlash,
+        model_tier: Tier::Polynomial,
     }
 }
 
