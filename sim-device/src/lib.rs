@@ -12,7 +12,10 @@ pub mod simulated_device;
 pub use flash::{SimulatedFlash, FLASH_REGION_LEN, FLASH_SECTOR_LEN};
 pub use memory_port::MemoryPort;
 pub use pty::PtyPort;
-pub use scene_file::{FaultKind, SceneFault, SceneFile, SceneFileError, DEFAULT_SCENE_TOML};
+pub use scene_file::{
+    FaultKind, PadScene, SceneFault, SceneFile, SceneFileError, BUILT_IN_SCENES, DEFAULT_SCENE_TOML,
+};
+pub use sensor_sim::Topology;
 pub use simulated_device::{
     pads_topology, simulated_board_serial, ClockError, SimulatedDevice, SimulatedDeviceConfig,
     SimulatedDeviceError, BUS_FREQUENCY_HZ, FACTORY_CALIBRATION_ID,

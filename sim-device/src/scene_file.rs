@@ -1,4 +1,6 @@
-//! Scene files: what happens to the simulated pad over time, as data (TOML).
+//! Scene files: what happens to the simulated pads over time, as data (TOML).
+//!
+//! One pad (every pad of a device plays it):
 //!
 //! ```toml
 //! name = "press"
@@ -13,6 +15,26 @@
 //! start_s = 10.0
 //! end_s = 12.0
 //! ```
+//!
+//! Several pads, in the device's pad order (a device then reads as many pads as the scene has):
+//!
+//! ```toml
+//! name = "gripper"
+//! repeat = true
+//! [[pad]]
+//! name = "left finger"
+//! [[pad.keyframe]]
+//! time_s = 0.0
+//! pressure_kpa = [0.0, 0.0, 0.0, 0.0]
+//! temperature_c = 25.0
+//! [[pad.fault]]
+//! kind = "unplugged"
+//! start_s = 3.0
+//! end_s = 4.0
+//! [[pad]]
+//! name = "right finger"
+//! # ...
+//! ```
 
 use std::fmt;
 
@@ -22,6 +44,15 @@ use serde::Deserialize;
 /// The built-in demo scene: a light press, a sliding press, the whole pad to 50 kPa, warming
 /// 25 -> 45 °C while loaded, and a concentrated-load short.
 pub const DEFAULT_SCENE_TOML: &str = include_str!("../scenes/default.toml");
+
+/// The built-in scenes by name: the demo pad, a two-finger gripper grasping an object that
+/// slips, and a glove (five fingertips and the palm) grasping with the whole hand while one
+/// fingertip shorts.
+pub const BUILT_IN_SCENES: [(&str, &str); 3] = [
+    ("default", DEFAULT_SCENE_TOML),
+    ("gripper", include_str!("../scenes/gripper.toml")),
+    ("glove", include_str!("../scenes/glove.toml")),
+];
 
 /// A fault a scene can inject.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -41,6 +72,9 @@ pub enum FaultKind {
     ZeroReads,
     /// The temperature sensor does not acknowledge on the bus.
     TemperatureSensorGone,
+    /// The pad's board is unplugged: its converter and temperature sensor do not answer, and
+    /// come back powered on afresh.
+    Unplugged,
 }
 
 /// One fault window of a scene.
@@ -72,6 +106,7 @@ impl SceneFault {
             FaultKind::DoneStuck => Fault::DoneStuck,
             FaultKind::ZeroReads => Fault::ZeroReads,
             FaultKind::TemperatureSensorGone => Fault::Nack(Device::Tmp117),
+            FaultKind::Unplugged => Fault::Unplugged,
         }
     }
 }
@@ -83,9 +118,33 @@ struct SceneDocument {
     name: String,
     #[serde(default)]
     repeat: bool,
+    #[serde(default)]
     keyframe: Vec<Keyframe>,
     #[serde(default)]
     fault: Vec<SceneFault>,
+    #[serde(default)]
+    pad: Vec<PadDocument>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PadDocument {
+    #[serde(default)]
+    name: String,
+    keyframe: Vec<Keyframe>,
+    #[serde(default)]
+    fault: Vec<SceneFault>,
+}
+
+/// What happens to one pad.
+#[derive(Debug, Clone)]
+pub struct PadScene {
+    /// Its name (empty when the file gives none).
+    pub name: String,
+    /// The pressures and temperature over time.
+    pub scene: ScriptedScene,
+    /// Fault windows.
+    pub faults: Vec<SceneFault>,
 }
 
 /// A parsed, validated scene.
@@ -93,12 +152,11 @@ struct SceneDocument {
 pub struct SceneFile {
     /// Its name.
     pub name: String,
-    /// Whether it starts over after the last keyframe.
+    /// Whether it starts over after its longest pad's last keyframe.
     pub repeat: bool,
-    /// The pressures and temperature over time.
-    pub scene: ScriptedScene,
-    /// Fault windows.
-    pub faults: Vec<SceneFault>,
+    /// Per pad, in the device's pad order (at least one); a scene of one pad is played by every
+    /// pad of a device.
+    pub pads: Vec<PadScene>,
 }
 
 /// Why a scene file was refused.
@@ -110,9 +168,13 @@ pub enum SceneFileError {
     Keyframes(sensor_sim::SceneError),
     /// A fault window is empty, not finite, or names a taxel outside 0..4.
     Fault {
-        /// Index of the fault in the file.
+        /// Index of the fault in the file (in its pad's list for a scene of several pads).
         index: usize,
     },
+    /// Both top-level keyframes and `[[pad]]` tables, neither, or more pads than a device reads.
+    Pads(String),
+    /// No built-in scene has this name.
+    UnknownBuiltIn(String),
 }
 
 impl fmt::Display for SceneFileError {
@@ -124,33 +186,101 @@ impl fmt::Display for SceneFileError {
                 formatter,
                 "scene fault #{index}: needs 0 <= start_s < end_s (finite) and taxel 0..3"
             ),
+            SceneFileError::Pads(message) => write!(formatter, "scene pads: {message}"),
+            SceneFileError::UnknownBuiltIn(name) => {
+                let names: Vec<&str> = BUILT_IN_SCENES.iter().map(|(name, _)| *name).collect();
+                write!(
+                    formatter,
+                    "no built-in scene `{name}` (built in: {})",
+                    names.join(", ")
+                )
+            }
         }
     }
 }
 
 impl std::error::Error for SceneFileError {}
 
+/// The most pads a scene describes: one per multiplexer channel.
+pub const MAX_SCENE_PADS: usize = 8;
+
+fn pad_scene(
+    name: String,
+    keyframes: Vec<Keyframe>,
+    faults: Vec<SceneFault>,
+) -> Result<PadScene, SceneFileError> {
+    let scene = ScriptedScene::new(keyframes).map_err(SceneFileError::Keyframes)?;
+    for (index, fault) in faults.iter().enumerate() {
+        let valid = fault.start_s.is_finite()
+            && fault.end_s.is_finite()
+            && 0.0 <= fault.start_s
+            && fault.start_s < fault.end_s
+            && fault.taxel < model_core::TAXEL_COUNT;
+        if !valid {
+            return Err(SceneFileError::Fault { index });
+        }
+    }
+    Ok(PadScene {
+        name,
+        scene,
+        faults,
+    })
+}
+
 impl SceneFile {
+    /// A scene of one pad.
+    pub fn single_pad(
+        name: impl Into<String>,
+        repeat: bool,
+        scene: ScriptedScene,
+        faults: Vec<SceneFault>,
+    ) -> Self {
+        Self {
+            name: name.into(),
+            repeat,
+            pads: vec![PadScene {
+                name: String::new(),
+                scene,
+                faults,
+            }],
+        }
+    }
+
     /// Parses a scene from TOML text.
     pub fn parse(text: &str) -> Result<Self, SceneFileError> {
         let document: SceneDocument =
             toml::from_str(text).map_err(|error| SceneFileError::Syntax(error.to_string()))?;
-        let scene = ScriptedScene::new(document.keyframe).map_err(SceneFileError::Keyframes)?;
-        for (index, fault) in document.fault.iter().enumerate() {
-            let valid = fault.start_s.is_finite()
-                && fault.end_s.is_finite()
-                && 0.0 <= fault.start_s
-                && fault.start_s < fault.end_s
-                && fault.taxel < model_core::TAXEL_COUNT;
-            if !valid {
-                return Err(SceneFileError::Fault { index });
+        let top_level = !document.keyframe.is_empty() || !document.fault.is_empty();
+        let pads = match (top_level, document.pad.is_empty()) {
+            (true, true) => vec![pad_scene(String::new(), document.keyframe, document.fault)?],
+            (false, false) if document.pad.len() <= MAX_SCENE_PADS => document
+                .pad
+                .into_iter()
+                .map(|pad| pad_scene(pad.name, pad.keyframe, pad.fault))
+                .collect::<Result<_, _>>()?,
+            (false, false) => {
+                return Err(SceneFileError::Pads(format!(
+                    "{} [[pad]] tables, a device reads at most {MAX_SCENE_PADS}",
+                    document.pad.len()
+                )))
             }
-        }
+            (true, false) => {
+                return Err(SceneFileError::Pads(
+                    "top-level keyframes or faults and [[pad]] tables: use one or the other"
+                        .to_owned(),
+                ))
+            }
+            (false, true) => {
+                return Err(SceneFileError::Pads(
+                    "no keyframe: give [[keyframe]] tables, or [[pad]] tables with theirs"
+                        .to_owned(),
+                ))
+            }
+        };
         Ok(Self {
             name: document.name,
             repeat: document.repeat,
-            scene,
-            faults: document.fault,
+            pads,
         })
     }
 
@@ -159,9 +289,29 @@ impl SceneFile {
         Self::parse(DEFAULT_SCENE_TOML)
     }
 
-    /// Length of one pass, seconds.
+    /// A built-in scene by name ([`BUILT_IN_SCENES`]).
+    pub fn built_in(name: &str) -> Result<Self, SceneFileError> {
+        let (_, text) = BUILT_IN_SCENES
+            .iter()
+            .find(|(built_in, _)| *built_in == name)
+            .ok_or_else(|| SceneFileError::UnknownBuiltIn(name.to_owned()))?;
+        Self::parse(text)
+    }
+
+    /// What pad `pad` of a device plays: its own scene, or the only one.
+    pub fn pad(&self, pad: usize) -> Option<&PadScene> {
+        match self.pads.as_slice() {
+            [only] => Some(only),
+            pads => pads.get(pad),
+        }
+    }
+
+    /// Length of one pass, seconds: the longest pad's.
     pub fn period_s(&self) -> f64 {
-        self.scene.end_s()
+        self.pads
+            .iter()
+            .map(|pad| pad.scene.end_s())
+            .fold(0.0, f64::max)
     }
 }
 
@@ -174,17 +324,18 @@ mod tests {
         let scene = SceneFile::default_scene().unwrap();
         assert!(scene.repeat);
         assert!(scene.period_s() > 60.0);
+        let pad = scene.pad(0).unwrap();
         let peak = (0..940)
-            .map(|step| scene.scene.point_at_s(step as f64 / 10.0))
+            .map(|step| pad.scene.point_at_s(step as f64 / 10.0))
             .fold(0.0f32, |peak, point| {
                 point.pressure_kpa.iter().copied().fold(peak, f32::max)
             });
         assert_eq!(peak, 50.0);
-        assert!(scene
+        assert!(pad
             .faults
             .iter()
             .any(|fault| fault.kind == FaultKind::Shorted));
-        assert_eq!(scene.scene.point_at_s(62.0).temperature_c, 45.0);
+        assert_eq!(pad.scene.point_at_s(62.0).temperature_c, 45.0);
     }
 
     #[test]
@@ -201,6 +352,48 @@ mod tests {
         let bad_fault = "[[keyframe]]\ntime_s = 0.0\npressure_kpa = [0.0, 0.0, 0.0, 0.0]\ntemperature_c = 25.0\n[[fault]]\nkind = \"open\"\ntaxel = 7\nstart_s = 1.0\nend_s = 2.0\n";
         assert!(matches!(
             SceneFile::parse(bad_fault),
+            Err(SceneFileError::Fault { index: 0 })
+        ));
+    }
+
+    #[test]
+    fn scenes_of_several_pads_parse_and_bad_ones_are_refused() {
+        for (name, pads) in [("default", 1), ("gripper", 2), ("glove", 6)] {
+            let scene = SceneFile::built_in(name).unwrap();
+            assert_eq!(scene.pads.len(), pads, "{name}");
+            assert!(scene.repeat);
+        }
+        let glove = SceneFile::built_in("glove").unwrap();
+        assert_eq!(glove.pads[5].name, "palm");
+        assert_eq!(glove.pads[1].faults[0].kind, FaultKind::Shorted);
+        assert!(glove.pad(6).is_none());
+        // A scene of one pad is every pad's.
+        let demo = SceneFile::default_scene().unwrap();
+        assert!(demo.pad(7).is_some());
+        assert!(matches!(
+            SceneFile::built_in("hand"),
+            Err(SceneFileError::UnknownBuiltIn(_))
+        ));
+        let keyframe = "time_s = 0.0\npressure_kpa = [0.0, 0.0, 0.0, 0.0]\ntemperature_c = 25.0\n";
+        let both = format!("[[keyframe]]\n{keyframe}[[pad]]\n[[pad.keyframe]]\n{keyframe}");
+        assert!(matches!(
+            SceneFile::parse(&both),
+            Err(SceneFileError::Pads(_))
+        ));
+        assert!(matches!(
+            SceneFile::parse("name = \"nothing\""),
+            Err(SceneFileError::Pads(_))
+        ));
+        let nine = format!("[[pad]]\n[[pad.keyframe]]\n{keyframe}").repeat(9);
+        assert!(matches!(
+            SceneFile::parse(&nine),
+            Err(SceneFileError::Pads(_))
+        ));
+        let bad_fault = format!(
+            "[[pad]]\n[[pad.keyframe]]\n{keyframe}[[pad.fault]]\nkind = \"unplugged\"\nstart_s = 2.0\nend_s = 1.0\n"
+        );
+        assert!(matches!(
+            SceneFile::parse(&bad_fault),
             Err(SceneFileError::Fault { index: 0 })
         ));
     }

@@ -119,8 +119,9 @@ pub struct SimulatedDeviceConfig {
     pub seed: u64,
     /// Simulated seconds per wall-clock second; `None` runs as fast as the host computes.
     pub speed: Option<f64>,
-    /// What sits on the simulated bus: one pad (the default), or several behind a multiplexer;
-    /// every pad plays the scene.
+    /// What sits on the simulated bus: one pad (the default), or several behind a multiplexer.
+    /// A scene of several pads needs as many ([`SceneFile::pads`], see
+    /// [`pads_topology`]); a scene of one pad is played by every pad.
     pub topology: Topology,
     /// The I2C clock the simulated transactions take their time from, Hz (the board's is
     /// [`BUS_FREQUENCY_HZ`]); `None`: transactions take no simulated time.
@@ -228,12 +229,22 @@ impl SimulatedDevice {
         })
         .map_err(|error| SimulatedDeviceError::Simulation(format!("{error:?}")))?;
         let period_us = (config.scene.period_s() * 1e6) as u64;
+        let scene_pads = config.scene.pads.len();
+        if scene_pads > 1 && scene_pads != simulation.pad_count() {
+            return Err(SimulatedDeviceError::Simulation(format!(
+                "the scene describes {scene_pads} pads and the simulated board has {}",
+                simulation.pad_count()
+            )));
+        }
         for pad in 0..simulation.pad_count() {
+            let Some(pad_scene) = config.scene.pad(pad) else {
+                continue;
+            };
             simulation
                 .set_pad_scene(
                     pad,
                     RepeatingScene {
-                        scene: config.scene.scene.clone(),
+                        scene: pad_scene.scene.clone(),
                         period_us,
                         repeat: config.scene.repeat,
                     },
@@ -342,14 +353,21 @@ impl SimulatedDevice {
         let passes_needed = if self.scene.repeat { pass + 2 } else { 1 };
         while self.passes_with_faults < passes_needed {
             let offset_us = self.passes_with_faults * period_us;
-            for fault in &self.scene.faults {
-                self.simulation.inject(
-                    fault.fault(),
-                    Window::Between {
-                        start_us: offset_us + (fault.start_s * 1e6) as u64,
-                        end_us: offset_us + (fault.end_s * 1e6) as u64,
-                    },
-                );
+            for pad in 0..self.simulation.pad_count() {
+                let Some(pad_scene) = self.scene.pad(pad) else {
+                    continue;
+                };
+                for fault in &pad_scene.faults {
+                    // The pad exists: the loop runs over the simulation's own pads.
+                    let _ = self.simulation.inject_on_pad(
+                        pad,
+                        fault.fault(),
+                        Window::Between {
+                            start_us: offset_us + (fault.start_s * 1e6) as u64,
+                            end_us: offset_us + (fault.end_s * 1e6) as u64,
+                        },
+                    );
+                }
             }
             self.passes_with_faults += 1;
         }

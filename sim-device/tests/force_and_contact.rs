@@ -72,12 +72,7 @@ fn truth(scene: &ScriptedScene, time_s: f64) -> (f64, Option<[f64; 2]>) {
 /// Runs the scene and returns the sample frames and the contact events (start?, time).
 fn run() -> (Vec<SampleFrame>, Vec<(bool, u64)>) {
     let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile {
-            name: "presses".into(),
-            repeat: false,
-            scene: scene(),
-            faults: Vec::new(),
-        },
+        scene: SceneFile::single_pad("presses", false, scene(), Vec::new()),
         seed: 11,
         speed: None,
         topology: sim_device::pads_topology(1),

@@ -37,12 +37,7 @@ fn loaded_device() -> SimulatedDevice {
     ])
     .unwrap();
     SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile {
-            name: "held".into(),
-            repeat: false,
-            scene,
-            faults: Vec::new(),
-        },
+        scene: SceneFile::single_pad("held", false, scene, Vec::new()),
         seed: 5,
         speed: None,
         topology: sim_device::pads_topology(1),

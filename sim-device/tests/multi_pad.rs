@@ -61,12 +61,12 @@ fn run(
     until_s: f64,
 ) -> Run {
     let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile {
-            name: "unloaded".into(),
-            repeat: false,
-            scene: ScriptedScene::new(vec![keyframe(0.0, 0.0)]).unwrap(),
-            faults: Vec::new(),
-        },
+        scene: SceneFile::single_pad(
+            "unloaded",
+            false,
+            ScriptedScene::new(vec![keyframe(0.0, 0.0)]).unwrap(),
+            Vec::new(),
+        ),
         seed: 21,
         speed: None,
         topology: pads_topology(pads),
@@ -256,5 +256,114 @@ fn a_failing_pad_is_flagged_and_recovers_while_the_others_keep_their_rate() {
                 );
             }
         }
+    }
+}
+
+/// The scene's force on a pad at a time: its pressures times the electrode area.
+fn scene_force_n(scene: &SceneFile, pad: usize, time_s: f64) -> f64 {
+    let point = scene.pad(pad).unwrap().scene.point_at_s(time_s);
+    point
+        .pressure_kpa
+        .iter()
+        .map(|kpa| f64::from(*kpa) * 1e3 * PAD_AREA_M2 / 4.0)
+        .sum()
+}
+
+/// A built-in scene of several pads on a board with as many, run to `until_s`.
+fn run_built_in(name: &str, until_s: f64) -> (SceneFile, Run) {
+    let scene = SceneFile::built_in(name).unwrap();
+    let pads = scene.pads.len();
+    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
+        scene: scene.clone(),
+        seed: 4,
+        speed: None,
+        topology: pads_topology(pads),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
+    })
+    .unwrap();
+    let mut link = MemoryPort::new(usize::MAX);
+    let mut decoder = DeviceFrameDecoder::new();
+    let mut run = Run {
+        info: None,
+        samples: Vec::new(),
+        events: Vec::new(),
+    };
+    while device.simulation().now_us() < (until_s * 1e6) as u64 {
+        device.step(&mut link);
+        for frame in decoder.feed(&link.take_for_host(usize::MAX)) {
+            match frame.unwrap() {
+                DeviceFrame::Info(info) => run.info = Some(info),
+                DeviceFrame::Sample(sample) => run.samples.push(sample),
+                DeviceFrame::Event(event) => run.events.push((event.timestamp_us, event.event)),
+                _ => {}
+            }
+        }
+    }
+    (scene, run)
+}
+
+/// Every frame of every pad whose taxels all read follows its pad's scene within the force
+/// tolerance (evaluated at the frame's own time).
+fn assert_forces_follow_the_scene(scene: &SceneFile, run: &Run, from_s: f64) {
+    for sample in &run.samples {
+        let time_s = sample.timestamp_us as f64 / 1e6;
+        if time_s < from_s || !reads(sample) {
+            continue;
+        }
+        let expected_n = scene_force_n(scene, usize::from(sample.pad.get()), time_s);
+        let force_n = f64::from(sample.summary.force_n.unwrap());
+        assert!(
+            (force_n - expected_n).abs() < FORCE_TOLERANCE_N,
+            "pad {} at {time_s:.3} s: {force_n} N, scene {expected_n} N",
+            sample.pad.get()
+        );
+    }
+}
+
+#[test]
+fn the_gripper_scene_grasps_with_two_pads_and_the_object_slips_down() {
+    let (scene, run) = run_built_in("gripper", 8.0);
+    assert_eq!(run.info.unwrap().pad_count, 2);
+    assert_forces_follow_the_scene(&scene, &run, 1.0);
+    for pad in 0..2u8 {
+        // Held: centred. Slipping: the centre of pressure moves towards row 2 (negative y).
+        let held = sets_between(&run, pad, 3.0, 4.5);
+        assert!(held.iter().all(|sample| {
+            let [x_mm, y_mm] = sample.summary.centre_of_pressure_mm.unwrap();
+            x_mm.abs() < 0.3 && y_mm.abs() < 0.3 && sample.summary.contact
+        }));
+        let slipped = sets_between(&run, pad, 6.8, 7.0);
+        assert!(slipped.iter().all(|sample| {
+            let [_, y_mm] = sample.summary.centre_of_pressure_mm.unwrap();
+            y_mm < -1.5
+        }));
+        let released = sets_between(&run, pad, 7.6, 8.0);
+        assert!(released.iter().all(|sample| !sample.summary.contact));
+    }
+}
+
+#[test]
+fn the_glove_scene_loads_six_pads_and_flags_the_shorted_fingertip_only() {
+    let (scene, run) = run_built_in("glove", 10.0);
+    assert_eq!(run.info.unwrap().pad_count, 6);
+    assert_eq!(scene.pads[1].name, "index fingertip");
+    assert_forces_follow_the_scene(&scene, &run, 1.0);
+    let shorted = wire::flags::SHORTED;
+    for pad in 0..6u8 {
+        let during_short = sets_between(&run, pad, 5.1, 6.4);
+        assert!(!during_short.is_empty());
+        for sample in during_short {
+            if pad == 1 {
+                assert!(sample.taxels[1].flags & shorted != 0, "pad 1 not flagged");
+                assert!(sample.taxels[1].pressure_kpa.is_none());
+                // Left out of the force, and said so.
+                assert!(sample.summary.partial && sample.summary.contact);
+            } else {
+                assert!(reads(sample) && sample.summary.contact, "pad {pad}");
+            }
+        }
+        assert!(sets_between(&run, pad, 9.3, 10.0)
+            .iter()
+            .all(|sample| !sample.summary.contact));
     }
 }

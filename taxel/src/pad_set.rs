@@ -3,6 +3,8 @@
 //! frames of one set; a set is complete when every pad's frame arrived, and it is closed
 //! incomplete when a frame of another set (or a second frame of a pad already in it) arrives,
 //! or when the stream ends. A pad whose frame never came stays `None`: it is never filled in.
+//! The first set taken is the first that starts with pad 0's frame: frames before it belong to
+//! a set that began before the recording, and are skipped and counted.
 //!
 //! The CSV row of a set (see [`pad_set_header`]) has the sequence number, then every pad's
 //! columns prefixed `pad<n>_`, then the marker.
@@ -163,6 +165,10 @@ pub struct PadSetAssembler {
     pad_count: usize,
     open: Option<PadSet>,
     frames_beyond_pad_count: u64,
+    // Sets start with pad 0: until its first frame, what arrives is the tail of a set that began
+    // before the recording, which would make a first row with pads missing for no fault.
+    started: bool,
+    frames_before_first_set: u64,
 }
 
 impl PadSetAssembler {
@@ -172,7 +178,15 @@ impl PadSetAssembler {
             pad_count: usize::from(pad_count.clamp(1, MAX_PAD_COUNT)),
             open: None,
             frames_beyond_pad_count: 0,
+            started: false,
+            frames_before_first_set: 0,
         }
+    }
+
+    /// Frames skipped at the start: the rest of a set that began before the first frame of
+    /// pad 0 arrived.
+    pub fn frames_before_first_set(&self) -> u64 {
+        self.frames_before_first_set
     }
 
     /// The number of pads of a set.
@@ -204,6 +218,13 @@ impl PadSetAssembler {
         if pad >= self.pad_count {
             self.frames_beyond_pad_count += 1;
             return Vec::new();
+        }
+        if !self.started {
+            if pad != 0 {
+                self.frames_before_first_set += 1;
+                return Vec::new();
+            }
+            self.started = true;
         }
         let mut closed = Vec::new();
         if self.would_close(&frame) {
@@ -283,6 +304,31 @@ mod tests {
         assert!(assembler.finish().is_none());
         assert!(assembler.push(frame(5, 4)).is_empty());
         assert_eq!(assembler.frames_beyond_pad_count(), 1);
+    }
+
+    #[test]
+    fn the_tail_of_a_set_begun_before_the_recording_is_skipped_and_counted() {
+        let mut assembler = PadSetAssembler::new(3);
+        assert!(assembler.push(frame(1, 9)).is_empty());
+        assert!(assembler.push(frame(2, 9)).is_empty());
+        assert!(!assembler.has_open_set());
+        assert_eq!(assembler.frames_before_first_set(), 2);
+        assembler.push(frame(0, 10));
+        assembler.push(frame(1, 10));
+        let closed = assembler.push(frame(2, 10));
+        assert_eq!(closed.len(), 1);
+        assert!(closed[0].is_complete());
+        // Later, a set missing pad 0 is a set with a missing pad, not skipped.
+        assembler.push(frame(1, 11));
+        assert_eq!(assembler.frames_before_first_set(), 2);
+        assert_eq!(
+            assembler
+                .finish()
+                .unwrap()
+                .missing_pads()
+                .collect::<Vec<_>>(),
+            [0, 2]
+        );
     }
 
     #[test]

@@ -159,22 +159,33 @@ impl<W: Write> RecordRows<W> {
         Ok(self.csv)
     }
 
-    /// Words for people on the sets that lacked pads, e.g. "2 of 100 rows lack a pad (pad 1: 2)";
-    /// `None` with one pad or when every set was complete.
+    /// Words for people on the sets that lacked pads, e.g. "2 of 100 rows lack a pad (pad 1: 2)",
+    /// and on the frames before the first whole set (in the raw log, not in a row); `None` with
+    /// one pad or when every set was complete.
     pub fn incomplete_words(&self) -> Option<String> {
+        let skipped = self
+            .sets
+            .as_ref()
+            .map_or(0, PadSetAssembler::frames_before_first_set);
+        let skipped_words = (skipped > 0)
+            .then(|| format!("{skipped} frames of a set begun before the recording were skipped"));
         if self.incomplete_rows == 0 {
-            return None;
+            return skipped_words;
         }
         let per_pad: Vec<String> = (0..self.pad_count())
             .filter(|&pad| self.missing_of_pad(pad) > 0)
             .map(|pad| format!("pad {pad}: {}", self.missing_of_pad(pad)))
             .collect();
-        Some(format!(
+        let incomplete = format!(
             "{} of {} rows lack the frame of a pad, their cells empty ({})",
             self.incomplete_rows,
             self.rows,
             per_pad.join(", ")
-        ))
+        );
+        Some(match skipped_words {
+            Some(skipped_words) => format!("{incomplete}; {skipped_words}"),
+            None => incomplete,
+        })
     }
 }
 

@@ -22,28 +22,40 @@ temperature sensor, driven by a scene (pressures per taxel and pad temperature o
 fault windows). Without --scene it plays the built-in demo: a light press on one taxel, a press \
 sliding across the pad, the whole pad pressed to 50 kPa, the pad warming 25 -> 45 degC while \
 loaded, and a concentrated-load short on one taxel.\n\n\
+Several pads: the simulated board then has a TCA9548A multiplexer with one pad per channel and \
+a TMP117 on the main bus, found by the firmware's discovery as a real board's would be. \
+--scene gripper (two fingers grasping an object that slips) and --scene glove (five \
+fingertips and the palm in a whole-hand grasp, one fingertip shorting) are built in; a scene \
+file of several pads ([[pad]] tables) gives the board as many pads, and --pads N makes every \
+one of N pads play a scene of one pad.\n\n\
 It prints the terminal's path (e.g. /dev/pts/7); open it with `taxel view PATH`, `taxel record \
 PATH -o out.csv`, pyserial or a terminal. It answers the same commands as the firmware. \
-Scene files are TOML: see sim-device/scenes/default.toml.\n\n\
-Example: taxel sim --speed 20 --duration 40 --path-file port.txt";
+Scene files are TOML: see sim-device/scenes/default.toml (one pad) and \
+sim-device/scenes/glove.toml (several).\n\n\
+Examples:\n  taxel sim --speed 20 --duration 40 --path-file port.txt\n  taxel sim --scene glove\n  \
+taxel sim --pads 8";
 
 /// Long help of `taxel demo`.
 pub const DEMO_LONG_ABOUT: &str = "The simulated device and the live view together: see the \
 pad work without hardware.\n\n\
-The simulated device (see `taxel sim --help`) plays the built-in demo scene, or --scene FILE, \
-and the live view (see `taxel view --help`) shows it: the 2x2 heat map with kPa and flags, the \
+The simulated device (see `taxel sim --help`) plays the built-in demo scene, or --scene \
+gripper, glove or FILE, and the live view (see `taxel view --help`) shows it: the 2x2 heat map with kPa and flags, the \
 pressure of each taxel over the last seconds, the temperature and the rates.\n\n\
 Keys: t = tare (keep the pad unloaded), p = pause the display, r = start/stop recording to a \
 file, m = drop a marker into the recording, q = quit.\n\n\
-Examples:\n  taxel demo\n  taxel demo --speed 10 --snapshot-after 69   (prints one text snapshot \
+Examples:\n  taxel demo\n  taxel demo --scene glove\n  taxel demo --speed 10 --snapshot-after 69   (prints one text snapshot \
 at the concentrated-load short and exits)";
 
 /// Arguments of `taxel sim`.
 #[derive(Debug, Clone, Args)]
 pub struct SimArgs {
-    /// Scene file (TOML); default: the built-in demo scene.
-    #[arg(long, value_name = "FILE")]
+    /// Scene: a built-in name (default, gripper, glove) or a TOML file; default: the demo.
+    #[arg(long, value_name = "NAME|FILE")]
     pub scene: Option<PathBuf>,
+    /// Pads on the simulated board (1-8), each playing the scene; default: as many as the
+    /// scene describes (one for a scene of one pad).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=8))]
+    pub pads: Option<u8>,
     /// Simulated seconds per wall-clock second (1 = real time).
     #[arg(long, value_name = "FACTOR", default_value_t = 1.0)]
     pub speed: f64,
@@ -67,8 +79,8 @@ pub struct SimArgs {
 /// Arguments of `taxel demo`.
 #[derive(Debug, Clone, Args)]
 pub struct DemoArgs {
-    /// Scene file (TOML); default: the built-in demo scene.
-    #[arg(long, value_name = "FILE")]
+    /// Scene: a built-in name (default, gripper, glove) or a TOML file; default: the demo.
+    #[arg(long, value_name = "NAME|FILE")]
     pub scene: Option<PathBuf>,
     /// Simulated seconds per wall-clock second.
     #[arg(long, value_name = "FACTOR", default_value_t = 1.0)]
@@ -79,15 +91,32 @@ pub struct DemoArgs {
     pub snapshot_after: Option<f64>,
 }
 
+/// The scene `--scene` names: a file when one exists at that path, else a built-in scene.
 fn load_scene(path: Option<&Path>) -> anyhow::Result<SceneFile> {
     match path {
-        Some(path) => {
+        Some(path) if path.exists() => {
             let text = std::fs::read_to_string(path)
                 .with_context(|| format!("reading scene {}", path.display()))?;
             SceneFile::parse(&text).with_context(|| format!("scene {}", path.display()))
         }
+        Some(name) => SceneFile::built_in(&name.to_string_lossy())
+            .with_context(|| format!("no scene file {}", name.display())),
         None => Ok(SceneFile::default_scene()?),
     }
+}
+
+/// The simulated board for a scene: `pads` pads (each playing a scene of one pad), or as many as
+/// the scene describes.
+fn board_for(scene: &SceneFile, pads: Option<u8>) -> anyhow::Result<sim_device::Topology> {
+    let described = scene.pads.len();
+    let pads = match pads {
+        Some(pads) if described > 1 && usize::from(pads) != described => anyhow::bail!(
+            "the scene describes {described} pads; --pads {pads} would leave pads without one"
+        ),
+        Some(pads) => usize::from(pads),
+        None => described,
+    };
+    Ok(sim_device::pads_topology(pads))
 }
 
 /// A running simulated device on its own thread.
@@ -149,12 +178,13 @@ pub fn run(args: &SimArgs) -> anyhow::Result<ExitCode> {
             "--speed must be a positive number"
         );
     }
+    let topology = board_for(&scene, args.pads)?;
     let simulator = SimulatorThread::start(
         SimulatedDeviceConfig {
             scene,
             seed: args.seed,
             speed,
-            topology: sim_device::pads_topology(1),
+            topology,
             bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
         },
         args.duration,
@@ -200,12 +230,13 @@ pub fn run_demo(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         args.speed.is_finite() && args.speed > 0.0,
         "--speed must be a positive number"
     );
+    let topology = board_for(&scene, None)?;
     let simulator = SimulatorThread::start(
         SimulatedDeviceConfig {
             scene,
             seed: 1,
             speed: Some(args.speed),
-            topology: sim_device::pads_topology(1),
+            topology,
             bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
         },
         None,

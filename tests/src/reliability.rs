@@ -220,12 +220,7 @@ fn sample_is_clean(sample: &SampleFrame) -> bool {
 fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
     let scene = scene(repetition)?;
     let truth = scene.clone();
-    let scene_file = SceneFile {
-        name: kind.name().to_string(),
-        repeat: false,
-        scene,
-        faults: Vec::new(),
-    };
+    let scene_file = SceneFile::single_pad(kind.name().to_string(), false, scene, Vec::new());
     let mut simulated = SimulatedDevice::new(SimulatedDeviceConfig {
         scene: scene_file,
         seed: 1000 + u64::from(repetition),

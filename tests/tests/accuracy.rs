@@ -64,12 +64,7 @@ fn keyframe(time_s: f64, pressure_kpa: [f32; 4], temperature_c: f32) -> Keyframe
 /// as the host does.
 fn record(scene: &ScriptedScene, faults: &[(Fault, f64, f64)], seed: u64) -> Vec<SampleFrame> {
     let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile {
-            name: "accuracy".to_string(),
-            repeat: false,
-            scene: scene.clone(),
-            faults: Vec::new(),
-        },
+        scene: SceneFile::single_pad("accuracy".to_string(), false, scene.clone(), Vec::new()),
         seed,
         speed: None,
         topology: sim_device::pads_topology(1),

@@ -29,7 +29,7 @@ const RMS_TOLERANCE_KPA: f64 = 0.1;
 fn a_recording_of_the_simulated_device_matches_its_scene() {
     let scene = SceneFile::default_scene().unwrap();
     let period_s = scene.period_s();
-    let truth = scene.scene.clone();
+    let truth = scene.pads[0].scene.clone();
     let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
         scene,
         seed: 3,

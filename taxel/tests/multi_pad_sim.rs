@@ -1,0 +1,162 @@
+//! Several pads end to end through the real host path: `taxel sim` runs the simulated board
+//! (the firmware's discovery, acquisition and protocol code, a TCA9548A with one pad per
+//! channel) on a pseudo-terminal, `taxel record` records it, and the pad-prefixed columns are
+//! checked against the scene each pad plays (force = pressure x the article's 5 mm x 5 mm
+//! electrodes, computed here).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use sim_device::SceneFile;
+
+/// Four electrodes of 25 mm², as m².
+const ELECTRODE_AREA_M2: f64 = 25e-6;
+/// Each pressure within 0.5 kPa of the scene: 4 x 0.5 kPa x 25 mm².
+const FORCE_TOLERANCE_N: f64 = 0.05;
+
+fn taxel() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_taxel"))
+}
+
+/// `taxel sim` with `arguments` in the background; its port once it is ready.
+#[allow(clippy::zombie_processes)]
+fn start_simulator(directory: &Path, arguments: &[&str]) -> (Child, String) {
+    let path_file = directory.join("port");
+    let mut child = taxel()
+        .args(["sim", "--speed", "4", "--duration", "60", "--path-file"])
+        .arg(&path_file)
+        .args(arguments)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        if let Ok(path) = std::fs::read_to_string(&path_file) {
+            if !path.trim().is_empty() {
+                return (child, path.trim().to_owned());
+            }
+        }
+        if Instant::now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("the simulator did not start");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Records `sets` sample sets from a simulator started with `arguments`; the rows by column.
+fn record(arguments: &[&str], sets: u32) -> Vec<HashMap<String, String>> {
+    let directory = tempfile::tempdir().unwrap();
+    let (mut simulator, port) = start_simulator(directory.path(), arguments);
+    let recording = directory.path().join("rec.csv");
+    let output = taxel()
+        .args(["record", &port, "--samples", &sets.to_string(), "-o"])
+        .arg(&recording)
+        .output()
+        .unwrap();
+    let _ = simulator.kill();
+    let _ = simulator.wait();
+    let messages = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(output.status.success(), "{messages}");
+    let mut reader = csv::Reader::from_path(&recording).unwrap();
+    let header: Vec<String> = reader
+        .headers()
+        .unwrap()
+        .iter()
+        .map(str::to_owned)
+        .collect();
+    reader
+        .records()
+        .map(|record| {
+            let record = record.unwrap();
+            header
+                .iter()
+                .cloned()
+                .zip(record.iter().map(str::to_owned))
+                .collect()
+        })
+        .collect()
+}
+
+/// Checks every complete pad cell group of every row against the scene: its force, and that a
+/// pad whose four taxels read is not flagged partial. Returns how many pad samples it checked.
+fn check_against_scene(rows: &[HashMap<String, String>], scene: &SceneFile, pads: usize) -> usize {
+    let mut checked = 0;
+    for row in rows {
+        for pad in 0..pads {
+            let cell = |name: &str| row.get(&format!("pad{pad}_{name}")).unwrap().clone();
+            let time = cell("time_s");
+            assert!(
+                !time.is_empty(),
+                "pad {pad} missing from row {:?}",
+                row.get("seq")
+            );
+            let time_s: f64 = time.parse().unwrap();
+            // The tare at boot and the press ramps: check where the pad is steady or unloaded.
+            let all_read = ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"]
+                .iter()
+                .all(|name| !cell(name).is_empty());
+            if time_s < 1.0 || !all_read {
+                continue;
+            }
+            let period_s = scene.period_s();
+            let scene_time_s = if scene.repeat {
+                time_s % period_s
+            } else {
+                time_s
+            };
+            let pressures = scene
+                .pad(pad)
+                .unwrap()
+                .scene
+                .point_at_s(scene_time_s)
+                .pressure_kpa;
+            let expected_n: f64 = pressures
+                .iter()
+                .map(|kpa| f64::from(*kpa) * 1e3 * ELECTRODE_AREA_M2)
+                .sum();
+            let force_n: f64 = cell("force_n").parse().unwrap();
+            assert!(
+                (force_n - expected_n).abs() < FORCE_TOLERANCE_N,
+                "pad {pad} at {time_s} s: {force_n} N recorded, scene {expected_n} N"
+            );
+            assert_eq!(cell("partial"), "0", "pad {pad} at {time_s} s");
+            checked += 1;
+        }
+    }
+    checked
+}
+
+#[test]
+fn the_gripper_scene_is_recorded_pad_by_pad() {
+    let rows = record(&["--scene", "gripper"], 600);
+    assert_eq!(rows.len(), 600);
+    let scene = SceneFile::built_in("gripper").unwrap();
+    let checked = check_against_scene(&rows, &scene, 2);
+    assert!(checked > 800, "{checked} pad samples checked");
+    assert!(!rows[0].contains_key("pad2_time_s"));
+}
+
+#[test]
+fn eight_pads_are_recorded_in_their_columns() {
+    let rows = record(&["--pads", "8"], 300);
+    assert_eq!(rows.len(), 300);
+    let scene = SceneFile::default_scene().unwrap();
+    let checked = check_against_scene(&rows, &scene, 8);
+    assert!(checked > 8 * 200, "{checked} pad samples checked");
+    // One sample set per row: every pad of a row carries the row's sequence number's set, read
+    // within one converter cycle (10 ms at 400 S/s).
+    for row in &rows {
+        let times: Vec<f64> = (0..8)
+            .map(|pad| row[&format!("pad{pad}_time_s")].parse().unwrap())
+            .collect();
+        let spread_s = times.iter().fold(f64::MIN, |a, b| a.max(*b))
+            - times.iter().fold(f64::MAX, |a, b| a.min(*b));
+        assert!(spread_s < 0.010, "pads of one set read {spread_s} s apart");
+    }
+}
