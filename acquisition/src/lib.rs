@@ -83,10 +83,11 @@ pub struct AcquisitionConfig {
     pub stuck_after_cycles: u16,
     /// While the primary temperature sensor is failing, try it again every this many cycles.
     pub primary_temperature_retry_cycles: u16,
-    /// Wait after a failed converter initialisation before the next attempt, µs; it doubles
-    /// with every further failure of the same pad, up to `reinit_backoff_max_us`.
+    /// Wait after a converter failure before the next attempt, µs. With several pads, after a
+    /// failure that is costly to retry (an initialisation, a DONE timeout) it doubles with every
+    /// further one of the same pad, up to `reinit_backoff_max_us`.
     pub reinit_backoff_us: u32,
-    /// Longest wait between two initialisation attempts of a failing converter, µs.
+    /// Longest wait between two costly attempts on a failing converter, µs.
     pub reinit_backoff_max_us: u32,
     /// Sample sets averaged by the tare taken automatically at start (0 = none).
     pub tare_sets_at_start: u16,
@@ -266,6 +267,7 @@ where
     /// Reads one pad for the set under way; `None` if there is no such pad.
     pub async fn read_pad(&mut self, pad: usize) -> Option<ProcessedSample> {
         let pad_index = u8::try_from(pad).ok()?;
+        let shares_loop = self.pads.len() > 1;
         let reader = self.pads.get_mut(pad)?;
         let (sample, activity) = reader
             .read(
@@ -274,6 +276,7 @@ where
                 &mut self.fallback_temperature,
                 &self.clock,
                 &self.config,
+                shares_loop,
             )
             .await;
         if activity == ConverterActivity::Read {

@@ -1,7 +1,10 @@
 //! One pad's part of the acquisition loop: its converter, its own temperature sensor if it has
-//! one, its model and its recovery. A pad that fails is flagged and recovered on its own, with a
-//! back-off that grows while it keeps failing, so an unplugged pad costs the others a short
-//! initialisation attempt now and then, not a wait every sample set.
+//! one, its model and its recovery. A pad that fails is flagged and recovered on its own: a
+//! converter that does not answer is looked for with one register read every back-off interval
+//! (cheap for the other pads, quick to recover), and when other pads share the loop, a converter
+//! that answers but fails what is costly to retry (an initialisation, a read that waits out the
+//! DONE timeout) is retried at intervals that double up to a limit, so a stalled pad costs the
+//! others a wait now and then, not one every sample set.
 
 use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;
@@ -144,6 +147,8 @@ where
     }
 
     /// Reads the pad once: (re-)initialise if due, read, check, convert.
+    /// `shares_loop`: other pads are read in the same loop (their sets wait while this pad's
+    /// converter is retried).
     pub(crate) async fn read<F: TemperatureSource, K: Clock>(
         &mut self,
         pad_index: u8,
@@ -151,9 +156,10 @@ where
         fallback: &mut F,
         clock: &K,
         config: &AcquisitionConfig,
+        shares_loop: bool,
     ) -> (ProcessedSample, ConverterActivity) {
         let mut reading_flags = [TaxelFlags::empty(); TAXEL_COUNT];
-        let codes = self.read_converter(clock, config).await;
+        let codes = self.read_converter(clock, config, shares_loop).await;
         let activity = if codes.is_some() {
             ConverterActivity::Read
         } else {
@@ -213,6 +219,7 @@ where
         &mut self,
         clock: &K,
         config: &AcquisitionConfig,
+        shares_loop: bool,
     ) -> Option<[i32; TAXEL_COUNT]> {
         if !self.converter_ready {
             if self
@@ -229,12 +236,12 @@ where
                     Ok(true) => {}
                     Ok(false) => {
                         Counters::bump(&mut self.counters.converter_check_failures);
-                        self.back_off(clock, config);
+                        self.back_off(clock, config, false);
                         return None;
                     }
                     Err(error) => {
                         self.counters.count_converter_error(&error);
-                        self.back_off(clock, config);
+                        self.back_off(clock, config, false);
                         return None;
                     }
                 }
@@ -244,10 +251,9 @@ where
             }
             if let Err(error) = self.converter.init().await {
                 self.counters.count_converter_error(&error);
-                self.back_off(clock, config);
+                self.back_off(clock, config, shares_loop);
                 return None;
             }
-            self.backoff = Backoff::default();
             self.stuck.reset();
             self.converter_ready = true;
         }
@@ -257,8 +263,17 @@ where
                 self.converter_ready = false;
                 None
             }
-            Ok(measurements) => Some(measurements.codes.map(|code| code.0)),
+            Ok(measurements) => {
+                self.backoff = Backoff::default();
+                Some(measurements.codes.map(|code| code.0))
+            }
             Err(error) => {
+                // A stalled converter answers and initialises, then makes every read wait out
+                // the DONE timeout: retrying it at once would cost the other pads that wait in
+                // every set, so it backs off like a converter that does not initialise.
+                if matches!(error, fdc1004::Error::DoneTimeout { .. }) {
+                    self.back_off(clock, config, shares_loop);
+                }
                 self.counters.count_converter_error(&error);
                 self.converter_ready = false;
                 None
@@ -266,19 +281,25 @@ where
         }
     }
 
-    /// After a failed initialisation: the next one waits, twice as long after every further
-    /// failure, up to the configured longest wait.
-    fn back_off<K: Clock>(&mut self, clock: &K, config: &AcquisitionConfig) {
-        let wait_us = if self.backoff.next_wait_us == 0 {
+    /// After a failure: the next attempt waits the first back-off interval, or with `escalate`
+    /// the current interval, which then doubles up to the configured longest wait.
+    fn back_off<K: Clock>(&mut self, clock: &K, config: &AcquisitionConfig, escalate: bool) {
+        let current_us = self.backoff.next_wait_us.max(config.reinit_backoff_us);
+        let wait_us = if escalate {
+            current_us
+        } else {
             config.reinit_backoff_us
+        };
+        let next_wait_us = if escalate {
+            current_us
+                .saturating_mul(2)
+                .min(config.reinit_backoff_max_us.max(config.reinit_backoff_us))
         } else {
             self.backoff.next_wait_us
         };
         self.backoff = Backoff {
             retry_at_us: Some(clock.now_us().saturating_add(u64::from(wait_us))),
-            next_wait_us: wait_us
-                .saturating_mul(2)
-                .min(config.reinit_backoff_max_us.max(config.reinit_backoff_us)),
+            next_wait_us,
         };
     }
 

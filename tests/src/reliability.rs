@@ -486,8 +486,9 @@ fn flag_names(flags: TaxelFlags) -> String {
     }
 }
 
-/// The report as Markdown.
-pub fn render_markdown(outcomes: &[FaultOutcome], command: &str) -> String {
+/// The report as Markdown; `more_sections` (Markdown, e.g. the several-pads section) goes
+/// after the single-pad faults.
+pub fn render_markdown(outcomes: &[FaultOutcome], more_sections: &str, command: &str) -> String {
     let mut out = String::new();
     let _ = writeln!(out, "# Reliability: fault injection end to end\n");
     let _ = writeln!(
@@ -547,9 +548,10 @@ temperature sensor: back on the TMP117).\n"
     for outcome in outcomes {
         let _ = writeln!(out, "- **{}**: {}.", outcome.kind.name(), outcome.notes);
     }
+    let _ = writeln!(out, "\n{more_sections}");
     let _ = writeln!(
         out,
-        "\n## What is covered elsewhere\n\n\
+        "## What is covered elsewhere\n\n\
 - Flash: bit flips, truncation and power loss at every write and erase of a save, on a RAM model \
 of the flash (`cargo test -p taxel-calibration-store`: always the old or the new calibration, or \
 defaults with a flag; see that crate's tests for the counts).\n\

@@ -92,3 +92,33 @@ fn wire_flag_bits_are_model_core_flag_bits() {
     assert_eq!(wire::flags::FAULT_MASK, TaxelFlags::FAULTS.bits());
     assert_eq!(wire::flags::DEFINED_MASK, TaxelFlags::all().bits());
 }
+
+/// One pad of several fails: it is flagged while it fails and recovers on its own; the others
+/// keep their values and their flags, nothing is lost, and they keep their rate: 95 % or more
+/// when the pad is unplugged, NACKs or its channel sticks, 80 % or more when its converter
+/// stalls (every retry of a stalled converter waits out its DONE timeout, 25 ms, which the
+/// back-off spaces to one per 320 ms).
+#[test]
+fn a_failing_pad_is_flagged_and_recovers_and_the_others_do_not_notice() {
+    use taxel_tests::pad_faults::{run_pad_fault, PadFaultKind};
+    for kind in PadFaultKind::ALL {
+        let outcome =
+            run_pad_fault(kind, 2).unwrap_or_else(|error| panic!("{}: {error}", kind.name()));
+        println!("{outcome:?}");
+        assert!(outcome.failing_frames_during > 100, "{outcome:?}");
+        assert_eq!(
+            outcome.failing_frames_flagged, outcome.failing_frames_during,
+            "{outcome:?}"
+        );
+        assert_eq!(outcome.recovery_us.len(), 2, "did not recover: {outcome:?}");
+        let rate_kept = match kind {
+            PadFaultKind::DoneStuck => 0.80,
+            _ => 0.95,
+        };
+        assert!(outcome.other_rate_share() >= rate_kept, "{outcome:?}");
+        assert_eq!(outcome.other_frames_flagged, 0, "{outcome:?}");
+        assert_eq!(outcome.wrong_pressures, 0, "{outcome:?}");
+        assert!(outcome.pressures_checked > 10_000, "{outcome:?}");
+        assert_eq!(outcome.frames_missing, 0, "{outcome:?}");
+    }
+}

@@ -3,6 +3,7 @@
 
 use std::process::ExitCode;
 
+use taxel_tests::pad_faults::{self, run_pad_fault, PadFaultKind};
 use taxel_tests::reliability::{render_markdown, run_fault, FaultKind};
 
 const COMMAND: &str = "cargo run --release -p taxel-tests --bin reliability";
@@ -23,7 +24,22 @@ fn main() -> ExitCode {
             }
         }
     }
-    let markdown = render_markdown(&outcomes, COMMAND);
+    let mut pad_outcomes = Vec::new();
+    for kind in PadFaultKind::ALL {
+        eprintln!("{}: {REPETITIONS} runs", kind.name());
+        match run_pad_fault(kind, REPETITIONS) {
+            Ok(outcome) => pad_outcomes.push(outcome),
+            Err(error) => {
+                eprintln!("error: {}: {error}", kind.name());
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    let markdown = render_markdown(
+        &outcomes,
+        &pad_faults::render_markdown(&pad_outcomes),
+        COMMAND,
+    );
     // Through a temporary name: an interrupted run leaves the previous report, not half of one.
     let written = taxel::output_file::OutputFile::create(std::path::Path::new(&output)).and_then(
         |mut file| {
@@ -35,7 +51,7 @@ fn main() -> ExitCode {
         eprintln!("error: writing {output}: {error:#}");
         return ExitCode::FAILURE;
     }
-    let bad: Vec<_> = outcomes
+    let mut bad: Vec<_> = outcomes
         .iter()
         .filter(|outcome| {
             outcome.wrong_pressures > 0
@@ -44,6 +60,18 @@ fn main() -> ExitCode {
         })
         .map(|outcome| outcome.kind.name())
         .collect();
+    bad.extend(
+        pad_outcomes
+            .iter()
+            .filter(|outcome| {
+                outcome.wrong_pressures > 0
+                    || outcome.frames_missing > 0
+                    || outcome.other_frames_flagged > 0
+                    || outcome.failing_frames_flagged < outcome.failing_frames_during
+                    || outcome.recovery_us.len() < outcome.repetitions as usize
+            })
+            .map(|outcome| outcome.kind.name()),
+    );
     eprintln!("wrote {output}");
     if bad.is_empty() {
         ExitCode::SUCCESS
