@@ -37,8 +37,8 @@ pub use supervisor::{Supervisor, SupervisorAction};
 use acquisition::discovery::{PadSlot, PadTemperature, MAX_PADS};
 use acquisition::{ProcessedSample, TemperatureOrigin};
 use model_core::{
-    pad_force, BaselineError, BaselineRecord, Calibration, ContactConfig, ContactDetector,
-    ContactEvent, PadGeometry, PadModel, TareStatus, Tier, TAXEL_COUNT,
+    pad_force, BaselineError, Calibration, ContactConfig, ContactDetector, ContactEvent,
+    PadGeometry, PadModel, TareStatus, Tier, TAXEL_COUNT,
 };
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
@@ -166,7 +166,6 @@ struct PadReporting {
     contact: ContactDetector,
     last_converter_reinits: u32,
     last_temperature_origin: Option<TemperatureOrigin>,
-    announced_baselines: [Option<BaselineRecord>; TAXEL_COUNT],
     announced_generation: Option<u32>,
 }
 
@@ -187,7 +186,6 @@ impl PadReporting {
             contact: ContactDetector::new(contact),
             last_converter_reinits: 0,
             last_temperature_origin: None,
-            announced_baselines: [None; TAXEL_COUNT],
             announced_generation: None,
         }
     }
@@ -340,8 +338,19 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
 
     /// One sample set with everything around it: requests received since the last step are
     /// applied first, then every pad is read in turn and its frames are queued as soon as it is
-    /// read. Returns the first pad's sample (`None` on a board with no pad).
-    pub async fn step<H: HostPort>(&mut self, host: &mut H) -> Option<ProcessedSample> {
+    /// read.
+    pub async fn step<H: HostPort>(&mut self, host: &mut H) {
+        self.step_observed(host, |_| {}).await;
+    }
+
+    /// [`Device::step`], handing every pad's sample to `observe` as it is read (the simulated
+    /// device and tests look at them; the firmware keeps none, so that no sample set stays in
+    /// the task's state across the other pads' reads).
+    pub async fn step_observed<H: HostPort>(
+        &mut self,
+        host: &mut H,
+        mut observe: impl FnMut(&ProcessedSample),
+    ) {
         // Read once per step: asking the port again for every frame costs a system call on
         // the desktop's pseudo-terminal and tells nothing new within one cycle.
         let connected = host.host_connected();
@@ -380,17 +389,14 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 HostInputEvent::LeaveTextMode => self.text_mode = false,
             }
         }
-        let mut first = None;
         for pad in 0..self.control.pad_count() {
             if let Some(sample) = self.control.read_pad(pad).await {
                 self.after_pad(host, &sample);
-                first = first.or(Some(sample));
+                observe(&sample);
             }
         }
-        let timestamp_us = first.map_or(0, |sample| sample.timestamp_us);
         self.control.finish_set().await;
-        self.after_set(host, timestamp_us);
-        first
+        self.after_set(host);
     }
 
     /// Events, the sample frame and contact of one pad's sample.
@@ -427,22 +433,20 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             let summary = pad_summary(&force, reporting.contact.in_contact());
             sample_frame(sample, model, wire_pad, summary)
         });
-        // Only a tare, a restore or a new calibration changes the generation, so the records
-        // are built and compared only then, not every cycle.
+        // A tare, a restore or a new calibration installs baselines and changes the generation
+        // (tracking does not): whatever installed them, a recording host learns it after this
+        // pad's sample (computed before the change) and before the first sample computed with
+        // them. At the first sample only baselines restored at boot are news.
         let generation = model.baseline_generation();
         let mut tare_finished = None;
         if reporting.announced_generation != Some(generation) {
+            let first_look = reporting.announced_generation.is_none();
             reporting.announced_generation = Some(generation);
-            let baselines = model.baseline_records();
-            if baselines != reporting.announced_baselines {
-                // Whatever changed them (a tare at boot or on command, a restore after a
-                // reset), a recording host learns it after this pad's sample (computed
-                // before the change) and before the first sample computed with them.
-                reporting.announced_baselines = baselines;
-                let tared_mask = (0u8..)
-                    .zip(&baselines)
-                    .filter(|(_, baseline)| baseline.is_some())
-                    .fold(0u8, |mask, (taxel, _)| mask | (1 << taxel));
+            let tared_mask = (0u8..)
+                .zip(&model.baseline_records())
+                .filter(|(_, baseline)| baseline.is_some())
+                .fold(0u8, |mask, (taxel, _)| mask | (1 << taxel));
+            if !first_look || tared_mask != 0 {
                 tare_finished = Some(DeviceEvent::TareFinished {
                     pad: wire_pad,
                     tared_mask,
@@ -480,7 +484,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
     }
 
     /// The reply to a tare every pad finished, and the periodic counters.
-    fn after_set<H: HostPort>(&mut self, host: &mut H, _timestamp_us: u64) {
+    fn after_set<H: HostPort>(&mut self, host: &mut H) {
         if let Some(request_id) = self.pending_tare {
             if let Some(result) = self.tare_result() {
                 self.pending_tare = None;

@@ -6,7 +6,8 @@ use cortex_m_semihosting::hprintln;
 use model_core::calibration::MAX_CURVE_POINTS;
 use model_core::{
     Baseline, Calibration, CalibrationCurve, CalibrationSpec, CurvePoint, InverseCurve, PadModel,
-    SampleInput, TaxelInverses, TaxelModel, TaxelReading, TemperatureTracker, Tier,
+    SampleInput, TaxelCalibration, TaxelInverses, TaxelModel, TaxelReading, TemperatureTracker,
+    Tier,
 };
 
 use crate::format::{
@@ -58,10 +59,13 @@ pub fn warm_up(pad: &mut PadModel, setup: &Setup, target_c: f32) {
     }
 }
 
-/// The grid's taxel: its model, baseline and calibration.
+/// The grid's taxel: its models, baseline and calibration.
 pub struct GridTaxel {
-    /// Taxel 0's model.
-    pub model: TaxelModel,
+    /// Taxel 0's model for each tier, in [`Tier::ALL`] order (`None` where its curve lacks the
+    /// tier).
+    pub models: [Option<TaxelModel>; TIER_COUNT],
+    /// Every tier of taxel 0 at once (the inverse-alone counts).
+    pub inverses: TaxelInverses,
     /// Its baseline, from the tare.
     pub baseline: Baseline,
     /// The calibration (temperature law, thresholds).
@@ -72,11 +76,23 @@ impl GridTaxel {
     /// Tares a pad with the grid's setup and keeps taxel 0.
     pub fn new(setup: &Setup) -> Option<Self> {
         let pad = tared_pad(setup)?;
+        let taxel_calibration = &pad.calibration().taxels()[0];
         Some(Self {
-            model: pad.taxels()[0].clone(),
+            models: Tier::ALL.map(|tier| TaxelModel::with_tier(taxel_calibration, tier)),
+            inverses: TaxelInverses::new(taxel_calibration.curve()),
             baseline: pad.baselines()[0]?,
             calibration: pad.calibration().clone(),
         })
+    }
+
+    /// Taxel 0's calibration.
+    pub fn taxel_calibration(&self) -> &TaxelCalibration {
+        &self.calibration.taxels()[0]
+    }
+
+    /// Taxel 0's model for a tier.
+    pub fn model(&self, tier: Tier) -> Option<&TaxelModel> {
+        self.models.get(tier as usize)?.as_ref()
     }
 
     /// eps(25 °C) / eps(T) for a grid temperature, as the pad resolves it.
@@ -136,14 +152,16 @@ pub fn grid(golden: &[u8], header: &Header, taxel: &GridTaxel) -> u32 {
         let inverse_ratio = taxel.inverse_permittivity_ratio(record.temperature_c);
         let value = record.reading.value();
         for (slot, tier) in Tier::ALL.iter().enumerate() {
-            let output = taxel.model.convert(
-                *tier,
-                value,
-                Some(&taxel.baseline),
-                inverse_ratio,
-                thresholds,
-            );
-            let pressure_kpa = match output.pressure_kpa() {
+            let output = taxel.model(*tier).map(|model| {
+                model.convert(
+                    taxel.taxel_calibration(),
+                    value,
+                    Some(&taxel.baseline),
+                    inverse_ratio,
+                    thresholds,
+                )
+            });
+            let pressure_kpa = match output.and_then(|output| output.pressure_kpa()) {
                 Some(pressure_kpa) => f64::from(pressure_kpa),
                 None => {
                     faults[slot] += 1;

@@ -10,8 +10,8 @@ use cortex_m::peripheral::SYST;
 use model_core::inverse::{InverseCurve, TableInverse};
 use model_core::{
     Baseline, FaultThresholds, PadModel, PadOutput, ReadingValue, SampleInput, SplitCapacitance,
-    TaxelFlags, TaxelInverses, TaxelModel, TaxelOutput, TemperatureLaw, TemperatureTracker,
-    TemperatureUsed, Tier,
+    TaxelCalibration, TaxelFlags, TaxelInverses, TaxelModel, TaxelOutput, TemperatureLaw,
+    TemperatureTracker, TemperatureUsed, Tier,
 };
 
 /// Instructions per SysTick tick with `-icount shift=0` and a 25 MHz SysTick.
@@ -73,8 +73,10 @@ impl Default for Input {
 /// What one conversion needs besides its input.
 #[derive(Clone, Copy)]
 pub struct Context<'a> {
-    /// The taxel's model.
+    /// The taxel's model (with the tier being counted).
     pub model: &'a TaxelModel,
+    /// The taxel's calibration.
+    pub calibration: &'a TaxelCalibration,
     /// Its baseline.
     pub baseline: &'a Baseline,
     /// Fault thresholds.
@@ -83,11 +85,11 @@ pub struct Context<'a> {
 
 /// `TaxelModel::convert` over `inputs`, `repetitions` times.
 #[inline(never)]
-pub fn convert_loop(context: Context<'_>, tier: Tier, inputs: &[Input], repetitions: u32) {
+pub fn convert_loop(context: Context<'_>, inputs: &[Input], repetitions: u32) {
     for _ in 0..repetitions {
         for input in inputs {
             let output = black_box(context.model).convert(
-                black_box(tier),
+                black_box(context.calibration),
                 black_box(input.value),
                 Some(black_box(context.baseline)),
                 black_box(input.inverse_permittivity_ratio),
@@ -100,11 +102,11 @@ pub fn convert_loop(context: Context<'_>, tier: Tier, inputs: &[Input], repetiti
 
 /// [`convert_loop`] without the conversion.
 #[inline(never)]
-pub fn convert_overhead_loop(context: Context<'_>, tier: Tier, inputs: &[Input], repetitions: u32) {
+pub fn convert_overhead_loop(context: Context<'_>, inputs: &[Input], repetitions: u32) {
     for _ in 0..repetitions {
         for input in inputs {
             black_box(context.model);
-            black_box(tier);
+            black_box(context.calibration);
             black_box(input.value);
             black_box(context.baseline);
             black_box(input.inverse_permittivity_ratio);

@@ -121,9 +121,9 @@ impl Inputs {
             let slot = inputs.grid_count;
             inputs.grid[slot] = input;
             inputs.relative_changes[slot] = taxel
-                .model
+                .model(Tier::default())?
                 .convert(
-                    Tier::default(),
+                    taxel.taxel_calibration(),
                     input.value,
                     Some(&taxel.baseline),
                     input.inverse_permittivity_ratio,
@@ -158,24 +158,23 @@ fn instruction_mix_probe(header: &Header, taxel: &checks::GridTaxel) -> u32 {
     let Some(inputs) = Inputs::new(header, taxel) else {
         return 1;
     };
-    let context = Context {
-        model: &taxel.model,
-        baseline: &taxel.baseline,
-        thresholds: taxel.calibration.thresholds(),
-    };
     let single = &inputs.single[..inputs.single_count];
     for tier in Tier::ALL {
-        counting::convert_loop(context, tier, single, 1);
-        counting::convert_overhead_loop(context, tier, single, 1);
+        let Some(context) = taxel_context(taxel, tier) else {
+            hprintln!("error: tier {} unavailable for the grid taxel", tier.name());
+            return 1;
+        };
+        counting::convert_loop(context, single, 1);
+        counting::convert_overhead_loop(context, single, 1);
     }
     let mut capacitances = [(SplitCapacitance::default(), 1.0f32); SINGLE_CAPACITY];
     let capacitance_count = capacitance_inputs(single, &mut capacitances);
     let capacitances = &capacitances[..capacitance_count];
-    let inverses = taxel.model.inverses();
+    let inverses = &taxel.inverses;
     let top_pressure_kpa = taxel.calibration.taxels()[0].curve().top().pressure_kpa;
     for tier in Tier::ALL {
         let mut probe = DirectProbe {
-            baseline: context.baseline,
+            baseline: &taxel.baseline,
             capacitances,
         };
         if with_direct_inverse(inverses, tier, top_pressure_kpa, &mut probe).is_none() {
@@ -183,8 +182,8 @@ fn instruction_mix_probe(header: &Header, taxel: &checks::GridTaxel) -> u32 {
             return 1;
         }
     }
-    counting::relative_change_loop(context.baseline, capacitances, 1);
-    counting::corrected_inversion_overhead_loop(context.baseline, capacitances, 1);
+    counting::relative_change_loop(&taxel.baseline, capacitances, 1);
+    counting::corrected_inversion_overhead_loop(&taxel.baseline, capacitances, 1);
     hprintln!(
         "mix tiers={} inputs_per_tier={} corrected_inputs={}",
         Tier::ALL.len(),
@@ -304,14 +303,19 @@ impl DirectInverseAction for DirectProbe<'_> {
     }
 }
 
+/// What converting with the grid's taxel and a tier needs besides the input.
+fn taxel_context(taxel: &checks::GridTaxel, tier: Tier) -> Option<Context<'_>> {
+    Some(Context {
+        model: taxel.model(tier)?,
+        calibration: taxel.taxel_calibration(),
+        baseline: &taxel.baseline,
+        thresholds: taxel.calibration.thresholds(),
+    })
+}
+
 fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
     let Some(inputs) = Inputs::new(header, taxel) else {
         return 1;
-    };
-    let context = Context {
-        model: &taxel.model,
-        baseline: &taxel.baseline,
-        thresholds: taxel.calibration.thresholds(),
     };
     let grid_count = inputs.grid_count;
     let (grid, relative_changes, single) = (
@@ -322,18 +326,22 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
     let grid_calls = grid_count as u32 * GRID_REPETITIONS;
 
     for tier in Tier::ALL {
+        let Some(context) = taxel_context(taxel, tier) else {
+            hprintln!("error: tier {} unavailable for the grid taxel", tier.name());
+            return 1;
+        };
         let mean = counter.per_call(
             grid_calls,
-            || counting::convert_loop(context, tier, grid, GRID_REPETITIONS),
-            || counting::convert_overhead_loop(context, tier, grid, GRID_REPETITIONS),
+            || counting::convert_loop(context, grid, GRID_REPETITIONS),
+            || counting::convert_overhead_loop(context, grid, GRID_REPETITIONS),
         );
         let (mut minimum, mut maximum, mut sum) = (f32::INFINITY, f32::NEG_INFINITY, 0.0);
         for input in single {
             let one = core::slice::from_ref(input);
             let instructions = counter.per_call(
                 SINGLE_REPETITIONS,
-                || counting::convert_loop(context, tier, one, SINGLE_REPETITIONS),
-                || counting::convert_overhead_loop(context, tier, one, SINGLE_REPETITIONS),
+                || counting::convert_loop(context, one, SINGLE_REPETITIONS),
+                || counting::convert_overhead_loop(context, one, SINGLE_REPETITIONS),
             );
             minimum = minimum.min(instructions);
             maximum = maximum.max(instructions);
@@ -351,7 +359,7 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
         );
     }
 
-    let inverses = taxel.model.inverses();
+    let inverses = &taxel.inverses;
     let top_pressure_kpa = taxel.calibration.taxels()[0].curve().top().pressure_kpa;
     for tier in Tier::ALL {
         let mean = counter.per_call(
@@ -380,7 +388,7 @@ fn count(counter: &Counter, header: &Header, taxel: &checks::GridTaxel) -> u32 {
     let capacitance_count = capacitance_inputs(grid, &mut capacitances);
     let capacitances = &capacitances[..capacitance_count];
     let corrected_calls = capacitance_count as u32 * GRID_REPETITIONS;
-    let baseline = context.baseline;
+    let baseline = &taxel.baseline;
     let overhead =
         || counting::corrected_inversion_overhead_loop(baseline, capacitances, GRID_REPETITIONS);
     for tier in Tier::ALL {

@@ -20,7 +20,8 @@ use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use model_core::{
     Baseline, Calibration, CalibrationSpec, FaultThresholds, PadModel, ReadingValue, SampleInput,
-    TaxelFlags, TaxelModel, TaxelOutput, TaxelReading, TemperatureTracker, Tier,
+    TaxelCalibration, TaxelFlags, TaxelInverses, TaxelModel, TaxelOutput, TaxelReading,
+    TemperatureTracker, Tier,
 };
 
 /// Parasitic capacitance of the benchmarked taxel, pF (as in m4-bench's grid).
@@ -31,7 +32,8 @@ const SENSOR_PF: f32 = 4.5;
 const CAPDAC: u8 = 3;
 
 struct Grid {
-    model: TaxelModel,
+    calibration: TaxelCalibration,
+    inverses: TaxelInverses,
     baseline: Baseline,
     thresholds: FaultThresholds,
     inputs: Vec<(ReadingValue, f32)>,
@@ -60,6 +62,8 @@ fn grid() -> Option<Grid> {
         Some(25.0),
     ));
     let model = pad.taxels()[0].clone();
+    let taxel_calibration = pad.calibration().taxels()[0].clone();
+    let inverses = TaxelInverses::new(taxel_calibration.curve());
     let baseline = pad.baselines()[0]?;
     let thresholds = *pad.calibration().thresholds();
     let mut inputs = Vec::new();
@@ -70,13 +74,13 @@ fn grid() -> Option<Grid> {
         let inverse_ratio = 1.0 / used.permittivity_ratio;
         for pressure_step in 0..=100 {
             let pressure_kpa = 0.5 * pressure_step as f32;
-            let relative_change = model.inverses().relative_change_at(pressure_kpa);
+            let relative_change = inverses.relative_change_at(pressure_kpa);
             let capacitance_pf =
                 PARASITIC_PF + SENSOR_PF * (1.0 + relative_change) * used.permittivity_ratio;
             let value = raw(capacitance_pf).value();
             inputs.push((value, inverse_ratio));
             let output = model.convert(
-                Tier::default(),
+                &taxel_calibration,
                 value,
                 Some(&baseline),
                 inverse_ratio,
@@ -86,7 +90,8 @@ fn grid() -> Option<Grid> {
         }
     }
     Some(Grid {
-        model,
+        calibration: taxel_calibration,
+        inverses,
         baseline,
         thresholds,
         inputs,
@@ -133,13 +138,15 @@ fn convert_group<M: Measurement>(criterion: &mut Criterion<M>, name: &str, grid:
     convert.throughput(Throughput::Elements(grid.inputs.len() as u64));
     let mut outputs = vec![TaxelOutput::fault(TaxelFlags::empty(), None); grid.inputs.len()];
     for tier in Tier::ALL {
+        let Some(model) = TaxelModel::with_tier(&grid.calibration, tier) else {
+            continue;
+        };
         convert.bench_function(tier.name(), |bencher| {
             bencher.iter(|| {
-                let model = black_box(&grid.model);
-                let tier = black_box(tier);
+                let model = black_box(&model);
                 for ((value, inverse_ratio), output) in grid.inputs.iter().zip(outputs.iter_mut()) {
                     *output = model.convert(
-                        tier,
+                        &grid.calibration,
                         *value,
                         Some(&grid.baseline),
                         *inverse_ratio,
@@ -160,7 +167,7 @@ fn inverse_group<M: Measurement>(criterion: &mut Criterion<M>, grid: &Grid) {
     for tier in Tier::ALL {
         inverse.bench_function(tier.name(), |bencher| {
             bencher.iter(|| {
-                let inverses = black_box(grid.model.inverses());
+                let inverses = black_box(&grid.inverses);
                 let tier = black_box(tier);
                 for (relative_change, output) in
                     grid.relative_changes.iter().zip(outputs.iter_mut())

@@ -1,13 +1,15 @@
 //! A press, a warm-up and a short, through the model: prints what a user of the pad would see.
 
-use model_core::{Calibration, PadModel, SampleInput, TaxelReading, TemperatureLaw, Tier};
+use model_core::{
+    Calibration, PadModel, SampleInput, TaxelInverses, TaxelReading, TemperatureLaw, Tier,
+};
 
 const SENSOR_PF: f32 = 4.5;
 
 fn main() {
     let mut pad = PadModel::new(Calibration::default());
     let law = TemperatureLaw::article_default();
-    let reference = pad.taxels()[0].inverses().clone();
+    let reference = TaxelInverses::new(pad.calibration().taxels()[0].curve());
     let reading = |pressure_kpa: f32, temperature_c: f32| {
         let relative_change = reference.relative_change_at(pressure_kpa);
         TaxelReading::CapacitancePf(

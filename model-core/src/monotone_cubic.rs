@@ -78,7 +78,7 @@ fn secant_slopes(xs: &[f64], ys: &[f64]) -> [f64; MAX_CURVE_POINTS - 1] {
 /// Fritsch–Carlson tangents at the points: three-point means (zero at a change of sign), the
 /// secants at the ends, then each interval's `(alpha, beta)` pulled into the circle of radius 3,
 /// which is sufficient for the cubic on each interval to be monotone.
-fn tangents(xs: &[f64], ys: &[f64]) -> [f64; MAX_CURVE_POINTS] {
+pub(crate) fn tangents(xs: &[f64], ys: &[f64]) -> [f64; MAX_CURVE_POINTS] {
     let count = xs.len().min(ys.len()).min(MAX_CURVE_POINTS);
     let secant_slopes = secant_slopes(xs, ys);
     let secants = secant_slopes

@@ -5,7 +5,7 @@ use crate::baseline::{Baseline, BaselineError, BaselineRecord, BaselineTracking,
 use crate::calibration::{Calibration, TAXEL_COUNT};
 use crate::conditioning::NOMINAL_SENSOR_PF;
 use crate::flags::TaxelFlags;
-use crate::inverse::Tier;
+use crate::inverse::{ActiveInverse, TaxelInverses, Tier};
 use crate::reading::{ReadingValue, TaxelReading};
 use crate::taxel::{TaxelModel, TaxelOutput};
 use crate::temperature::{TemperatureTracker, TemperatureUsed};
@@ -97,6 +97,14 @@ pub struct PadModel {
     last_tare_errors: [Option<BaselineError>; TAXEL_COUNT],
 }
 
+// A device reads up to eight pads, each with its own model, within 32 KiB of static RAM on the
+// Cortex-M4F, so the model keeps only the tier in use. On a 32-bit target its parts are the
+// calibration (668 bytes), four taxel models of 204 (the table tier's is the largest; the default
+// tier's needs 124) and 428 of baselines, tare and temperature state. Growing it should be a
+// decision, not an accident.
+#[cfg(target_pointer_width = "32")]
+const _: () = assert!(core::mem::size_of::<PadModel>() <= 1_912);
+
 /// A tier the calibration cannot provide.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -155,18 +163,29 @@ impl PadModel {
         &self.taxels
     }
 
-    /// Selects an inversion tier for all taxels.
+    /// Selects an inversion tier for all taxels, building it from the calibration; when a curve
+    /// does not support the tier, nothing changes.
     pub fn set_tier(&mut self, tier: Tier) -> Result<(), TierUnavailable> {
-        if self
-            .taxels
-            .iter()
-            .all(|taxel| taxel.inverses().supports(tier))
-        {
-            self.tier = tier;
-            Ok(())
-        } else {
-            Err(TierUnavailable(tier))
-        }
+        let inverses = self
+            .calibration
+            .taxels()
+            .each_ref()
+            .map(|calibration| ActiveInverse::new(calibration.curve(), tier));
+        self.install(inverses, tier)
+    }
+
+    /// Installs one inverse per taxel if every taxel has one.
+    fn install(
+        &mut self,
+        inverses: [Option<ActiveInverse>; TAXEL_COUNT],
+        tier: Tier,
+    ) -> Result<(), TierUnavailable> {
+        let [Some(a), Some(b), Some(c), Some(d)] = inverses else {
+            return Err(TierUnavailable(tier));
+        };
+        self.taxels = [a, b, c, d].map(TaxelModel::from_inverse);
+        self.tier = tier;
+        Ok(())
     }
 
     /// The tier in use.
@@ -174,18 +193,33 @@ impl PadModel {
         self.tier
     }
 
+    /// Every tier of every taxel, built for tier selection (about 1 KiB each, on the stack).
+    fn all_inverses(&self) -> [TaxelInverses; TAXEL_COUNT] {
+        self.calibration
+            .taxels()
+            .each_ref()
+            .map(|calibration| TaxelInverses::new(calibration.curve()))
+    }
+
     /// The cheapest tier that fits a use case on all four taxels (see
     /// [`select_tier_for_taxels`]); each taxel's C0 is its baseline's when tared, else nominal.
     pub fn select_tier_for(&self, use_case: &UseCase) -> Result<TierChoice, SelectionError> {
-        let mut evidence = self.taxels.each_ref().map(|taxel| TaxelEvidence {
-            inverses: taxel.inverses(),
-            curve: self.calibration.taxels()[0].curve(),
+        self.select_among(&self.all_inverses(), use_case)
+    }
+
+    fn select_among(
+        &self,
+        inverses: &[TaxelInverses; TAXEL_COUNT],
+        use_case: &UseCase,
+    ) -> Result<TierChoice, SelectionError> {
+        let calibrations = self.calibration.taxels();
+        let mut evidence = inverses.each_ref().map(|inverses| TaxelEvidence {
+            inverses,
+            curve: calibrations[0].curve(),
             sensor_pf: NOMINAL_SENSOR_PF,
         });
-        for ((evidence, calibration), baseline) in evidence
-            .iter_mut()
-            .zip(self.calibration.taxels())
-            .zip(&self.baselines)
+        for ((evidence, calibration), baseline) in
+            evidence.iter_mut().zip(calibrations).zip(&self.baselines)
         {
             evidence.curve = calibration.curve();
             evidence.sensor_pf = baseline
@@ -197,8 +231,14 @@ impl PadModel {
 
     /// Selects and applies the cheapest tier for a use case.
     pub fn apply_use_case(&mut self, use_case: &UseCase) -> Result<TierChoice, SelectionError> {
-        let choice = self.select_tier_for(use_case)?;
-        self.tier = choice.tier;
+        let inverses = self.all_inverses();
+        let choice = self.select_among(&inverses, use_case)?;
+        let active = inverses
+            .each_ref()
+            .map(|inverses| inverses.active(choice.tier));
+        // Selection only offers a tier every taxel supports, and `active` builds exactly those.
+        self.install(active, choice.tier)
+            .map_err(|_| SelectionError::InvalidUseCase)?;
         Ok(choice)
     }
 
@@ -248,7 +288,7 @@ impl PadModel {
     /// (bit n = taxel n).
     pub fn restore_baselines(&mut self, baselines: &[Option<BaselineRecord>; TAXEL_COUNT]) -> u8 {
         let mut restored_mask = 0u8;
-        let parasitic_pf = self.taxels.each_ref().map(TaxelModel::parasitic_pf);
+        let parasitic_pf = parasitic_pf(&self.calibration);
         for ((taxel, record), parasitic_pf) in baselines.iter().enumerate().zip(parasitic_pf) {
             let Some(record) = record else {
                 continue;
@@ -326,16 +366,19 @@ impl PadModel {
             .zip(&sample.readings)
             .zip(&sample.reading_flags)
             .zip(&self.taxels)
+            .zip(self.calibration.taxels())
             .zip(self.baselines.iter_mut())
             .zip(&self.baseline_flags)
             .zip(tare_capacitances.iter_mut());
-        for ((((((slot, reading), reading_flags), model), baseline), baseline_flags), tare) in
-            per_taxel
+        for (
+            ((((((slot, reading), reading_flags), model), calibration), baseline), baseline_flags),
+            tare,
+        ) in per_taxel
         {
             let value = reading.value();
             let output = model
                 .convert(
-                    self.tier,
+                    calibration,
                     value,
                     baseline.as_ref(),
                     inverse_permittivity_ratio,
@@ -380,7 +423,7 @@ impl PadModel {
             };
             return;
         }
-        let parasitic_pf = self.taxels.each_ref().map(TaxelModel::parasitic_pf);
+        let parasitic_pf = parasitic_pf(&self.calibration);
         let results = accumulator.finish(
             &parasitic_pf,
             self.calibration.temperature_law(),
@@ -403,4 +446,12 @@ impl PadModel {
         self.tare = None;
         self.tare_status = TareStatus::Finished { tared_mask };
     }
+}
+
+/// Each taxel's parasitic capacitance, pF.
+fn parasitic_pf(calibration: &Calibration) -> [f32; TAXEL_COUNT] {
+    calibration
+        .taxels()
+        .each_ref()
+        .map(|taxel| taxel.parasitic_pf())
 }

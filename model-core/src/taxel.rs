@@ -4,7 +4,7 @@
 use crate::baseline::Baseline;
 use crate::calibration::{FaultThresholds, TaxelCalibration};
 use crate::flags::TaxelFlags;
-use crate::inverse::{TaxelInverses, Tier};
+use crate::inverse::{ActiveInverse, Tier};
 use crate::reading::ReadingValue;
 
 /// The result for one taxel.
@@ -66,43 +66,49 @@ impl TaxelOutput {
     }
 }
 
-/// A taxel's calibration, ready to convert readings.
+/// A taxel's active tier, ready to convert readings together with the taxel's calibration
+/// (which holds the curve's points, the parasitic capacitance and the top of the curve, so they
+/// are not kept twice).
 #[derive(Debug, Clone, PartialEq)]
 pub struct TaxelModel {
-    inverses: TaxelInverses,
-    parasitic_pf: f32,
-    top_relative_change: f32,
-    top_pressure_kpa: f32,
+    inverse: ActiveInverse,
 }
 
 impl TaxelModel {
-    /// Builds every tier for the taxel's curve.
+    /// The default tier for a taxel's calibration.
     pub fn new(calibration: &TaxelCalibration) -> Self {
-        let top = calibration.curve().top();
         Self {
-            inverses: TaxelInverses::new(calibration.curve()),
-            parasitic_pf: calibration.parasitic_pf(),
-            top_relative_change: top.relative_change,
-            top_pressure_kpa: top.pressure_kpa,
+            inverse: ActiveInverse::default_tier(calibration.curve()),
         }
     }
 
-    /// The inversion tiers.
-    pub fn inverses(&self) -> &TaxelInverses {
-        &self.inverses
+    /// A tier for a taxel's calibration, or `None` when its curve does not support the tier.
+    pub fn with_tier(calibration: &TaxelCalibration, tier: Tier) -> Option<Self> {
+        ActiveInverse::new(calibration.curve(), tier).map(Self::from_inverse)
     }
 
-    /// Parasitic capacitance, pF.
-    pub fn parasitic_pf(&self) -> f32 {
-        self.parasitic_pf
+    /// A model from an inverse built for the calibration it will convert with.
+    pub fn from_inverse(inverse: ActiveInverse) -> Self {
+        Self { inverse }
     }
 
-    /// Converts one reading. `inverse_permittivity_ratio` is eps(25 °C) / eps(T) for the
-    /// sample's temperature (computed once per sample set).
+    /// The active tier.
+    pub fn tier(&self) -> Tier {
+        self.inverse.tier()
+    }
+
+    /// The active tier's inverse.
+    pub fn inverse(&self) -> &ActiveInverse {
+        &self.inverse
+    }
+
+    /// Converts one reading with the active tier. `calibration` is the taxel's, the one the
+    /// model was built for; `inverse_permittivity_ratio` is eps(25 °C) / eps(T) for the sample's
+    /// temperature (computed once per sample set).
     #[inline]
     pub fn convert(
         &self,
-        tier: Tier,
+        calibration: &TaxelCalibration,
         reading: ReadingValue,
         baseline: Option<&Baseline>,
         inverse_permittivity_ratio: f32,
@@ -120,7 +126,7 @@ impl TaxelModel {
         if total_pf < 0.0 {
             return TaxelOutput::fault(TaxelFlags::SHORTED, Some(total_pf));
         }
-        let sensor_pf = (capacitance.offset_pf - self.parasitic_pf) + capacitance.fine_pf;
+        let sensor_pf = (capacitance.offset_pf - calibration.parasitic_pf()) + capacitance.fine_pf;
         if !(sensor_pf >= thresholds.open_below_pf) {
             return TaxelOutput::fault(TaxelFlags::OPEN, Some(total_pf));
         }
@@ -128,6 +134,8 @@ impl TaxelModel {
             return TaxelOutput::fault(TaxelFlags::NOT_TARED, Some(total_pf));
         };
         let relative_change = baseline.relative_change(capacitance, inverse_permittivity_ratio);
+        let curve = calibration.curve();
+        let top = curve.top();
         let (pressure_kpa, flags) = if !relative_change.is_finite() {
             (0.0, TaxelFlags::INVALID_INPUT)
         } else if relative_change < -thresholds.shorted_below_relative {
@@ -136,11 +144,11 @@ impl TaxelModel {
             (0.0, TaxelFlags::BELOW_BASELINE)
         } else if relative_change <= 0.0 {
             (0.0, TaxelFlags::empty())
-        } else if relative_change > self.top_relative_change {
-            (self.top_pressure_kpa, TaxelFlags::OVER_RANGE)
+        } else if relative_change > top.relative_change {
+            (top.pressure_kpa, TaxelFlags::OVER_RANGE)
         } else {
             (
-                self.inverses.pressure_kpa(tier, relative_change),
+                self.inverse.pressure_kpa(curve, relative_change),
                 TaxelFlags::empty(),
             )
         };

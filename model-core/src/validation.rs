@@ -4,10 +4,7 @@
 use heapless::Vec;
 
 use crate::calibration::{CalibrationCurve, CurvePoint, MAX_CURVE_POINTS};
-use crate::inverse::{
-    InverseCurve, Libm, LinearInverse, Micromath, MonotoneCubicInverse, PiecewiseLinearInverse,
-    PolynomialInverse, SaturatingFit, SaturatingInverse, Tier,
-};
+use crate::inverse::{ActiveInverse, Tier};
 
 /// Per interior point (index 1 ..= n - 2, in order), the tier's predicted pressure minus the
 /// applied one when the curve is rebuilt without that point, kPa; `None` where the reduced curve
@@ -46,26 +43,7 @@ pub fn leave_one_out_errors_kpa(
 
 /// One tier's pressure for a relative change on a curve, building only what the tier needs.
 fn pressure_through(curve: &CalibrationCurve, tier: Tier, relative_change: f32) -> Option<f32> {
-    let top_kpa = curve.top().pressure_kpa;
-    match tier {
-        Tier::Linear => Some(LinearInverse::new(curve).pressure_kpa(relative_change)),
-        Tier::PiecewiseLinear => {
-            Some(PiecewiseLinearInverse::new(curve).pressure_kpa(relative_change))
-        }
-        Tier::MonotoneCubic => Some(MonotoneCubicInverse::new(curve).pressure_kpa(relative_change)),
-        Tier::Table => Some(
-            MonotoneCubicInverse::new(curve)
-                .table()
-                .pressure_kpa(relative_change),
-        ),
-        Tier::Polynomial => PolynomialInverse::new(&MonotoneCubicInverse::new(curve), curve)
-            .map(|polynomial| polynomial.pressure_kpa(relative_change)),
-        Tier::Saturating => SaturatingFit::new(curve)
-            .map(|fit| SaturatingInverse::<Libm>::new(&fit, top_kpa).pressure_kpa(relative_change)),
-        Tier::SaturatingMicromath => SaturatingFit::new(curve).map(|fit| {
-            SaturatingInverse::<Micromath>::new(&fit, top_kpa).pressure_kpa(relative_change)
-        }),
-    }
+    ActiveInverse::new(curve, tier).map(|inverse| inverse.pressure_kpa(curve, relative_change))
 }
 
 #[cfg(test)]

@@ -78,7 +78,7 @@ fn every_tier_is_continuous_around_every_calibration_point() {
 }
 
 #[test]
-fn monotone_cubic_matches_its_f64_reference_within_a_thousandth_of_a_kpa() {
+fn monotone_cubic_matches_its_f64_reference_within_two_hundred_thousandths_of_a_kpa() {
     let (curve, inverses) = article();
     let top = curve.top().relative_change;
     let mut worst = 0.0f64;
@@ -88,7 +88,8 @@ fn monotone_cubic_matches_its_f64_reference_within_a_thousandth_of_a_kpa() {
         let want = reference_pressure_kpa(inverses.monotone_cubic(), relative_change as f64);
         worst = worst.max((got - want).abs());
     }
-    assert!(worst < 1e-3, "worst error {worst} kPa");
+    // The fast path accepts 1e-5 kPa in exact arithmetic; f32 rounding of dC/C0 adds about as much.
+    assert!(worst < 2e-5, "worst error {worst} kPa");
 }
 
 #[test]

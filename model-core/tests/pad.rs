@@ -400,7 +400,8 @@ fn every_tier_gives_the_reference_pressure_at_the_points_through_the_whole_pad()
 /// Sensor at pressure P and temperature T, with a parasitic that does not follow eps_r.
 fn synthetic_pf(pad: &PadModel, parasitic_pf: f32, pressure_kpa: f32, temperature_c: f32) -> f32 {
     let law = pad.calibration().temperature_law();
-    let relative = pad.taxels()[0].inverses().relative_change_at(pressure_kpa);
+    let relative = model_core::TaxelInverses::new(pad.calibration().taxels()[0].curve())
+        .relative_change_at(pressure_kpa);
     parasitic_pf + SENSOR_PF * (1.0 + relative) * law.permittivity_ratio(temperature_c)
 }
 

@@ -323,11 +323,14 @@ impl SimulatedDevice {
     /// when no pad was found).
     pub fn step<H: HostPort>(&mut self, host: &mut H) -> Option<ProcessedSample> {
         self.schedule_scene_faults();
-        let sample = embassy_futures::block_on(self.device.step(host));
+        let mut first = None;
+        embassy_futures::block_on(self.device.step_observed(host, |sample| {
+            first = first.or(Some(*sample));
+        }));
         if let Some(state) = self.device.retained_state_change() {
             self.retained_ram = state.encode();
         }
-        sample
+        first
     }
 
     /// Steps until `stop` is set or the scene's simulated time passes `until_s`.

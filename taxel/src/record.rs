@@ -1,7 +1,8 @@
 //! `taxel record`: streams sample frames from the device into a recording (see
 //! [`crate::recording`]: a CSV file, a raw byte log and the device's state). Ctrl-C, an
 //! unplugged device or the sample limit end it; the files are then renamed into place with
-//! everything received.
+//! everything received. Several devices at once are recorded onto one host timeline by
+//! [`crate::multi_record`].
 
 use std::io::{Read, Write};
 use std::path::PathBuf;
@@ -14,8 +15,9 @@ use anyhow::Context;
 use wire::{Command, DeviceFrame, ReplyPayload};
 
 pub use crate::device_link::parse_hex_u16;
-use crate::device_link::{self, BoardArgs, DeviceLink, LinkError};
+use crate::device_link::{self, DeviceLink, LinkError};
 use crate::device_words::{counters_words, event_words, info_words};
+use crate::multi_record::MultiBoardArgs;
 use crate::noteln;
 use crate::recording::{
     default_raw_path, read_device_state, BaselineFollower, Recording, SampleSink,
@@ -51,22 +53,42 @@ counters do not explain) and dropped by the device (its counters, since the star
 Stop with Ctrl-C; unplugging the device also ends the recording. The files are written under \
 temporary names and renamed when the recording ends; if writing fails half-way, the partial \
 files are kept and named.\n\n\
-Example: taxel record /dev/ttyACM0 -o rec.csv --samples 1000";
+Several devices (several PORTs, or --serial SN repeated; numbered from 0: the PORTs in order, \
+then the --serial boards) are recorded onto one host timeline. Each device is read by its own \
+thread; every sample frame is stamped with its arrival on the host's monotonic clock, and each \
+device's clock is mapped onto the host clock (offset and drift, from the lower envelope of the \
+frames' device timestamps against their arrivals). The CSV then has one row per sample frame of \
+any device and pad, in host-time order, with the columns host_time_s,device,pad,seq,\
+device_time_s,sync_error_ms,temp_c,temp_source,c11_pf..c22_pf,p11_kpa..p22_kpa,\
+flags11..flags22,force_n,cop_x_mm,cop_y_mm,partial,contact. host_time_s is seconds of the \
+host's monotonic clock since the recording started (whose Unix time is printed at the start); \
+sync_error_ms is the estimated bound on its distance from the true sampling instant, empty when \
+the device had no clock estimate (the host time is then the arrival time). Rows are held 4 s \
+and then written with the clock estimate of that moment, so the CSV follows the stream 4 s \
+behind; a frame arriving later than that is written after the rows already written, and the \
+shift is added to its error. Device n gets its own raw log FILE.dev<n>.raw and state \
+FILE.dev<n>.device.json (`taxel convert --raw FILE.dev<n>.raw` finds it; --raw is for one \
+device). --samples N counts the sample frames of each device; Ctrl-C or one device unplugged \
+ends the recording of all. At the end each device's line says: received, lost on the link, \
+dropped by the device, and its clock's offset, drift (ppm) and synchronisation error.\n\n\
+Examples:\n  taxel record /dev/ttyACM0 -o rec.csv --samples 1000\n  \
+taxel record /dev/ttyACM0 /dev/ttyACM1 -o both.csv";
 
 /// Arguments of `taxel record`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct RecordArgs {
-    /// The device.
+    /// The device, or several.
     #[command(flatten)]
-    pub board: BoardArgs,
+    pub board: MultiBoardArgs,
     /// CSV file to write.
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
-    /// Raw byte log to write (default: the CSV file name with `.raw` appended).
+    /// Raw byte log to write (default: the CSV file name with `.raw` appended; one device only,
+    /// several devices get FILE.dev<n>.raw).
     #[arg(long, value_name = "FILE")]
     pub raw: Option<PathBuf>,
     /// Stop after this many rows: sample frames of a single-pad device, sample sets of a
-    /// device with several pads.
+    /// device with several pads; with several devices, sample frames of each device.
     #[arg(long, value_name = "N")]
     pub samples: Option<u64>,
     /// How long to wait for each reply from the device, ms.
@@ -242,19 +264,26 @@ fn record_until_stopped<P: Read + Write, S: SampleSink + ?Sized>(
     Ok(stop_reason)
 }
 
-/// Runs `taxel record`.
+/// Runs `taxel record`: one device as a single recording, several onto one host timeline.
 pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
-    let port_path = args.board.select_port()?;
-    let raw_path = args
-        .raw
-        .clone()
-        .unwrap_or_else(|| default_raw_path(&args.output));
+    let ports = args.board.select_ports()?;
     let stop = Arc::new(AtomicBool::new(false));
     let handler_stop = Arc::clone(&stop);
     ctrlc::set_handler(move || handler_stop.store(true, Ordering::Relaxed))
         .context("installing the Ctrl-C handler")?;
+    match ports.as_slice() {
+        [port_path] => run_single(args, port_path, &stop),
+        _ => crate::multi_record::run(args, &ports, &stop),
+    }
+}
 
-    let opened = device_link::open_serial(&port_path, Duration::from_millis(100))?;
+/// `taxel record` of one device.
+fn run_single(args: &RecordArgs, port_path: &str, stop: &AtomicBool) -> anyhow::Result<ExitCode> {
+    let raw_path = args
+        .raw
+        .clone()
+        .unwrap_or_else(|| default_raw_path(&args.output));
+    let opened = device_link::open_serial(port_path, Duration::from_millis(100))?;
     if let Some(error) = &opened.dtr_error {
         noteln!("note: {port_path}: DTR not set ({error}); a simulated device does not need it");
     }
@@ -295,7 +324,7 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
         &mut link,
         &mut recording,
         &mut accounting,
-        &stop,
+        stop,
         args.samples,
         Duration::from_millis(500),
         &mut |message| noteln!("{message}"),

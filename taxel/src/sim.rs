@@ -231,6 +231,13 @@ pub fn run_demo(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         "--speed must be a positive number"
     );
     let topology = board_for(&scene, None)?;
+    let topology_pads = scene.pads.len();
+    let scene_name = args
+        .scene
+        .as_ref()
+        .filter(|scene| !scene.exists())
+        .map(|scene| scene.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let simulator = SimulatorThread::start(
         SimulatedDeviceConfig {
             scene,
@@ -249,7 +256,13 @@ pub fn run_demo(args: &DemoArgs) -> anyhow::Result<ExitCode> {
         );
         thread::sleep(std::time::Duration::from_secs_f64(seconds / args.speed));
     }
-    let result = view::run(&view_args(port, args.snapshot_after.is_some()));
+    let mut view_args = view_args(port, args.snapshot_after.is_some());
+    // A built-in scene of several pads has the built-in layout of the same name (gripper,
+    // glove): the view places the pads as the scene names them.
+    if topology_pads > 1 && crate::layout::Layout::built_in(&scene_name).is_some() {
+        view_args.layout = Some(scene_name);
+    }
+    let result = view::run(&view_args);
     simulator.stop();
     result
 }

@@ -8,10 +8,11 @@ use anyhow::{anyhow, Context, Result};
 use crate::elf::{self, Section};
 use crate::m4;
 
-/// Flash budget of the firmware image (vector table, code, constants, .data initialisers).
-pub const FLASH_BUDGET_BYTES: u64 = 96 * 1024;
-/// Static RAM budget (.data, .bss, .uninit; the stack comes on top).
-pub const STATIC_RAM_BUDGET_BYTES: u64 = 24 * 1024;
+/// Flash budget of the firmware image (vector table, code, constants, .data initialisers): the
+/// multi-pad budget, since one firmware (1 to 8 pads, found at boot) ships for every board.
+pub const FLASH_BUDGET_BYTES: u64 = 128 * 1024;
+/// Static RAM budget (.data, .bss, .uninit; the stack comes on top), for state of 8 pads.
+pub const STATIC_RAM_BUDGET_BYTES: u64 = 32 * 1024;
 
 /// The profile `cargo fw-build` uses.
 pub const PROFILE: &str = "firmware";

@@ -1,32 +1,45 @@
 //! Monotone cubic tier: the inverse of the Fritsch–Carlson cubic dC/C0 = f(P) through the
 //! calibration points, which is the model's reference curve, for every valid calibration.
 //!
+//! # Storage
+//!
+//! Besides the calibration's own points the tier keeps, per point, the Fritsch–Carlson tangent
+//! (computed in f64, stored in f32) and, per interval, the error bound of stage 1 below: 124
+//! bytes for a 16-point curve. Each interval's cubic is formed from them when a reading falls in
+//! it (Hermite form, no division).
+//!
 //! # Method
 //!
-//! On the interval holding the reading, the forward cubic `f(s)` (local coordinate `s` in
-//! `0 ..= w`) is non-decreasing (Fritsch–Carlson). The root of `f(s) = y` is found in two stages.
+//! The reading's interval `[P_k, P_k+1]` is found by binary search over the points' dC/C0. On it
+//! the cubic is written in the unit coordinate `t = (P - P_k) / w` (`w = P_k+1 - P_k`): with
+//! `d = dC/C0_k+1 - dC/C0_k` and the tangents scaled to the interval, `a = w m_k`,
+//! `b = w m_k+1`, `f(t) = dC/C0_k + t (a + t ((3 d - 2 a - b) + t (a + b - 2 d)))`, the same
+//! Hermite cubic as [`crate::monotone_cubic::MonotoneCubic`]'s (whose coefficients, in the local
+//! pressure, are rounded from f64: the two agree to f32 rounding). It is non-decreasing on
+//! `0 ..= 1` (Fritsch–Carlson). The root of `f(t) = y` is found in two stages.
 //!
-//! 1. **Fast path: a table start, one Newton step, a proven error bound.** The start `s0` is
-//!    the inverse sampled on a uniform grid of dC/C0 (the table tier's grid, whose nodes are
-//!    solved by stage 2 when the calibration is loaded), linearly interpolated and clamped into
-//!    the interval that holds the reading; each grid cell also stores the first interval it
-//!    touches, so finding the interval is a step or two, not a search from the start. One
-//!    Newton step `s1 = s0 - r / f'(s0)` (with
-//!    `r = f(s0) - y`) follows. With `m = min f'`, `M = max f'` and `K = max |f''|` over the
-//!    interval (computed once, in f64, when the calibration is loaded), Taylor's theorem gives
-//!    `|s1 - s*| <= K / (2 m) * (s0 - s*)^2` and the mean-value theorem
-//!    `|s0 - s*| <= |r / f'(s0)| * M / m`; so `|s1 - s*| <= B * step^2` with
-//!    `B = K M^2 / (2 m^3)`. The step is accepted when `B * step^2 <= ACCEPTED_ERROR_KPA`, a
-//!    bound that holds in exact arithmetic whatever the start. On ordinary calibrations (the
-//!    article's, anything with neighbouring secants of similar size) this is the path taken.
+//! 1. **Fast path: a chord start, at most [`FAST_NEWTON_STEPS`] Newton steps, a proven error
+//!    bound.** The start `t0 = (y - dC/C0_k) / d` is where the chord of the interval reaches the
+//!    reading. A Newton step `t1 = t0 - r / f'(t0)` (with `r = f(t0) - y`) follows. With
+//!    `m = min f'`, `M = max f'` and `K = max |f''|` over the interval (computed once, in f64,
+//!    from the f32 coefficients, when the tier is built), Taylor's theorem gives
+//!    `|t1 - t*| <= K / (2 m) * (t0 - t*)^2` and the mean-value theorem
+//!    `|t0 - t*| <= |r / f'(t0)| * M / m`; so the pressure `P_k + w t1` is within
+//!    `B * step^2` of the root, `B = w K M^2 / (2 m^3)` (kPa). The step is accepted when
+//!    `B * step^2 <= ACCEPTED_ERROR_KPA`, a bound that holds in exact arithmetic for a Newton
+//!    step from any point of the interval; so when the first step is not accepted, the second
+//!    starts from `t1` (clamped into the interval) under the same rule. On ordinary calibrations
+//!    (the article's, anything with neighbouring secants of similar size) this is the path
+//!    taken.
 //! 2. **Safeguarded Newton in a bracket.** Otherwise (a nearly flat spot makes `m` tiny or zero,
 //!    or the start was poor) the root is kept in a bracket `[low, high]` (`f(low) <= y <=
-//!    f(high)`, initially the whole interval) that every evaluation narrows. A Newton step is
-//!    taken only when it lands strictly inside the bracket and the previous Newton step halved
-//!    the bracket; otherwise the bracket is bisected. So the bracket at least halves every two
-//!    iterations: after `2 n` iterations it is at most `w / 2^n` wide, and the loop stops when it
-//!    is `w / 2^20` wide (or at f32 resolution), within [`MAX_BRACKETED_ITERATIONS`] iterations
-//!    whatever the calibration. A Newton step that meets the bound of stage 1 ends it earlier.
+//!    f(high)`, initially the whole interval) that every evaluation narrows, starting from the
+//!    fast path's last iterate. A Newton step is taken only when it lands strictly inside the
+//!    bracket and the previous Newton step halved the bracket; otherwise the bracket is bisected.
+//!    So the bracket at least halves every two iterations: after `2 n` iterations it is at most
+//!    `2^-n` of the interval wide, and the loop stops when it is `2^-20` of it (or at f32
+//!    resolution), within [`MAX_BRACKETED_ITERATIONS`] iterations whatever the calibration. A
+//!    Newton step that meets the bound of stage 1 ends it earlier.
 //!
 //! The result is the root of the f32 cubic to within the bound above, plus what the f32
 //! evaluation of `f` near the root cannot resolve: a few ulps of `y` times the local slope of the
@@ -34,124 +47,170 @@
 //! large, and it is a property of the calibration, not of the method: see
 //! [`crate::conditioning`].
 
-use super::{clamp_pressure, InverseCurve, TableInverse, TABLE_INTERVALS};
+use super::{clamp_pressure, interval_index, InverseCurve};
 use crate::bounds::clamp_f32;
-use crate::calibration::{CalibrationCurve, MAX_CURVE_POINTS};
-use crate::monotone_cubic::{CubicSegment, MonotoneCubic};
+use crate::calibration::{CalibrationCurve, CurvePoint, MAX_CURVE_POINTS};
+use crate::monotone_cubic::{tangents, CubicSegment, MonotoneCubic};
 
-/// Largest error (kPa, exact arithmetic) accepted from the fast path's Newton step.
-pub const ACCEPTED_ERROR_KPA: f32 = 1.0e-3;
+/// Largest error (kPa, exact arithmetic) accepted from a Newton step of the fast path. The chord
+/// start is coarse (tenths of a kPa on the article's curve), so at this level the first step
+/// rarely qualifies and the second does: the result is then as close to the cubic's root as a
+/// single step from the former 64-node start table made it (worst 8.9e-6 kPa against an f64
+/// reference over the article's curve, 1.0e-5 before).
+pub const ACCEPTED_ERROR_KPA: f32 = 1.0e-5;
 
-/// The bracket stops narrowing at this fraction of the interval width (2^-20).
+/// Most Newton steps of the fast path before the bracketed stage takes over.
+pub const FAST_NEWTON_STEPS: usize = 2;
+
+/// The bracket stops narrowing at this fraction of the interval (2^-20).
 const BRACKET_RELATIVE_WIDTH: f32 = 1.0 / 1_048_576.0;
 
 /// Most iterations of the bracketed stage: the bracket halves at least every two iterations, so
 /// 2 x 20 reach [`BRACKET_RELATIVE_WIDTH`]; two spare.
 pub const MAX_BRACKETED_ITERATIONS: usize = 42;
 
-/// Inverse of the monotone cubic through the calibration points.
+/// What the monotone cubic tier keeps besides the curve's points.
 #[derive(Debug, Clone, PartialEq)]
-pub struct MonotoneCubicInverse {
-    forward: MonotoneCubic,
-    relative_change_starts: [f32; MAX_CURVE_POINTS],
-    /// Per interval, `B = max|f''| max(f')^2 / (2 min(f')^3)` per kPa; infinite where `f'`
-    /// reaches 0.
-    error_bounds_per_kpa: [f32; MAX_CURVE_POINTS - 1],
-    /// The start: the inverse on a uniform grid (also the table tier).
-    table: TableInverse,
-    /// Per grid node, the interval holding its dC/C0.
-    first_segments: [u8; TABLE_INTERVALS + 1],
-    top_pressure_kpa: f32,
+pub(crate) struct CubicKnots {
+    /// Fritsch–Carlson tangent d(dC/C0)/dP at each point, per kPa.
+    tangents: [f32; MAX_CURVE_POINTS],
+    /// Per interval, `B = w max|f''| max(f')^2 / (2 min(f')^3)` in kPa (derivatives in the unit
+    /// coordinate); infinite where `f'` reaches 0.
+    error_bounds_kpa: [f32; MAX_CURVE_POINTS - 1],
 }
 
-impl MonotoneCubicInverse {
-    /// Builds the forward cubic, each interval's error bound, and the start grid (solved with
-    /// the bracketed stage, so it is as good as the inverse itself).
-    pub fn new(curve: &CalibrationCurve) -> Self {
-        let forward = MonotoneCubic::new(&curve.pressures_kpa(), &curve.relative_changes());
-        let top = curve.top();
-        let mut relative_change_starts = [0.0; MAX_CURVE_POINTS];
-        for (slot, point) in relative_change_starts.iter_mut().zip(curve.points()) {
-            *slot = point.relative_change;
-        }
-        let mut error_bounds_per_kpa = [f32::INFINITY; MAX_CURVE_POINTS - 1];
-        for (slot, segment) in error_bounds_per_kpa.iter_mut().zip(forward.segments()) {
-            *slot = error_bound_per_kpa(segment);
-        }
-        let mut inverse = Self {
-            forward,
-            relative_change_starts,
-            error_bounds_per_kpa,
-            table: TableInverse::sampled(|_| 0.0, top.relative_change, top.pressure_kpa),
-            first_segments: [0; TABLE_INTERVALS + 1],
-            top_pressure_kpa: top.pressure_kpa,
-        };
-        let mut first_segments = [0u8; TABLE_INTERVALS + 1];
-        for (node, slot) in first_segments.iter_mut().enumerate() {
-            let relative_change = TableInverse::node_relative_change(node, top.relative_change);
-            *slot = inverse.segment_from(0, relative_change) as u8;
-        }
-        inverse.first_segments = first_segments;
-        inverse.table = TableInverse::sampled(
-            |relative_change| {
-                let index = inverse.segment_from(0, relative_change);
-                match (
-                    inverse.forward.segments().get(index),
-                    inverse.error_bounds_per_kpa.get(index),
-                ) {
-                    (Some(segment), Some(bound)) => {
-                        // No early acceptance: the grid is solved to the bracket's resolution.
-                        let s = solve_bracketed(
-                            segment,
-                            *bound,
-                            0.0,
-                            relative_change,
-                            0.5 * segment.width,
-                        );
-                        clamp_pressure(segment.x_start + s, inverse.top_pressure_kpa)
-                    }
-                    _ => 0.0,
-                }
-            },
-            top.relative_change,
-            top.pressure_kpa,
-        );
-        inverse
-    }
+/// One interval's cubic in the unit coordinate, with what turns its root into a pressure.
+struct UnitInterval {
+    /// `f(t)`, `t` in `0 ..= 1`.
+    cubic: CubicSegment,
+    /// dC/C0 across the interval.
+    rise: f32,
+    /// Pressure at the interval's start, kPa.
+    start_kpa: f32,
+    /// Interval width, kPa.
+    width_kpa: f32,
+}
 
-    /// The forward curve (pressure to relative change).
-    pub fn forward(&self) -> &MonotoneCubic {
-        &self.forward
-    }
-
-    /// The start grid, which is also the table tier.
-    pub fn table(&self) -> &TableInverse {
-        &self.table
-    }
-
-    /// The interval holding `relative_change`, searching forward from interval `first`.
+impl UnitInterval {
+    /// The pressure at unit coordinate `t`, clamped to the curve.
     #[inline(always)]
-    fn segment_from(&self, first: usize, relative_change: f32) -> usize {
-        let count = self.forward.segments().len();
-        let mut index = first;
-        while index + 1 < count
-            && self
-                .relative_change_starts
-                .get(index + 1)
-                .is_some_and(|start| relative_change >= *start)
-        {
-            index += 1;
-        }
-        index
+    fn pressure_kpa(&self, t: f32, top_pressure_kpa: f32) -> f32 {
+        clamp_pressure(self.start_kpa + t * self.width_kpa, top_pressure_kpa)
     }
 }
 
-/// The fast path's error bound factor of an interval (module doc), from its f32 coefficients in
-/// f64; infinite where the slope reaches 0.
-fn error_bound_per_kpa(segment: &CubicSegment) -> f32 {
-    let (slope_min, slope_max) = segment.slope_range(0.0, f64::from(segment.width));
-    let bound =
-        segment.curvature_max() * slope_max * slope_max / (2.0 * slope_min * slope_min * slope_min);
+impl CubicKnots {
+    /// The tangents of the curve's Fritsch–Carlson cubic and each interval's error bound.
+    pub(crate) fn new(curve: &CalibrationCurve) -> Self {
+        let tangents_f64 = tangents(&curve.pressures_kpa(), &curve.relative_changes());
+        let mut knots = Self {
+            tangents: tangents_f64.map(|tangent| tangent as f32),
+            error_bounds_kpa: [f32::INFINITY; MAX_CURVE_POINTS - 1],
+        };
+        let points = curve.points();
+        let mut error_bounds_kpa = [f32::INFINITY; MAX_CURVE_POINTS - 1];
+        for (index, slot) in error_bounds_kpa.iter_mut().enumerate() {
+            if let Some(interval) = knots.interval(points, index) {
+                *slot = error_bound_kpa(&interval);
+            }
+        }
+        knots.error_bounds_kpa = error_bounds_kpa;
+        knots
+    }
+
+    /// Interval `index`'s cubic, from its points and tangents (`None` past the last interval).
+    #[inline(always)]
+    fn interval(&self, points: &[CurvePoint], index: usize) -> Option<UnitInterval> {
+        let (Some(low), Some(high), Some(start_tangent), Some(end_tangent)) = (
+            points.get(index),
+            points.get(index + 1),
+            self.tangents.get(index),
+            self.tangents.get(index + 1),
+        ) else {
+            return None;
+        };
+        let width_kpa = high.pressure_kpa - low.pressure_kpa;
+        let rise = high.relative_change - low.relative_change;
+        let start_slope = width_kpa * start_tangent;
+        let end_slope = width_kpa * end_tangent;
+        Some(UnitInterval {
+            cubic: CubicSegment {
+                x_start: 0.0,
+                width: 1.0,
+                coefficients: [
+                    low.relative_change,
+                    start_slope,
+                    3.0 * rise - 2.0 * start_slope - end_slope,
+                    start_slope + end_slope - 2.0 * rise,
+                ],
+            },
+            rise,
+            start_kpa: low.pressure_kpa,
+            width_kpa,
+        })
+    }
+
+    /// Pressure for a relative change (module doc: both stages). `curve` must be the one the
+    /// knots were built from.
+    #[inline]
+    pub(crate) fn pressure_kpa(&self, curve: &CalibrationCurve, relative_change: f32) -> f32 {
+        let points = curve.points();
+        let index = interval_index(points, relative_change);
+        let (Some(interval), Some(&bound)) = (
+            self.interval(points, index),
+            self.error_bounds_kpa.get(index),
+        ) else {
+            return 0.0;
+        };
+        let top_pressure_kpa = curve.top().pressure_kpa;
+        let cubic = &interval.cubic;
+        let [start_relative_change, ..] = cubic.coefficients;
+        let mut t = clamp_f32(
+            (relative_change - start_relative_change) / interval.rise,
+            0.0,
+            1.0,
+        );
+        for _ in 0..FAST_NEWTON_STEPS {
+            let step = (cubic.value_at(t) - relative_change) / cubic.slope_at(t);
+            let next = clamp_f32(t - step, 0.0, 1.0);
+            if bound * step * step <= ACCEPTED_ERROR_KPA {
+                return interval.pressure_kpa(next, top_pressure_kpa);
+            }
+            t = next;
+        }
+        let t = solve_bracketed(cubic, bound, ACCEPTED_ERROR_KPA, relative_change, t);
+        interval.pressure_kpa(t, top_pressure_kpa)
+    }
+
+    /// Pressure for a relative change solved to the bracket's resolution, without the fast
+    /// path's early acceptance (for the table tier's nodes).
+    pub(crate) fn solved_pressure_kpa(
+        &self,
+        curve: &CalibrationCurve,
+        relative_change: f32,
+    ) -> f32 {
+        let points = curve.points();
+        let index = interval_index(points, relative_change);
+        match (
+            self.interval(points, index),
+            self.error_bounds_kpa.get(index),
+        ) {
+            (Some(interval), Some(bound)) => {
+                let t = solve_bracketed(&interval.cubic, *bound, 0.0, relative_change, 0.5);
+                interval.pressure_kpa(t, curve.top().pressure_kpa)
+            }
+            _ => 0.0,
+        }
+    }
+}
+
+/// The fast path's error bound of an interval (module doc), from its f32 coefficients in f64;
+/// infinite where the slope reaches 0.
+fn error_bound_kpa(interval: &UnitInterval) -> f32 {
+    let cubic = &interval.cubic;
+    let (slope_min, slope_max) = cubic.slope_range(0.0, 1.0);
+    let bound = f64::from(interval.width_kpa) * cubic.curvature_max() * slope_max * slope_max
+        / (2.0 * slope_min * slope_min * slope_min);
     if slope_min > 0.0 && bound.is_finite() && bound < 1.0e30 {
         bound as f32
     } else {
@@ -159,11 +218,12 @@ fn error_bound_per_kpa(segment: &CubicSegment) -> f32 {
     }
 }
 
-/// Stage 2 of the module doc: the bracketed, safeguarded Newton iteration from `s`.
+/// Stage 2 of the module doc: the bracketed, safeguarded Newton iteration from `s`, in the
+/// segment's local coordinate.
 #[inline(never)]
 fn solve_bracketed(
     segment: &CubicSegment,
-    error_bound_per_kpa: f32,
+    error_bound_kpa: f32,
     accepted_error_kpa: f32,
     y: f32,
     mut s: f32,
@@ -188,7 +248,7 @@ fn solve_bracketed(
         let step = residual / segment.slope_at(s);
         let newton = s - step;
         if width <= 0.5 * width_at_newton && newton > low && newton < high {
-            if error_bound_per_kpa * step * step <= accepted_error_kpa {
+            if error_bound_kpa * step * step <= accepted_error_kpa {
                 return newton;
             }
             width_at_newton = width;
@@ -204,26 +264,39 @@ fn solve_bracketed(
     0.5 * (low + high)
 }
 
+/// Inverse of the monotone cubic through a curve's points, owning its curve, with the forward
+/// cubic for references (host tools, tier selection). The pad keeps only the compact part.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MonotoneCubicInverse {
+    curve: CalibrationCurve,
+    knots: CubicKnots,
+    forward: MonotoneCubic,
+}
+
+impl MonotoneCubicInverse {
+    /// Builds the tangents, each interval's error bound and the forward cubic.
+    pub fn new(curve: &CalibrationCurve) -> Self {
+        Self {
+            curve: curve.clone(),
+            knots: CubicKnots::new(curve),
+            forward: MonotoneCubic::new(&curve.pressures_kpa(), &curve.relative_changes()),
+        }
+    }
+
+    /// The forward curve (pressure to relative change).
+    pub fn forward(&self) -> &MonotoneCubic {
+        &self.forward
+    }
+
+    /// The compact part the pad keeps.
+    pub(crate) fn knots(&self) -> &CubicKnots {
+        &self.knots
+    }
+}
+
 impl InverseCurve for MonotoneCubicInverse {
     #[inline]
     fn pressure_kpa(&self, relative_change: f32) -> f32 {
-        let cell = self.table.cell(relative_change);
-        let start_kpa = self.table.interpolate(cell);
-        let first = self.first_segments.get(cell.0).copied().unwrap_or(0);
-        let index = self.segment_from(usize::from(first), relative_change);
-        let (Some(segment), Some(bound)) = (
-            self.forward.segments().get(index),
-            self.error_bounds_per_kpa.get(index),
-        ) else {
-            return 0.0;
-        };
-        let start = clamp_f32(start_kpa - segment.x_start, 0.0, segment.width);
-        let step = (segment.value_at(start) - relative_change) / segment.slope_at(start);
-        let s = if bound * step * step <= ACCEPTED_ERROR_KPA {
-            clamp_f32(start - step, 0.0, segment.width)
-        } else {
-            solve_bracketed(segment, *bound, ACCEPTED_ERROR_KPA, relative_change, start)
-        };
-        clamp_pressure(segment.x_start + s, self.top_pressure_kpa)
+        self.knots.pressure_kpa(&self.curve, relative_change)
     }
 }

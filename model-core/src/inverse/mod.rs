@@ -1,10 +1,14 @@
 //! Inversion tiers: relative capacitance change dC/C0 to pressure, behind one interface.
 //!
-//! Every tier is built once from a validated [`CalibrationCurve`] and evaluated per reading. The
+//! Every tier is built from a validated [`CalibrationCurve`] and evaluated per reading. The
 //! caller classifies the reading first, so a tier is only asked for `0 ..= top relative change`;
 //! each still clamps its result to `0 ..= top pressure` so that no input can produce NaN or a
 //! pressure outside the curve.
+//!
+//! A taxel model keeps one tier, as an [`ActiveInverse`]; [`TaxelInverses`] builds every tier
+//! at once for tier selection, references and host tools.
 
+mod active;
 mod cubic;
 mod linear;
 mod piecewise_linear;
@@ -12,14 +16,17 @@ mod polynomial;
 mod saturating;
 mod table;
 
-pub use cubic::MonotoneCubicInverse;
+pub use active::ActiveInverse;
+pub use cubic::{
+    MonotoneCubicInverse, ACCEPTED_ERROR_KPA, FAST_NEWTON_STEPS, MAX_BRACKETED_ITERATIONS,
+};
 pub use linear::LinearInverse;
 pub use piecewise_linear::PiecewiseLinearInverse;
 pub use polynomial::{PolynomialInverse, POLYNOMIAL_DEGREE};
 pub use saturating::{Libm, LnBackend, Micromath, SaturatingFit, SaturatingInverse};
 pub use table::{TableInverse, TABLE_INTERVALS};
 
-use crate::calibration::CalibrationCurve;
+use crate::calibration::{CalibrationCurve, CurvePoint};
 
 /// An inverse of a calibration curve: relative change to pressure.
 pub trait InverseCurve {
@@ -97,12 +104,14 @@ impl Tier {
     }
 }
 
-/// All tiers of one taxel, built once from its curve.
+/// All tiers of one taxel, built at once from its curve (tier selection, references, host
+/// tools); a taxel model keeps only the active one.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TaxelInverses {
     linear: LinearInverse,
     piecewise_linear: PiecewiseLinearInverse,
     monotone_cubic: MonotoneCubicInverse,
+    table: TableInverse,
     saturating: Option<SaturatingFit>,
     polynomial: Option<PolynomialInverse>,
     top_pressure_kpa: f32,
@@ -117,6 +126,7 @@ impl TaxelInverses {
             piecewise_linear: PiecewiseLinearInverse::new(curve),
             polynomial: PolynomialInverse::new(&monotone_cubic, curve),
             saturating: SaturatingFit::new(curve),
+            table: active::table(curve, monotone_cubic.knots()),
             monotone_cubic,
             top_pressure_kpa: curve.top().pressure_kpa,
         }
@@ -132,6 +142,29 @@ impl TaxelInverses {
         }
     }
 
+    /// The tier as a taxel model keeps it (a copy of what was built here), or `None` when the
+    /// curve does not support it.
+    pub fn active(&self, tier: Tier) -> Option<ActiveInverse> {
+        Some(match tier {
+            Tier::Linear => ActiveInverse::from_linear(self.linear),
+            Tier::PiecewiseLinear => {
+                ActiveInverse::from_piecewise_linear(self.piecewise_linear.slopes().clone())
+            }
+            Tier::MonotoneCubic => {
+                ActiveInverse::from_monotone_cubic(self.monotone_cubic.knots().clone())
+            }
+            Tier::Saturating => {
+                ActiveInverse::from_saturating(self.saturating.as_ref()?, self.top_pressure_kpa)
+            }
+            Tier::SaturatingMicromath => ActiveInverse::from_saturating_micromath(
+                self.saturating.as_ref()?,
+                self.top_pressure_kpa,
+            ),
+            Tier::Table => ActiveInverse::from_table(self.table.clone()),
+            Tier::Polynomial => ActiveInverse::from_polynomial(self.polynomial.clone()?),
+        })
+    }
+
     /// Pressure for a relative change through the given tier. A tier the curve does not support
     /// falls back to the monotone cubic (callers check [`TaxelInverses::supports`] first).
     #[inline]
@@ -139,7 +172,7 @@ impl TaxelInverses {
         match tier {
             Tier::Linear => self.linear.pressure_kpa(relative_change),
             Tier::PiecewiseLinear => self.piecewise_linear.pressure_kpa(relative_change),
-            Tier::Table => self.monotone_cubic.table().pressure_kpa(relative_change),
+            Tier::Table => self.table.pressure_kpa(relative_change),
             Tier::Polynomial => match &self.polynomial {
                 Some(polynomial) => polynomial.pressure_kpa(relative_change),
                 None => self.monotone_cubic.pressure_kpa(relative_change),
@@ -185,13 +218,30 @@ impl TaxelInverses {
 
     /// The table tier.
     pub fn table(&self) -> &TableInverse {
-        self.monotone_cubic.table()
+        &self.table
     }
 
     /// The polynomial tier, if the fit is monotone.
     pub fn polynomial(&self) -> Option<&PolynomialInverse> {
         self.polynomial.as_ref()
     }
+}
+
+/// The interval `k` of a curve with `points[k] <= relative_change < points[k + 1]` (below the
+/// first point or NaN gives 0, at or above the last point the last interval).
+#[inline(always)]
+pub(crate) fn interval_index(points: &[CurvePoint], relative_change: f32) -> usize {
+    // A forward scan: at most 15 steps, and on short curves fewer than a binary search's
+    // bookkeeping costs.
+    let mut index = 0;
+    while index + 2 < points.len()
+        && points
+            .get(index + 1)
+            .is_some_and(|next| relative_change >= next.relative_change)
+    {
+        index += 1;
+    }
+    index
 }
 
 /// Clamps a tier's raw result into `0 ..= top`, mapping NaN to 0.

@@ -6,6 +6,9 @@
 //! - compact (at least [`MIN_WIDTH`] x [`MIN_HEIGHT`]): one line per taxel with its pressure,
 //!   flags and faults, for small terminals;
 //! - smaller than that: a notice saying how much room the view needs.
+//!
+//! On a device with several pads, or with a layout, these show one pad (`--pad N` or the number
+//! keys) and name it in the title; the view of every pad is drawn by [`super::pads`].
 
 use ratatui::layout::{Alignment, Constraint, Layout, Rect};
 use ratatui::style::{Color, Modifier, Style};
@@ -15,7 +18,7 @@ use ratatui::widgets::{Axis, Block, Borders, Chart, Dataset, GraphType, Paragrap
 use ratatui::Frame;
 use wire::TaxelSample;
 
-use super::state::ViewState;
+use super::state::{PadFreshness, ViewState};
 use crate::csv_format::{temperature_source_words, wire_flag_names, TAXEL_LABELS};
 use crate::device_words::{calibration_source_words, info_words, tier_words};
 
@@ -30,6 +33,10 @@ pub const WIDE_HEIGHT: u16 = 32;
 
 /// The line of keys.
 pub const KEYS_LINE: &str = "keys: t tare  p pause  r record  m marker  q quit";
+
+/// The line of keys when one of several pads is shown in detail.
+pub const KEYS_LINE_ONE_OF_SEVERAL: &str =
+    "keys: t tare  p pause  r record  m marker  q quit  a all pads  0-7 pad";
 
 /// Colours of the four taxels in the time series.
 const TAXEL_COLOURS: [Color; 4] = [Color::Cyan, Color::Yellow, Color::Magenta, Color::Green];
@@ -71,7 +78,7 @@ pub fn heat_colour(pressure_kpa: f32, full_scale_kpa: f32) -> Color {
 }
 
 /// The style of a pressure cell: its heat colour, or grey with red text for a fault.
-fn pressure_style(pressure_kpa: Option<f32>, full_scale_kpa: f32) -> Style {
+pub(super) fn pressure_style(pressure_kpa: Option<f32>, full_scale_kpa: f32) -> Style {
     match pressure_kpa {
         Some(pressure_kpa) => {
             let foreground =
@@ -269,14 +276,14 @@ fn force_text(state: &ViewState) -> String {
     }
 }
 
-fn rate_text(state: &ViewState) -> String {
+pub(super) fn rate_text(state: &ViewState) -> String {
     state
         .sample_set_rate_hz()
         .map_or_else(|| "-".to_owned(), |rate| format!("{rate:.1}"))
 }
 
 /// Where every sample set of this connection went.
-fn accounting_line(state: &ViewState) -> String {
+pub(super) fn accounting_line(state: &ViewState) -> String {
     let accounting = &state.accounting;
     let mut line = format!(
         "{} received, {} lost on link, {} dropped by device, {} bad frames",
@@ -292,7 +299,7 @@ fn accounting_line(state: &ViewState) -> String {
 }
 
 /// The device in words: all of it when there is room, the essentials otherwise.
-fn device_line(state: &ViewState, wide: bool) -> String {
+pub(super) fn device_line(state: &ViewState, wide: bool) -> String {
     match &state.info {
         Some(info) if wide => format!("Device: {}", info_words(info)),
         Some(info) => {
@@ -312,7 +319,7 @@ fn device_line(state: &ViewState, wide: bool) -> String {
     }
 }
 
-fn status_line(state: &ViewState) -> Line<'static> {
+pub(super) fn status_line(state: &ViewState) -> Line<'static> {
     let connection = if state.connected {
         Span::styled("connected", Style::default().fg(Color::Green))
     } else {
@@ -354,7 +361,11 @@ fn text_lines(state: &ViewState, wide: bool) -> Vec<Line<'static>> {
         Line::from(accounting_line(state)),
         Line::from(device_line(state, wide)),
         status_line(state),
-        Line::from(KEYS_LINE),
+        Line::from(if state.several_pads() {
+            KEYS_LINE_ONE_OF_SEVERAL
+        } else {
+            KEYS_LINE
+        }),
     ]
 }
 
@@ -400,8 +411,32 @@ fn compact_lines(state: &ViewState) -> Vec<Line<'static>> {
         state.accounting.device_dropped()
     )));
     lines.push(status_line(state));
-    lines.push(Line::from("t tare p pause r rec m mark q quit"));
+    lines.push(Line::from(if state.several_pads() {
+        "t tare p pause r rec m mark q quit a all"
+    } else {
+        "t tare p pause r rec m mark q quit"
+    }));
     lines
+}
+
+/// The title: the source, and on a device with several pads the pad shown and whether it is
+/// live.
+fn title(state: &ViewState) -> String {
+    if !state.several_pads() {
+        return format!(" taxel view: {} ", state.source);
+    }
+    let pad = state.detail_pad.unwrap_or(0);
+    let freshness = match state.pad_freshness(pad) {
+        PadFreshness::Live => String::new(),
+        PadFreshness::NoData => ", no data".to_owned(),
+        PadFreshness::NotOnDevice => ", not on this device".to_owned(),
+        PadFreshness::Stale { age_s } => format!(", STALE: no frame for {age_s:.1} s"),
+    };
+    format!(
+        " taxel view: {} | pad {pad}: {}{freshness} ",
+        state.source,
+        state.pad_name(pad)
+    )
 }
 
 /// Draws the whole view in the layout the terminal's size allows.
@@ -415,9 +450,11 @@ pub fn draw(frame: &mut Frame, state: &ViewState) {
         frame.render_widget(Paragraph::new(notice).wrap(Wrap { trim: true }), area);
         return;
     }
-    let outer = Block::default()
-        .borders(Borders::ALL)
-        .title(format!(" taxel view: {} ", state.source));
+    if state.shows_every_pad() {
+        super::pads::draw_every_pad(frame, area, state);
+        return;
+    }
+    let outer = Block::default().borders(Borders::ALL).title(title(state));
     let inner = outer.inner(area);
     frame.render_widget(outer, area);
     if area.width < 80 || area.height < 24 {

@@ -4,17 +4,25 @@
 //! r (record), m (marker), q (quit). It survives unplug and replug by looking for the board
 //! again by serial number.
 //!
+//! A device with several pads, or a `--layout` ([`crate::layout`]), gets one tile per pad on
+//! the layout's grid (`pads`): name, a small heat map with the centre of pressure, force,
+//! contact, faults, and stale or missing pads said as such; the number keys (or `--pad N`) show
+//! one pad in the detailed view, `a` all of them again.
+//!
 //! [`ViewState`] holds what is shown and [`draw`] renders it in the layout the terminal allows;
 //! [`render_to_string`] renders one frame into ratatui's `TestBackend`, which is how the view
 //! is tested and how `--once` prints a text snapshot.
 
 mod draw;
+mod pads;
 mod state;
 
 pub use draw::{
-    draw, heat_colour, taxel_flag_words, KEYS_LINE, MIN_HEIGHT, MIN_WIDTH, WIDE_HEIGHT, WIDE_WIDTH,
+    draw, heat_colour, taxel_flag_words, KEYS_LINE, KEYS_LINE_ONE_OF_SEVERAL, MIN_HEIGHT,
+    MIN_WIDTH, WIDE_HEIGHT, WIDE_WIDTH,
 };
-pub use state::{RecordingStatus, ViewState};
+pub use pads::{CENTRE_MARKER, KEYS_LINE_EVERY_PAD};
+pub use state::{PadFreshness, RecordingStatus, ViewState, STALE_AFTER};
 
 use std::collections::HashMap;
 use std::io::{Read, Write};
@@ -30,6 +38,7 @@ use ratatui::Terminal;
 use wire::{Command, DeviceFrame};
 
 use crate::device_link::{self, attached_boards, choose_board, BoardArgs, DeviceLink, LinkError};
+use crate::layout::Layout;
 use crate::recording::{read_device_state, BaselineFollower, Recording};
 
 /// Samples `--once` collects (for a rate) before it prints, unless its timeout ends first.
@@ -51,13 +60,40 @@ Keys: t = tare (keep the pad unloaded), p = pause (freeze the display), r = star
 recording to a file (taxel-YYYYMMDD-HHMMSS.csv in --record-dir, with its .device.json, as \
 `taxel record` writes), m = drop a marker into the recording, q = quit (a recording in progress \
 is finished).\n\n\
-A device with several pads: the view shows pad 0 and accounts every pad's frames; the record \
-key records every pad, one row per sample set (see `taxel record --help`).\n\n\
-Layouts: heat map and time series side by side from 120x32, stacked from 80x24, one line per \
-taxel from 40x12 (flags and faults stay visible); smaller terminals get a notice.\n\n\
+Screen layouts: heat map and time series side by side from 120x32, stacked from 80x24, one \
+line per taxel from 40x12 (flags and faults stay visible); smaller terminals get a notice.\n\n\
+Several pads: a device with several pads, or a --layout, shows every pad as a tile: its name, \
+a 2x2 heat map of its pressures in kPa (FAULT for a faulted taxel, never a number) with the \
+centre of pressure marked ◆, its force in N, the centre of pressure in mm, contact (● CONTACT \
+or ○ no contact) and its faults and flags in words. A pad without a frame for 0.5 s (host clock, \
+or device clock against the other pads) shows STALE and for how long, never its last values; \
+while disconnected every pad is stale. Tiles shrink with the terminal (80x24 holds 8 pads); \
+below that, or under 80x24, each pad gets one line. Keys 0-7 (or --pad N) show one pad in the \
+detailed view above, a = all pads again. The record key records every pad, one row per sample \
+set (see `taxel record --help`).\n\n\
+--layout gripper|glove|FILE names the pads and places them on a grid. Built in: gripper (pad 0 \
+left finger, pad 1 right finger) and glove (a right hand seen from the palm side: little, ring, \
+middle and index fingertips on the top row, pads 4 to 1; the palm, pad 5, below the middle \
+finger; the thumb, pad 0, below the index). A layout file is TOML:\n\n  \
+name = \"two-finger gripper\"\n  \
+[[pad]]\n  \
+index = 0            # the device's pad index, 0 to 7\n  \
+name = \"left finger\"\n  \
+column = 0           # grid cell, 0 to 7 from the left\n  \
+row = 0              # grid cell, 0 to 7 from the top\n  \
+[[pad]]\n  \
+index = 1\n  \
+name = \"right finger\"\n  \
+column = 1\n  \
+row = 0\n\n\
+Each index at most once, one pad per cell; errors name the line. Pads the layout names that \
+the device does not have show \"not on this device\"; the device's pads it does not name are \
+added below it. Without --layout, one pad gets the detailed view and several an automatic grid \
+(\"pad 0\" to \"pad N-1\", four to a row).\n\n\
 Unplugging is survived: the view waits for the board to come back (found again by its serial \
 number) and resumes.\n\n--once prints a single text snapshot and exits.\n\n\
-Examples:\n  taxel view /dev/ttyACM0\n  taxel view --once --width 80 --height 24 /dev/ttyACM0";
+Examples:\n  taxel view /dev/ttyACM0\n  taxel view --once --width 80 --height 24 /dev/ttyACM0\n  \
+taxel view --layout gripper /dev/ttyACM0\n  taxel view --layout my-hand.toml --pad 2";
 
 /// Arguments of `taxel view`.
 #[derive(Debug, Clone, clap::Args)]
@@ -89,9 +125,25 @@ pub struct ViewArgs {
     /// How long --once waits for samples, ms.
     #[arg(long, value_name = "MS", default_value_t = 3000)]
     pub timeout_ms: u64,
+    /// The pads' names and places: a built-in layout (gripper, glove) or a TOML file.
+    #[arg(long, value_name = "NAME|FILE")]
+    pub layout: Option<String>,
+    /// Show this pad in the detailed view (keys 0-7 and a switch while running).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(0..8))]
+    pub pad: Option<u8>,
 }
 
 impl ViewArgs {
+    /// The view's state before the first frame, as these arguments set it up.
+    fn initial_state(&self, source: String, layout: Option<Layout>) -> ViewState {
+        let mut state = ViewState::new(source);
+        state.full_scale_kpa = self.full_scale_kpa;
+        state.history_s = self.history_s;
+        state.layout = layout;
+        state.show_pad(self.pad);
+        state
+    }
+
     /// The defaults on one port (what `taxel view PORT` gets).
     pub fn for_port(port: String, once: bool) -> Self {
         Self {
@@ -104,6 +156,8 @@ impl ViewArgs {
             history_s: 10.0,
             record_dir: PathBuf::from("."),
             timeout_ms: 3000,
+            layout: None,
+            pad: None,
         }
     }
 }
@@ -406,14 +460,13 @@ fn record_frame<P: Read + Write>(
 fn live_loop<B: ratatui::backend::Backend>(
     terminal: &mut Terminal<B>,
     args: &ViewArgs,
+    layout: Option<Layout>,
 ) -> anyhow::Result<()>
 where
     B::Error: std::error::Error + Send + Sync + 'static,
 {
     let mut target = BoardTarget::new(args);
-    let mut state = ViewState::new(target.describe());
-    state.full_scale_kpa = args.full_scale_kpa;
-    state.history_s = args.history_s;
+    let mut state = args.initial_state(target.describe(), layout);
     let mut link: Option<SerialLink> = None;
     let mut pending: HashMap<u16, Pending> = HashMap::new();
     let mut recording: Option<ViewRecording> = None;
@@ -483,6 +536,7 @@ where
                 next_attempt = Instant::now() + Duration::from_millis(200);
             }
         }
+        state.refresh(Instant::now());
         terminal.draw(|frame| draw(frame, &state))?;
         let wait = if link.is_some() {
             Duration::ZERO
@@ -502,6 +556,10 @@ where
             KeyCode::Char('q') | KeyCode::Esc => break,
             KeyCode::Char('c') if key.modifiers.contains(KeyModifiers::CONTROL) => break,
             KeyCode::Char('p') => state.paused = !state.paused,
+            KeyCode::Char('a') => state.show_pad(None),
+            KeyCode::Char(digit @ '0'..='7') => {
+                state.show_pad(digit.to_digit(10).and_then(|pad| u8::try_from(pad).ok()))
+            }
             KeyCode::Char('t') => match link.as_mut() {
                 Some(active) => match active.send(Command::Tare {
                     sample_sets: args.tare_sets,
@@ -568,18 +626,19 @@ pub fn snapshot_state<P: Read + Write>(
         }
     }
     state.frames_rejected = link.statistics().frames_rejected;
-    if state.sample.is_none() && state.connected {
+    state.refresh(Instant::now());
+    if !state.any_sample() && state.connected {
         state.status = format!("no sample within {} ms", timeout.as_millis());
     }
 }
 
 /// Runs `taxel view`.
 pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
+    // A bad layout is reported before the terminal is taken over.
+    let layout = args.layout.as_deref().map(Layout::load).transpose()?;
     if args.once {
         let mut target = BoardTarget::new(args);
-        let mut state = ViewState::new(target.describe());
-        state.full_scale_kpa = args.full_scale_kpa;
-        state.history_s = args.history_s;
+        let mut state = args.initial_state(target.describe(), layout);
         let Connection { mut link, .. } =
             connect(&mut target, Duration::from_millis(50), &mut state)?;
         snapshot_state(
@@ -591,14 +650,14 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
         let _ = link.send(Command::StopStreaming);
         let text = render_to_string(&state, args.width, args.height);
         crate::console::out(format_args!("{text}")).context("writing the snapshot")?;
-        return Ok(if state.sample.is_some() {
+        return Ok(if state.any_sample() {
             ExitCode::SUCCESS
         } else {
             ExitCode::FAILURE
         });
     }
     let mut terminal = ratatui::try_init()?;
-    let result = live_loop(&mut terminal, args);
+    let result = live_loop(&mut terminal, args, layout);
     ratatui::restore();
     result.map(|()| ExitCode::SUCCESS)
 }

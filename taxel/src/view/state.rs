@@ -1,17 +1,60 @@
-//! What the live view shows, kept apart from drawing and from the port so it is testable: the
-//! sample on display (pad 0's, on a device with several pads), the recent history per taxel, the device's identity and counters, the
-//! honest accounting of sample sets, and the recording in progress.
+//! What the live view shows, kept apart from drawing and from the port so it is testable: every
+//! pad's last sample and recent history per taxel, which pad the detailed view shows, the
+//! layout, whether each pad is live or stale, the device's identity and counters, the honest
+//! accounting of sample sets, and the recording in progress.
+//!
+//! Staleness: a pad is stale when its last frame is more than [`STALE_AFTER`] old, measured on
+//! the host clock (nothing arrived from it: the device stalled or was unplugged) or on the
+//! device clock against the newest frame of any pad (the device sends other pads' sets but not
+//! this one's), and every pad with data is stale while the device is disconnected. A stale pad's
+//! last values are never drawn as if live.
 
 use std::collections::VecDeque;
+use std::time::{Duration, Instant};
 
 use model_core::TAXEL_COUNT;
 use wire::{CountersFrame, DeviceFrame, InfoFrame, ReplyPayload, SampleFrame};
 
 use crate::device_words::event_words;
+use crate::layout::{Arrangement, Layout, MAX_PADS};
 use crate::stream_accounting::StreamAccounting;
 
 /// Sample timestamps kept for the sample-set rate.
 const RATE_WINDOW: usize = 128;
+
+/// A pad whose last frame is older than this is shown as stale (see the module's notes): five
+/// times the slowest set period the device runs at (8 pads on a 100 kHz bus, 25 sets/s, 40 ms)
+/// plus a busy host's scheduling, yet short enough that an unplugged pad shows at once.
+pub const STALE_AFTER: Duration = Duration::from_millis(500);
+
+/// Whether a pad's values can be shown as live.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PadFreshness {
+    /// The device does not have this pad (its index is at or above the device's pad count).
+    NotOnDevice,
+    /// No frame of the pad yet.
+    NoData,
+    /// Its last frame is recent.
+    Live,
+    /// Its last frame is older than [`STALE_AFTER`], or the device is disconnected.
+    Stale {
+        /// How long ago the last frame came, s (host or device clock, whichever is longer).
+        age_s: f64,
+    },
+}
+
+/// One pad as the view holds it.
+#[derive(Debug, Clone, Default, PartialEq)]
+struct PadView {
+    /// The last sample shown (frozen while paused).
+    sample: Option<SampleFrame>,
+    /// When the last frame arrived, host clock (also while paused).
+    received_at: Option<Instant>,
+    /// The device timestamp of the last frame, µs.
+    device_time_us: Option<u64>,
+    /// (device timestamp µs, pressures kPa) over the last `history_s`.
+    history: VecDeque<(u64, [Option<f32>; TAXEL_COUNT])>,
+}
 
 /// The recording in progress, as the view shows it.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -35,7 +78,8 @@ pub struct ViewState {
     pub status: String,
     /// Display frozen (samples are still counted and recorded).
     pub paused: bool,
-    /// The sample on display.
+    /// The sample of the pad the detailed view shows ([`ViewState::detail_pad`], pad 0 by
+    /// default).
     pub sample: Option<SampleFrame>,
     /// The device's identity, when known.
     pub info: Option<InfoFrame>,
@@ -51,7 +95,14 @@ pub struct ViewState {
     pub history_s: f64,
     /// The recording in progress, if any.
     pub recording: Option<RecordingStatus>,
-    history: VecDeque<(u64, [Option<f32>; TAXEL_COUNT])>,
+    /// The layout given with `--layout`; `None`: an automatic grid in pad order.
+    pub layout: Option<Layout>,
+    /// The pad shown in the detailed view; `None`: every pad when the device has several or a
+    /// layout is given, pad 0 in detail otherwise.
+    pub detail_pad: Option<u8>,
+    pads: [PadView; MAX_PADS as usize],
+    newest_device_time_us: Option<u64>,
+    now: Option<Instant>,
     recent_timestamps_us: VecDeque<u64>,
 }
 
@@ -71,15 +122,24 @@ impl ViewState {
             full_scale_kpa: 50.0,
             history_s: 10.0,
             recording: None,
-            history: VecDeque::new(),
+            layout: None,
+            detail_pad: None,
+            pads: std::array::from_fn(|_| PadView::default()),
+            newest_device_time_us: None,
+            now: None,
             recent_timestamps_us: VecDeque::new(),
         }
     }
 
-    /// Takes one frame from the device.
+    /// Takes one frame from the device, received now.
     pub fn apply_frame(&mut self, frame: &DeviceFrame) {
+        self.apply_frame_at(frame, Instant::now());
+    }
+
+    /// Takes one frame from the device, received at `received_at` (host clock).
+    pub fn apply_frame_at(&mut self, frame: &DeviceFrame, received_at: Instant) {
         match frame {
-            DeviceFrame::Sample(sample) => self.apply_sample(sample),
+            DeviceFrame::Sample(sample) => self.apply_sample(sample, received_at),
             DeviceFrame::Info(info) => self.info = Some(*info),
             DeviceFrame::Counters(counters) => self.apply_counters(counters),
             DeviceFrame::Reply(reply) => match &reply.result {
@@ -96,44 +156,166 @@ impl ViewState {
         self.counters = Some(*counters);
     }
 
-    fn apply_sample(&mut self, sample: &SampleFrame) {
+    fn apply_sample(&mut self, sample: &SampleFrame, received_at: Instant) {
         self.accounting.sample(sample);
-        // The view draws pad 0; the other pads' frames are accounted (and recorded) only.
-        if sample.pad.get() != 0 {
+        self.refresh(received_at);
+        let pad = sample.pad.get();
+        let Some(view) = self.pads.get_mut(usize::from(pad)) else {
             return;
-        }
-        if self
-            .recent_timestamps_us
-            .back()
-            .is_some_and(|last| sample.timestamp_us <= *last)
+        };
+        if view
+            .device_time_us
+            .is_some_and(|last| sample.timestamp_us <= last)
         {
             // The device clock went backwards: it restarted.
             self.recent_timestamps_us.clear();
-            self.history.clear();
+            self.newest_device_time_us = None;
+            for view in &mut self.pads {
+                view.device_time_us = None;
+                view.history.clear();
+            }
         }
-        self.recent_timestamps_us.push_back(sample.timestamp_us);
-        while self.recent_timestamps_us.len() > RATE_WINDOW {
-            self.recent_timestamps_us.pop_front();
+        let Some(view) = self.pads.get_mut(usize::from(pad)) else {
+            return;
+        };
+        view.device_time_us = Some(sample.timestamp_us);
+        view.received_at = Some(received_at);
+        self.newest_device_time_us = Some(
+            self.newest_device_time_us
+                .map_or(sample.timestamp_us, |newest| {
+                    newest.max(sample.timestamp_us)
+                }),
+        );
+        let shown_in_detail = pad == self.detail_pad.unwrap_or(0);
+        if shown_in_detail {
+            self.recent_timestamps_us.push_back(sample.timestamp_us);
+            while self.recent_timestamps_us.len() > RATE_WINDOW {
+                self.recent_timestamps_us.pop_front();
+            }
         }
         if self.paused {
             return;
         }
-        self.sample = Some(*sample);
-        self.history.push_back((
+        view.sample = Some(*sample);
+        view.history.push_back((
             sample.timestamp_us,
             sample.taxels.map(|taxel| taxel.pressure_kpa),
         ));
         let window_us = (self.history_s.max(0.0) * 1e6) as u64;
-        while self
+        while view
             .history
             .front()
             .is_some_and(|(time_us, _)| sample.timestamp_us.saturating_sub(*time_us) > window_us)
         {
-            self.history.pop_front();
+            view.history.pop_front();
+        }
+        if shown_in_detail {
+            self.sample = Some(*sample);
         }
     }
 
-    /// Sample sets per second over the recent window, from the device's timestamps.
+    /// The host clock moved on to `now` (the live loop calls it before drawing): pads that sent
+    /// nothing since [`STALE_AFTER`] become stale.
+    pub fn refresh(&mut self, now: Instant) {
+        self.now = Some(self.now.map_or(now, |before| before.max(now)));
+    }
+
+    /// Shows one pad in the detailed view (`None`: back to every pad).
+    pub fn show_pad(&mut self, pad: Option<u8>) {
+        let pad = pad.filter(|pad| *pad < MAX_PADS);
+        if pad == self.detail_pad {
+            return;
+        }
+        self.detail_pad = pad;
+        self.sample = self
+            .pads
+            .get(usize::from(pad.unwrap_or(0)))
+            .and_then(|view| view.sample);
+        self.recent_timestamps_us.clear();
+    }
+
+    /// How many pads the device reads: its Info's, or before that one more than the highest pad
+    /// seen (at least 1).
+    pub fn pad_count(&self) -> u8 {
+        match &self.info {
+            Some(info) => info.pad_count,
+            None => u8::try_from(self.accounting.pads_seen())
+                .unwrap_or(MAX_PADS)
+                .max(1),
+        }
+    }
+
+    /// Whether the view shows every pad (tiles) rather than one pad in detail.
+    pub fn shows_every_pad(&self) -> bool {
+        self.detail_pad.is_none() && (self.layout.is_some() || self.pad_count() > 1)
+    }
+
+    /// Whether the view is about several pads (a layout, or a device with several), so pads
+    /// are named.
+    pub fn several_pads(&self) -> bool {
+        self.layout.is_some() || self.pad_count() > 1
+    }
+
+    /// The tiles: the layout's (or the automatic grid's), fitted to the device's pad count.
+    pub fn arrangement(&self) -> Arrangement {
+        let device_pad_count = self.info.map(|info| info.pad_count);
+        match &self.layout {
+            Some(layout) => layout.arrange(device_pad_count),
+            None => Layout::automatic(self.pad_count()).arrange(device_pad_count),
+        }
+    }
+
+    /// The name a pad has in the layout ("pad N" when it names none).
+    pub fn pad_name(&self, pad: u8) -> String {
+        self.layout
+            .as_ref()
+            .and_then(|layout| layout.pad(pad))
+            .map_or_else(|| format!("pad {pad}"), |place| place.name.clone())
+    }
+
+    /// The last sample of a pad (frozen while paused), whether live or stale: see
+    /// [`ViewState::pad_freshness`] before showing it.
+    pub fn pad_sample(&self, pad: u8) -> Option<&SampleFrame> {
+        self.pads.get(usize::from(pad))?.sample.as_ref()
+    }
+
+    /// Whether any pad has sent a sample.
+    pub fn any_sample(&self) -> bool {
+        self.pads.iter().any(|view| view.sample.is_some())
+    }
+
+    /// Whether a pad's values can be shown as live (the rule is in the module's notes).
+    pub fn pad_freshness(&self, pad: u8) -> PadFreshness {
+        if self.info.is_some_and(|info| pad >= info.pad_count) {
+            return PadFreshness::NotOnDevice;
+        }
+        let Some(view) = self.pads.get(usize::from(pad)) else {
+            return PadFreshness::NotOnDevice;
+        };
+        let (Some(received_at), Some(_)) = (view.received_at, view.sample) else {
+            return PadFreshness::NoData;
+        };
+        let host_age = self.now.map_or(Duration::ZERO, |now| {
+            now.saturating_duration_since(received_at)
+        });
+        let device_lag = match (self.newest_device_time_us, view.device_time_us) {
+            (Some(newest_us), Some(last_us)) => {
+                Duration::from_micros(newest_us.saturating_sub(last_us))
+            }
+            _ => Duration::ZERO,
+        };
+        let age = host_age.max(device_lag);
+        if !self.connected || age > STALE_AFTER {
+            PadFreshness::Stale {
+                age_s: age.as_secs_f64(),
+            }
+        } else {
+            PadFreshness::Live
+        }
+    }
+
+    /// Sample sets per second over the recent window, from the device's timestamps (of the pad
+    /// shown in detail, pad 0 in the view of every pad).
     pub fn sample_set_rate_hz(&self) -> Option<f64> {
         let (first, last) = (
             self.recent_timestamps_us.front()?,
@@ -146,10 +328,13 @@ impl ViewState {
     /// The time series of one taxel: (seconds relative to the newest sample, kPa), faulted
     /// samples left out (a gap, never a zero).
     pub fn history_of(&self, taxel: usize) -> Vec<(f64, f64)> {
-        let Some((newest_us, _)) = self.history.back() else {
+        let Some(view) = self.pads.get(usize::from(self.detail_pad.unwrap_or(0))) else {
             return Vec::new();
         };
-        self.history
+        let Some((newest_us, _)) = view.history.back() else {
+            return Vec::new();
+        };
+        view.history
             .iter()
             .filter_map(|(time_us, pressures)| {
                 let pressure_kpa = pressures.get(taxel).copied().flatten()?;
@@ -168,6 +353,12 @@ impl ViewState {
         self.accounting = StreamAccounting::new();
         self.frames_rejected = 0;
         self.recent_timestamps_us.clear();
+        // The new connection's device clock may have restarted; the host clock judges the pads
+        // until they send again.
+        self.newest_device_time_us = None;
+        for view in &mut self.pads {
+            view.device_time_us = None;
+        }
     }
 
     /// The device went away.
