@@ -68,8 +68,8 @@ pub(super) fn measurement_method(out: &mut String, data: &ReportData) {
          - **Host**: criterion (`model-core/benches/tiers.rs`), the same grid, one thread, \
          converted as a host tool converts a recording (readings from memory, results to \
          memory, model and tier opaque to the compiler once per pass); time per conversion = \
-         thread CPU time per pass over the grid / {}. The tier is fixed for a pass, so the \
-         compiler may hoist its dispatch out of the loop; the M4 count dispatches per call.\n\
+         thread CPU time per pass over the grid / {}. The model holds its tier's inverse and is \
+         opaque to the compiler, so every conversion dispatches on the tier, as on the M4.\n\
          - **Cycles** are estimated, not measured (QEMU models no pipeline, and reads DWT \
          CYCCNT as 0). The dynamic instruction mix comes from a QEMU trace of the shipped build \
          (`-d in_asm,exec,nochain` with an address filter on the benchmark loops and what they \
