@@ -83,6 +83,11 @@ fn run(
             .unwrap();
     }
     setup(device.simulation());
+    run_to(&mut device, until_s)
+}
+
+/// Steps `device` to `until_s` and decodes everything it sent.
+fn run_to(device: &mut SimulatedDevice, until_s: f64) -> Run {
     let mut link = MemoryPort::new(usize::MAX);
     let mut decoder = DeviceFrameDecoder::new();
     let mut run = Run {
@@ -281,24 +286,7 @@ fn run_built_in(name: &str, until_s: f64) -> (SceneFile, Run) {
         bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap();
-    let mut link = MemoryPort::new(usize::MAX);
-    let mut decoder = DeviceFrameDecoder::new();
-    let mut run = Run {
-        info: None,
-        samples: Vec::new(),
-        events: Vec::new(),
-    };
-    while device.simulation().now_us() < (until_s * 1e6) as u64 {
-        device.step(&mut link);
-        for frame in decoder.feed(&link.take_for_host(usize::MAX)) {
-            match frame.unwrap() {
-                DeviceFrame::Info(info) => run.info = Some(info),
-                DeviceFrame::Sample(sample) => run.samples.push(sample),
-                DeviceFrame::Event(event) => run.events.push((event.timestamp_us, event.event)),
-                _ => {}
-            }
-        }
-    }
+    let run = run_to(&mut device, until_s);
     (scene, run)
 }
 

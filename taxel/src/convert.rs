@@ -352,16 +352,25 @@ pub fn convert_raw<R: Read, W: Write>(
     })?;
     summary.undecodable_frames = statistics.frames_rejected;
     summary.undecodable_bytes = statistics.bytes_rejected;
-    if summary.rows_written == 0 {
+    ensure_samples_decoded(summary.rows_written, &statistics)?;
+    writer.flush()?;
+    summary.tare_warnings = run.warnings();
+    Ok(summary)
+}
+
+/// Refuses a raw log in which no sample frame decoded: it is not one `taxel record` wrote.
+fn ensure_samples_decoded(
+    rows_written: u64,
+    statistics: &crate::device_link::LinkStatistics,
+) -> anyhow::Result<()> {
+    if rows_written == 0 {
         bail!(
             "no sample frame in {} bytes ({} undecodable frames): this is not a raw log written by `taxel record` (a CSV file is converted without --raw)",
             statistics.bytes_received,
             statistics.frames_rejected
         );
     }
-    writer.flush()?;
-    summary.tare_warnings = run.warnings();
-    Ok(summary)
+    Ok(())
 }
 
 /// Decodes a raw byte log and hands every frame to `take`, in order; returns the decoding

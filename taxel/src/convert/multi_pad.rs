@@ -17,8 +17,8 @@ use wire::DeviceFrame;
 use super::csv_input::{parse_sample, shortened, CsvColumns};
 use super::pad_run::{frame_input, PadRun};
 use super::{
-    as_written, csv_writer, next_record, read_frames, readable_time, BadRow, ConvertOptions,
-    ConvertSummary,
+    as_written, csv_writer, ensure_samples_decoded, next_record, read_frames, readable_time,
+    BadRow, ConvertOptions, ConvertSummary,
 };
 use crate::csv_format::{
     format_optional, format_time_us, CsvDialect, FLAGS_COLUMNS, PRESSURE_COLUMNS,
@@ -270,13 +270,7 @@ pub(super) fn convert_raw<R: Read, W: Write>(
     summary.undecodable_frames = statistics.frames_rejected;
     summary.undecodable_bytes = statistics.bytes_rejected;
     summary.frames_of_other_pads = statistics.samples_beyond_pad_count;
-    if summary.rows_written == 0 {
-        bail!(
-            "no sample frame in {} bytes ({} undecodable frames): this is not a raw log written by `taxel record` (a CSV file is converted without --raw)",
-            statistics.bytes_received,
-            statistics.frames_rejected
-        );
-    }
+    ensure_samples_decoded(summary.rows_written, &statistics)?;
     writer.flush()?;
     summary.tare_warnings = pad_warnings(runs);
     Ok(summary)
