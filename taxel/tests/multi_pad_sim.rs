@@ -160,3 +160,90 @@ fn eight_pads_are_recorded_in_their_columns() {
         assert!(spread_s < 0.010, "pads of one set read {spread_s} s apart");
     }
 }
+
+/// Two devices with several pads each, recorded together: the long format has one row per
+/// pad frame, and every device's every pad follows its own scene.
+#[test]
+fn two_devices_with_several_pads_are_recorded_on_one_timeline() {
+    let directory = tempfile::tempdir().unwrap();
+    let first_directory = directory.path().join("first");
+    let second_directory = directory.path().join("second");
+    std::fs::create_dir_all(&first_directory).unwrap();
+    std::fs::create_dir_all(&second_directory).unwrap();
+    let (mut gripper, gripper_port) = start_simulator(&first_directory, &["--scene", "gripper"]);
+    let (mut three, three_port) = start_simulator(&second_directory, &["--pads", "3"]);
+    let recording = directory.path().join("both.csv");
+    let output = taxel()
+        .args([
+            "record",
+            &gripper_port,
+            &three_port,
+            "--samples",
+            "400",
+            "-o",
+        ])
+        .arg(&recording)
+        .output()
+        .unwrap();
+    for child in [&mut gripper, &mut three] {
+        let _ = child.kill();
+        let _ = child.wait();
+    }
+    let messages = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(output.status.success(), "{messages}");
+    let mut reader = csv::Reader::from_path(&recording).unwrap();
+    let header: Vec<String> = reader
+        .headers()
+        .unwrap()
+        .iter()
+        .map(str::to_owned)
+        .collect();
+    let column = |name: &str| header.iter().position(|cell| cell == name).unwrap();
+    let scenes = [
+        SceneFile::built_in("gripper").unwrap(),
+        SceneFile::default_scene().unwrap(),
+    ];
+    let mut frames = [[0usize; 3]; 2];
+    let mut checked = 0;
+    let mut previous_host_s = f64::MIN;
+    for record in reader.records() {
+        let record = record.unwrap();
+        let device: usize = record[column("device")].parse().unwrap();
+        let pad: usize = record[column("pad")].parse().unwrap();
+        frames[device][pad] += 1;
+        let host_s: f64 = record[column("host_time_s")].parse().unwrap();
+        assert!(host_s >= previous_host_s, "rows out of host-time order");
+        previous_host_s = host_s;
+        let all_read = ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"]
+            .iter()
+            .all(|name| !record[column(name)].is_empty());
+        let time_s: f64 = record[column("device_time_s")].parse().unwrap();
+        if time_s < 1.0 || !all_read {
+            continue;
+        }
+        let scene = &scenes[device];
+        let scene_time_s = time_s % scene.period_s();
+        let pressures = scene
+            .pad(pad)
+            .unwrap()
+            .scene
+            .point_at_s(scene_time_s)
+            .pressure_kpa;
+        let expected_n: f64 = pressures
+            .iter()
+            .map(|kpa| f64::from(*kpa) * 1e3 * ELECTRODE_AREA_M2)
+            .sum();
+        let force_n: f64 = record[column("force_n")].parse().unwrap();
+        assert!(
+            (force_n - expected_n).abs() < FORCE_TOLERANCE_N,
+            "device {device} pad {pad} at {time_s} s: {force_n} N, scene {expected_n} N"
+        );
+        checked += 1;
+    }
+    // 400 sample frames per device (the limit counts each device's frames): 200 sets of the
+    // gripper's two pads; the three-pad board's frames are split between its pads.
+    assert_eq!(frames[0][2], 0);
+    assert!(frames[0][0].abs_diff(frames[0][1]) <= 1, "{frames:?}");
+    assert!(frames[1].iter().all(|count| *count >= 130), "{frames:?}");
+    assert!(checked > 400, "{checked} pad frames checked");
+}
