@@ -31,14 +31,14 @@ use crate::recording::{read_device_state, BaselineChange, RecordedDeviceState, S
 use crate::stream_accounting::StreamAccounting;
 use crate::timeline_files::{device_raw_path, format_sync_error_ms, TimelineFiles};
 
-/// Which boards `taxel record` reads: any number of ports and of serial numbers (one device is
-/// recorded as before; several go on one host timeline).
+/// Which boards `taxel record` and `taxel view` read: any number of ports and of serial
+/// numbers (one device is handled as before; several go on one host timeline).
 #[derive(Debug, Clone, PartialEq, Eq, clap::Args)]
 pub struct MultiBoardArgs {
     /// Serial ports of the devices, one or more (default: the only attached board, or --serial).
     #[arg(value_name = "PORT")]
     pub ports: Vec<String>,
-    /// Choose an attached board by its USB serial number; repeat for several boards (recorded
+    /// Choose an attached board by its USB serial number; repeat for several boards (devices
     /// after the PORTs, in the order given).
     #[arg(long, value_name = "SN")]
     pub serial: Vec<String>,

@@ -3,9 +3,12 @@
 //! baselines the device used (`rec.csv.device.json`).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+mod support;
+use support::SimulatorProcess;
+
+use std::path::PathBuf;
+use std::process::Command;
+use std::time::Duration;
 
 /// Largest pressure difference allowed between the device and `convert`, kPa. The device
 /// converts the converter's raw code split in two exact f32 parts; the recording holds their
@@ -16,33 +19,6 @@ const AGREEMENT_KPA: f64 = 2.0e-4;
 
 fn taxel() -> Command {
     Command::new(env!("CARGO_BIN_EXE_taxel"))
-}
-
-/// `taxel sim` in the background; its port path once it is ready. The caller kills and waits.
-#[allow(clippy::zombie_processes)]
-fn start_simulator(directory: &Path) -> (Child, String) {
-    let path_file = directory.join("port");
-    let mut child = taxel()
-        .args(["sim", "--speed", "10", "--duration", "60", "--path-file"])
-        .arg(&path_file)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let deadline = Instant::now() + Duration::from_secs(30);
-    loop {
-        if let Ok(path) = std::fs::read_to_string(&path_file) {
-            if !path.trim().is_empty() {
-                return (child, path.trim().to_owned());
-            }
-        }
-        if Instant::now() >= deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("the simulator did not start");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
 }
 
 fn read_rows(path: &PathBuf) -> (Vec<String>, Vec<Vec<String>>) {
@@ -63,7 +39,8 @@ fn read_rows(path: &PathBuf) -> (Vec<String>, Vec<Vec<String>>) {
 #[test]
 fn a_recording_converted_with_the_defaults_gives_the_device_pressures() {
     let directory = tempfile::tempdir().unwrap();
-    let (mut simulator, port) = start_simulator(directory.path());
+    let mut simulator = SimulatorProcess::start(directory.path(), "port", &["--speed", "10"]);
+    let port = simulator.port.clone();
     // The simulator streams before anybody listens: let it buffer stale data first.
     std::thread::sleep(Duration::from_millis(500));
     let recording = directory.path().join("rec.csv");
@@ -94,8 +71,7 @@ fn a_recording_converted_with_the_defaults_gives_the_device_pressures() {
         messages.contains("the device's calibration recorded with it"),
         "convert says which calibration it used: {messages}"
     );
-    let _ = simulator.kill();
-    let _ = simulator.wait();
+    simulator.stop();
 
     let (recorded_header, recorded) = read_rows(&recording);
     let (converted_header, converted) = read_rows(&converted);
@@ -249,15 +225,15 @@ fn a_tare_during_a_recording_is_followed_by_the_conversion() {
 #[test]
 fn calibration_pull_writes_the_device_calibration() {
     let directory = tempfile::tempdir().unwrap();
-    let (mut simulator, port) = start_simulator(directory.path());
+    let mut simulator = SimulatorProcess::start(directory.path(), "port", &["--speed", "10"]);
+    let port = simulator.port.clone();
     let pulled = directory.path().join("pulled.json");
     let output = taxel()
         .args(["calibration", "pull", &port, "-o"])
         .arg(&pulled)
         .output()
         .unwrap();
-    let _ = simulator.kill();
-    let _ = simulator.wait();
+    simulator.stop();
     let messages = String::from_utf8_lossy(&output.stderr);
     assert!(output.status.success(), "{messages}");
     assert!(messages.contains("from flash"), "{messages}");

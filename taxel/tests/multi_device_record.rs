@@ -14,11 +14,12 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod support;
+use support::SimulatorProcess;
 
 use std::collections::{HashMap, VecDeque};
 use std::io::{self, Read, Write};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
@@ -459,39 +460,13 @@ fn taxel() -> Command {
     Command::new(support::taxel_binary())
 }
 
-/// `taxel sim` in real time in the background; its port path once it is ready.
-#[allow(clippy::zombie_processes)]
-fn start_simulator(directory: &Path, seed: u64) -> (Child, String) {
-    let path_file = directory.join(format!("port{seed}"));
-    let mut child = taxel()
-        .args(["sim", "--duration", "60", "--seed", &seed.to_string()])
-        .arg("--path-file")
-        .arg(&path_file)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let deadline = Instant::now() + Duration::from_secs(30);
-    loop {
-        if let Ok(path) = std::fs::read_to_string(&path_file) {
-            if !path.trim().is_empty() {
-                return (child, path.trim().to_owned());
-            }
-        }
-        if Instant::now() >= deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("the simulator did not start");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
 #[test]
 fn two_simulators_recorded_through_the_binary() {
     let directory = tempfile::tempdir().unwrap();
-    let (mut first, first_port) = start_simulator(directory.path(), 1);
-    let (mut second, second_port) = start_simulator(directory.path(), 2);
+    let mut first = SimulatorProcess::start(directory.path(), "port1", &["--seed", "1"]);
+    let first_port = first.port.clone();
+    let mut second = SimulatorProcess::start(directory.path(), "port2", &["--seed", "2"]);
+    let second_port = second.port.clone();
     let csv_path = directory.path().join("rec.csv");
     let output = taxel()
         .args([
@@ -505,10 +480,8 @@ fn two_simulators_recorded_through_the_binary() {
         .arg(&csv_path)
         .output()
         .unwrap();
-    for child in [&mut first, &mut second] {
-        let _ = child.kill();
-        let _ = child.wait();
-    }
+    first.stop();
+    second.stop();
     let messages = String::from_utf8_lossy(&output.stderr).into_owned();
     eprintln!("{messages}");
     assert!(output.status.success(), "{messages}");

@@ -4,6 +4,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod support;
+use support::info;
 
 use std::collections::HashMap;
 use std::process::Command;
@@ -16,29 +17,7 @@ use taxel::convert::{convert_csv, convert_raw, ConvertOptions};
 use taxel::device_link::DeviceLink;
 use taxel::record::{record_link, StopReason};
 use taxel::record_rows::RecordRows;
-use wire::{
-    CalibrationSource, DeviceFrame, FirmwareVersion, InfoFrame, PadIndex, PadSummary, SampleFrame,
-    SampleRate, TaxelSample, TemperatureSource, Tier,
-};
-
-fn info(pad_count: u8) -> InfoFrame {
-    InfoFrame {
-        protocol_version: wire::PROTOCOL_VERSION,
-        firmware_version: FirmwareVersion {
-            major: 3,
-            minor: 0,
-            patch: 0,
-        },
-        board_serial: [7; 12],
-        calibration_id: 0,
-        calibration_source: CalibrationSource::Defaults,
-        rate: SampleRate::Sps400,
-        model_tier: Tier::MonotoneCubic,
-        streaming: true,
-        text_mode: false,
-        pad_count,
-    }
-}
+use wire::{DeviceFrame, PadIndex, PadSummary, SampleFrame, TaxelSample, TemperatureSource};
 
 /// A frame whose every value tells its pad and set apart: capacitance 4.5 + pad/10 +
 /// taxel/100 + set/1000 pF, pressure 10 x pad + taxel + set/10 kPa, temperature 20 + pad °C,

@@ -5,10 +5,11 @@
 //! electrodes, computed here).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod support;
+use support::SimulatorProcess;
+
 use std::collections::HashMap;
-use std::path::Path;
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
 
 use sim_device::SceneFile;
 
@@ -21,46 +22,22 @@ fn taxel() -> Command {
     Command::new(env!("CARGO_BIN_EXE_taxel"))
 }
 
-/// `taxel sim` with `arguments` in the background; its port once it is ready.
-#[allow(clippy::zombie_processes)]
-fn start_simulator(directory: &Path, arguments: &[&str]) -> (Child, String) {
-    let path_file = directory.join("port");
-    let mut child = taxel()
-        .args(["sim", "--speed", "4", "--duration", "60", "--path-file"])
-        .arg(&path_file)
-        .args(arguments)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let deadline = Instant::now() + Duration::from_secs(30);
-    loop {
-        if let Ok(path) = std::fs::read_to_string(&path_file) {
-            if !path.trim().is_empty() {
-                return (child, path.trim().to_owned());
-            }
-        }
-        if Instant::now() >= deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("the simulator did not start");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
 /// Records `sets` sample sets from a simulator started with `arguments`; the rows by column.
 fn record(arguments: &[&str], sets: u32) -> Vec<HashMap<String, String>> {
     let directory = tempfile::tempdir().unwrap();
-    let (mut simulator, port) = start_simulator(directory.path(), arguments);
+    let mut simulator = SimulatorProcess::start(
+        directory.path(),
+        "port",
+        &[&["--speed", "4"], arguments].concat(),
+    );
+    let port = simulator.port.clone();
     let recording = directory.path().join("rec.csv");
     let output = taxel()
         .args(["record", &port, "--samples", &sets.to_string(), "-o"])
         .arg(&recording)
         .output()
         .unwrap();
-    let _ = simulator.kill();
-    let _ = simulator.wait();
+    simulator.stop();
     let messages = String::from_utf8_lossy(&output.stderr).into_owned();
     assert!(output.status.success(), "{messages}");
     let mut reader = csv::Reader::from_path(&recording).unwrap();
@@ -170,8 +147,15 @@ fn two_devices_with_several_pads_are_recorded_on_one_timeline() {
     let second_directory = directory.path().join("second");
     std::fs::create_dir_all(&first_directory).unwrap();
     std::fs::create_dir_all(&second_directory).unwrap();
-    let (mut gripper, gripper_port) = start_simulator(&first_directory, &["--scene", "gripper"]);
-    let (mut three, three_port) = start_simulator(&second_directory, &["--pads", "3"]);
+    let mut gripper = SimulatorProcess::start(
+        &first_directory,
+        "port",
+        &["--speed", "4", "--scene", "gripper"],
+    );
+    let gripper_port = gripper.port.clone();
+    let mut three =
+        SimulatorProcess::start(&second_directory, "port", &["--speed", "4", "--pads", "3"]);
+    let three_port = three.port.clone();
     let recording = directory.path().join("both.csv");
     let output = taxel()
         .args([
@@ -185,10 +169,8 @@ fn two_devices_with_several_pads_are_recorded_on_one_timeline() {
         .arg(&recording)
         .output()
         .unwrap();
-    for child in [&mut gripper, &mut three] {
-        let _ = child.kill();
-        let _ = child.wait();
-    }
+    gripper.stop();
+    three.stop();
     let messages = String::from_utf8_lossy(&output.stderr).into_owned();
     assert!(output.status.success(), "{messages}");
     let mut reader = csv::Reader::from_path(&recording).unwrap();

@@ -7,15 +7,13 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod support;
+use support::info;
 
 use std::time::{Duration, Instant};
 
 use taxel::layout::{Layout, LayoutProblem};
 use taxel::view::{render_to_string, PadFreshness, ViewState, CENTRE_MARKER};
-use wire::{
-    CalibrationSource, DeviceFrame, FirmwareVersion, InfoFrame, PadIndex, PadSummary, SampleFrame,
-    TaxelSample, TemperatureSource,
-};
+use wire::{DeviceFrame, PadIndex, PadSummary, SampleFrame, TaxelSample, TemperatureSource};
 
 /// SHORTED: a fault (the taxel has no pressure).
 const SHORTED: u16 = 0x0004;
@@ -23,25 +21,6 @@ const SHORTED: u16 = 0x0004;
 const NOT_TARED: u16 = 0x0080;
 /// OVER_RANGE: not a fault (the pressure is the top of the calibration).
 const OVER_RANGE: u16 = 0x0002;
-
-fn info(pad_count: u8) -> InfoFrame {
-    InfoFrame {
-        protocol_version: wire::PROTOCOL_VERSION,
-        firmware_version: FirmwareVersion {
-            major: 3,
-            minor: 0,
-            patch: 0,
-        },
-        board_serial: [7; 12],
-        calibration_id: 0,
-        calibration_source: CalibrationSource::Defaults,
-        rate: wire::SampleRate::Sps400,
-        model_tier: wire::Tier::MonotoneCubic,
-        streaming: true,
-        text_mode: false,
-        pad_count,
-    }
-}
 
 /// What one pad reads in one set.
 #[derive(Clone, Copy)]

@@ -9,11 +9,17 @@
 //! contact, faults, and stale or missing pads said as such; the number keys (or `--pad N`) show
 //! one pad in the detailed view, `a` all of them again.
 //!
+//! Several devices (several PORTs or `--serial` repeated) are viewed together by `multi`: one
+//! reader thread per device, arrivals on one host clock, each device's clock mapped onto it,
+//! one section of tiles and one clock line per device ([`DevicesView`]).
+//!
 //! [`ViewState`] holds what is shown and [`draw`] renders it in the layout the terminal allows;
 //! [`render_to_string`] renders one frame into ratatui's `TestBackend`, which is how the view
 //! is tested and how `--once` prints a text snapshot.
 
+mod connection;
 mod draw;
+mod multi;
 mod pads;
 mod state;
 
@@ -21,6 +27,7 @@ pub use draw::{
     draw, heat_colour, taxel_flag_words, KEYS_LINE, KEYS_LINE_ONE_OF_SEVERAL, MIN_HEIGHT,
     MIN_WIDTH, WIDE_HEIGHT, WIDE_WIDTH,
 };
+pub use multi::{render_devices_to_string, DeviceView, DevicesView, KEYS_LINE_DEVICES};
 pub use pads::{CENTRE_MARKER, KEYS_LINE_EVERY_PAD};
 pub use state::{PadFreshness, RecordingStatus, ViewState, STALE_AFTER};
 
@@ -37,15 +44,17 @@ use ratatui::layout::Rect;
 use ratatui::Terminal;
 use wire::{Command, DeviceFrame};
 
-use crate::device_link::{self, attached_boards, choose_board, BoardArgs, DeviceLink, LinkError};
+use crate::device_link::{DeviceLink, LinkError};
 use crate::layout::Layout;
+use crate::multi_record::MultiBoardArgs;
 use crate::recording::{read_device_state, BaselineFollower, Recording};
+use connection::{connect, BoardTarget, Connection, SerialLink};
 
 /// Samples `--once` collects (for a rate) before it prints, unless its timeout ends first.
-const SNAPSHOT_SAMPLES: u64 = 20;
+pub(super) const SNAPSHOT_SAMPLES: u64 = 20;
 
 /// How long a request made from the view (device state, baselines) may wait for its reply.
-const VIEW_REQUEST_TIMEOUT: Duration = Duration::from_millis(1000);
+pub(super) const VIEW_REQUEST_TIMEOUT: Duration = Duration::from_millis(1000);
 
 /// The long help of the subcommand.
 pub const LONG_ABOUT: &str = "Live terminal view of the pad: the 2x2 taxels as a heat map \
@@ -92,15 +101,26 @@ added below it. Without --layout, one pad gets the detailed view and several an 
 (\"pad 0\" to \"pad N-1\", four to a row).\n\n\
 Unplugging is survived: the view waits for the board to come back (found again by its serial \
 number) and resumes.\n\n--once prints a single text snapshot and exits.\n\n\
+Several devices: several PORTs, or --serial repeated (after the PORTs in device order), are read \
+at once, each in its own thread, every frame stamped with its arrival on one host clock and each \
+device's clock mapped onto it (as `taxel record` does with several devices). Each device gets a \
+section of tiles named \"dev D pad P\" and a line: connected or not, sample sets per second, and \
+its clock's offset from the host's, drift in ppm and the estimated synchronisation error in ms \
+(\"clock estimating\" until about 2 s of frames came). Staleness is judged per device on the \
+host clock of arrival. --layout applies to device 0's pads (\"dev 0 left finger\"); the other \
+devices get the automatic grid. Keys: t tares every device, p pauses, q quits; r, m, 0-7 and \
+--pad are for one device (they say so). --once prints a snapshot after 20 samples from every \
+device (or --timeout-ms).\n\n\
 Examples:\n  taxel view /dev/ttyACM0\n  taxel view --once --width 80 --height 24 /dev/ttyACM0\n  \
-taxel view --layout gripper /dev/ttyACM0\n  taxel view --layout my-hand.toml --pad 2";
+taxel view --layout gripper /dev/ttyACM0\n  taxel view --layout my-hand.toml --pad 2\n  \
+taxel view /dev/ttyACM0 /dev/ttyACM1\n  taxel view --serial 0A1B2C --serial 3D4E5F";
 
 /// Arguments of `taxel view`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ViewArgs {
-    /// The device.
+    /// The device, or several (one section of tiles each, see the long help).
     #[command(flatten)]
-    pub board: BoardArgs,
+    pub board: MultiBoardArgs,
     /// Print one snapshot of the view as text and exit.
     #[arg(long)]
     pub once: bool,
@@ -135,7 +155,7 @@ pub struct ViewArgs {
 
 impl ViewArgs {
     /// The view's state before the first frame, as these arguments set it up.
-    fn initial_state(&self, source: String, layout: Option<Layout>) -> ViewState {
+    pub(super) fn initial_state(&self, source: String, layout: Option<Layout>) -> ViewState {
         let mut state = ViewState::new(source);
         state.full_scale_kpa = self.full_scale_kpa;
         state.history_s = self.history_s;
@@ -147,7 +167,7 @@ impl ViewArgs {
     /// The defaults on one port (what `taxel view PORT` gets).
     pub fn for_port(port: String, once: bool) -> Self {
         Self {
-            board: BoardArgs::for_port(port),
+            board: MultiBoardArgs::for_ports(vec![port]),
             once,
             width: 80,
             height: 24,
@@ -162,7 +182,7 @@ impl ViewArgs {
     }
 }
 
-fn area_text(backend: &TestBackend) -> String {
+pub(super) fn area_text(backend: &TestBackend) -> String {
     let buffer = backend.buffer();
     let area: Rect = buffer.area;
     let mut text = String::new();
@@ -188,118 +208,25 @@ pub fn render_to_string(state: &ViewState, width: u16, height: u16) -> String {
     area_text(terminal.backend())
 }
 
-/// How to find the board again after an unplug.
-#[derive(Debug, Clone)]
-struct BoardTarget {
-    path: Option<String>,
-    serial_number: Option<String>,
-    vid: u16,
-    pid: u16,
-}
-
-impl BoardTarget {
-    fn new(args: &ViewArgs) -> Self {
-        let board = &args.board;
-        let mut target = Self {
-            path: board.port.clone(),
-            serial_number: board.serial.clone(),
-            vid: board.vid,
-            pid: board.pid,
-        };
-        if target.serial_number.is_none() {
-            if let Some(path) = &target.path {
-                // Knowing the serial number lets a replugged board be found under a new name.
-                target.serial_number = attached_boards(board.vid, board.pid)
-                    .ok()
-                    .and_then(|boards| boards.into_iter().find(|board| &board.port_name == path))
-                    .and_then(|board| board.serial_number);
-            }
-        }
-        target
-    }
-
-    fn describe(&self) -> String {
-        match (&self.serial_number, &self.path) {
-            (Some(serial), _) => format!("board {serial}"),
-            (None, Some(path)) => path.clone(),
-            (None, None) => format!("a board {:04x}:{:04x}", self.vid, self.pid),
-        }
-    }
-
-    fn find(&mut self) -> Result<String, LinkError> {
-        if self.serial_number.is_some() || self.path.is_none() {
-            let boards = attached_boards(self.vid, self.pid)?;
-            match choose_board(&boards, self.serial_number.as_deref(), self.vid, self.pid) {
-                Ok(board) => {
-                    if self.serial_number.is_none() {
-                        self.serial_number = board.serial_number.clone();
-                    }
-                    return Ok(board.port_name);
-                }
-                Err(error) if self.path.is_none() => return Err(error),
-                Err(_) => {}
-            }
-        }
-        match &self.path {
-            Some(path) => {
-                device_link::check_is_serial_port(path)?;
-                Ok(path.clone())
-            }
-            None => Err(LinkError::NoBoard {
-                vid: self.vid,
-                pid: self.pid,
-            }),
-        }
-    }
-}
-
-type SerialLink = DeviceLink<Box<dyn serialport::SerialPort>>;
-
-/// An open link that knows the device and has asked it to stream, with the request id of the
-/// StartStreaming whose reply the loop waits for.
-struct Connection {
-    link: SerialLink,
-    start_request_id: u16,
-}
-
-/// Opens the port, discards what waited in it from before (stale samples), learns the device's
-/// identity and counters (the accounting's origin) and starts the stream.
-fn connect(
-    target: &mut BoardTarget,
-    read_timeout: Duration,
-    state: &mut ViewState,
-) -> anyhow::Result<Connection> {
-    let path = target.find()?;
-    // A pseudo-terminal has no DTR line; a real board that misses it shows up as silence.
-    let port = device_link::open_serial(&path, read_timeout)?.port;
-    let mut link = DeviceLink::new(port);
-    let (info, stale) = link
-        .synchronise(VIEW_REQUEST_TIMEOUT)
-        .with_context(|| format!("asking the device on {path} who it is"))?;
-    let described = target.describe();
-    state.connected_to(if described == path {
-        path.clone()
-    } else {
-        format!("{path} ({described})")
-    });
-    state.info = Some(info);
-    state.accounting.stale_discarded(stale);
-    link.send(Command::ReadCounters)?;
-    let start_request_id = link.send(Command::StartStreaming)?;
-    Ok(Connection {
-        link,
-        start_request_id,
-    })
-}
-
 /// What the loop sent and is waiting to hear about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Pending {
+pub(super) enum Pending {
     Tare,
     StartStreaming,
 }
 
 fn handle_frame(state: &mut ViewState, pending: &mut HashMap<u16, Pending>, frame: &DeviceFrame) {
+    note_reply(state, pending, frame);
+    state.apply_frame(frame);
+}
+
+/// Says in the status what became of a request the view made (tare, start), if `frame` is
+/// its reply.
+pub(super) fn note_reply(
+    state: &mut ViewState,
+    pending: &mut HashMap<u16, Pending>,
+    frame: &DeviceFrame,
+) {
     if let DeviceFrame::Reply(reply) = frame {
         match (pending.remove(&reply.request_id), &reply.result) {
             (Some(Pending::Tare), Ok(_)) => state.status = "tare done".to_owned(),
@@ -310,7 +237,6 @@ fn handle_frame(state: &mut ViewState, pending: &mut HashMap<u16, Pending>, fram
             _ => {}
         }
     }
-    state.apply_frame(frame);
 }
 
 /// A recording started from the view.
@@ -465,7 +391,7 @@ fn live_loop<B: ratatui::backend::Backend>(
 where
     B::Error: std::error::Error + Send + Sync + 'static,
 {
-    let mut target = BoardTarget::new(args);
+    let mut target = BoardTarget::single(args);
     let mut state = args.initial_state(target.describe(), layout);
     let mut link: Option<SerialLink> = None;
     let mut pending: HashMap<u16, Pending> = HashMap::new();
@@ -636,8 +562,11 @@ pub fn snapshot_state<P: Read + Write>(
 pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
     // A bad layout is reported before the terminal is taken over.
     let layout = args.layout.as_deref().map(Layout::load).transpose()?;
+    if args.board.ports.len() + args.board.serial.len() > 1 {
+        return multi::run(args, layout);
+    }
     if args.once {
-        let mut target = BoardTarget::new(args);
+        let mut target = BoardTarget::single(args);
         let mut state = args.initial_state(target.describe(), layout);
         let Connection { mut link, .. } =
             connect(&mut target, Duration::from_millis(50), &mut state)?;

@@ -72,6 +72,24 @@ pub(super) fn draw_every_pad(frame: &mut Frame, area: Rect, state: &ViewState) {
     );
 }
 
+/// Draws a device's pads in `area` without its summary lines (the view of several devices
+/// has its own): tiles when they fit, else one line per pad.
+pub(super) fn draw_pad_grid(frame: &mut Frame, area: Rect, state: &ViewState) {
+    let arrangement = state.arrangement();
+    if tiles_fit(area, &arrangement) {
+        draw_tiles(frame, area, state, &arrangement);
+    } else {
+        frame.render_widget(
+            Paragraph::new(compact_pad_lines(
+                state,
+                &arrangement,
+                usize::from(area.height),
+            )),
+            area,
+        );
+    }
+}
+
 fn tiles_fit(grid_area: Rect, arrangement: &Arrangement) -> bool {
     let tile_width = grid_area.width / arrangement.columns.max(1);
     let tile_height = grid_area.height / arrangement.rows.max(1);
@@ -108,7 +126,7 @@ fn tile_title(tile: &PadTile, width: u16) -> String {
     let index = tile.place.index;
     let full = if !tile.in_layout {
         format!(" {name}, not in layout ")
-    } else if *name == format!("pad {index}") {
+    } else if name.ends_with(&format!("pad {index}")) {
         format!(" {name} ")
     } else {
         format!(" {name} (pad {index}) ")
@@ -609,6 +627,33 @@ fn compact_pad_line(tile: &PadTile, state: &ViewState, name_width: usize) -> Lin
 /// fit; the status and the keys always show.
 fn compact_lines(state: &ViewState, arrangement: &Arrangement, height: u16) -> Vec<Line<'static>> {
     let height = usize::from(height);
+    let mut lines = compact_pad_lines(state, arrangement, height.saturating_sub(2));
+    let spare = height.saturating_sub(lines.len() + 2);
+    let optional = [
+        Line::from(format!(
+            "{} sets/s  {}",
+            rate_text(state),
+            layout_words(state, arrangement)
+        )),
+        Line::from(format!(
+            "{} lost on link, {} dropped by device",
+            state.accounting.lost_on_link(),
+            state.accounting.device_dropped()
+        )),
+    ];
+    lines.extend(optional.into_iter().take(spare));
+    lines.push(status_line(state));
+    lines.push(Line::from(COMPACT_KEYS_LINE));
+    lines
+}
+
+/// Every pad on one line each, in reading order of the layout, in `pad_rows` lines at most
+/// (the last one then says how many more there are).
+fn compact_pad_lines(
+    state: &ViewState,
+    arrangement: &Arrangement,
+    pad_rows: usize,
+) -> Vec<Line<'static>> {
     let mut tiles: Vec<&PadTile> = arrangement.tiles.iter().collect();
     tiles.sort_by_key(|tile| (tile.place.row, tile.place.column));
     let name_width = tiles
@@ -617,7 +662,6 @@ fn compact_lines(state: &ViewState, arrangement: &Arrangement, height: u16) -> V
         .max()
         .unwrap_or(0)
         .min(COMPACT_NAME_WIDTH);
-    let pad_rows = height.saturating_sub(2);
     let mut lines: Vec<Line<'static>> = Vec::new();
     if tiles.len() <= pad_rows {
         lines.extend(
@@ -638,22 +682,6 @@ fn compact_lines(state: &ViewState, arrangement: &Arrangement, height: u16) -> V
             tiles.len() - shown
         )));
     }
-    let spare = height.saturating_sub(lines.len() + 2);
-    let optional = [
-        Line::from(format!(
-            "{} sets/s  {}",
-            rate_text(state),
-            layout_words(state, arrangement)
-        )),
-        Line::from(format!(
-            "{} lost on link, {} dropped by device",
-            state.accounting.lost_on_link(),
-            state.accounting.device_dropped()
-        )),
-    ];
-    lines.extend(optional.into_iter().take(spare));
-    lines.push(status_line(state));
-    lines.push(Line::from(COMPACT_KEYS_LINE));
     lines
 }
 

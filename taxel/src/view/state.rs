@@ -100,6 +100,9 @@ pub struct ViewState {
     /// The pad shown in the detailed view; `None`: every pad when the device has several or a
     /// layout is given, pad 0 in detail otherwise.
     pub detail_pad: Option<u8>,
+    /// Which device this is when the view shows several ("dev 1"): put before every pad's
+    /// name.
+    pub device_label: Option<String>,
     pads: [PadView; MAX_PADS as usize],
     newest_device_time_us: Option<u64>,
     now: Option<Instant>,
@@ -124,6 +127,7 @@ impl ViewState {
             recording: None,
             layout: None,
             detail_pad: None,
+            device_label: None,
             pads: std::array::from_fn(|_| PadView::default()),
             newest_device_time_us: None,
             now: None,
@@ -256,21 +260,34 @@ impl ViewState {
         self.layout.is_some() || self.pad_count() > 1
     }
 
-    /// The tiles: the layout's (or the automatic grid's), fitted to the device's pad count.
+    /// The tiles: the layout's (or the automatic grid's), fitted to the device's pad count,
+    /// their names after the [`ViewState::device_label`].
     pub fn arrangement(&self) -> Arrangement {
         let device_pad_count = self.info.map(|info| info.pad_count);
-        match &self.layout {
+        let mut arrangement = match &self.layout {
             Some(layout) => layout.arrange(device_pad_count),
             None => Layout::automatic(self.pad_count()).arrange(device_pad_count),
+        };
+        if let Some(label) = &self.device_label {
+            for tile in &mut arrangement.tiles {
+                tile.place.name = format!("{label} {}", tile.place.name);
+            }
         }
+        arrangement
     }
 
-    /// The name a pad has in the layout ("pad N" when it names none).
+    /// The name a pad has in the layout ("pad N" when it names none), after the
+    /// [`ViewState::device_label`].
     pub fn pad_name(&self, pad: u8) -> String {
-        self.layout
+        let name = self
+            .layout
             .as_ref()
             .and_then(|layout| layout.pad(pad))
-            .map_or_else(|| format!("pad {pad}"), |place| place.name.clone())
+            .map_or_else(|| format!("pad {pad}"), |place| place.name.clone());
+        match &self.device_label {
+            Some(label) => format!("{label} {name}"),
+            None => name,
+        }
     }
 
     /// The last sample of a pad (frozen while paused), whether live or stale: see

@@ -1,5 +1,6 @@
-//! Shared test helpers: frame builders, an in-memory device and a seeded noise source.
-#![allow(dead_code, clippy::unwrap_used)]
+//! Shared test helpers: frame builders, an in-memory device, a seeded noise source and
+//! `taxel sim` processes.
+#![allow(dead_code, clippy::unwrap_used, clippy::panic)]
 
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
@@ -12,6 +13,62 @@ use wire::{
 /// The path of the built `taxel` binary.
 pub fn taxel_binary() -> &'static str {
     env!("CARGO_BIN_EXE_taxel")
+}
+
+/// A `taxel sim` process serving a simulated device on a pseudo-terminal; killed when dropped.
+pub struct SimulatorProcess {
+    child: std::process::Child,
+    /// The terminal to open.
+    pub port: String,
+}
+
+impl SimulatorProcess {
+    /// Starts `taxel sim --duration 60 <arguments>` with its port written to `name` in
+    /// `directory`; returns once the port is ready (panics after 30 s).
+    // The child is waited for when the returned value is stopped or dropped.
+    #[allow(clippy::zombie_processes)]
+    pub fn start(directory: &std::path::Path, name: &str, arguments: &[&str]) -> Self {
+        use std::time::{Duration, Instant};
+        let path_file = directory.join(name);
+        let mut child = std::process::Command::new(taxel_binary())
+            .args(["sim", "--duration", "60"])
+            .args(arguments)
+            .arg("--path-file")
+            .arg(&path_file)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            if let Ok(path) = std::fs::read_to_string(&path_file) {
+                if !path.trim().is_empty() {
+                    return Self {
+                        child,
+                        port: path.trim().to_owned(),
+                    };
+                }
+            }
+            if Instant::now() >= deadline {
+                let _ = child.kill();
+                let _ = child.wait();
+                panic!("the simulator did not start");
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    /// Stops it now.
+    pub fn stop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Drop for SimulatorProcess {
+    fn drop(&mut self) {
+        self.stop();
+    }
 }
 
 /// A sample frame with four taxels.
@@ -163,5 +220,25 @@ impl SplitMix64 {
     /// Uniform in [-1, 1).
     pub fn symmetric(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+}
+
+/// An Info frame of a device with `pad_count` pads (firmware 3.0.0, default calibration).
+pub fn info(pad_count: u8) -> wire::InfoFrame {
+    wire::InfoFrame {
+        protocol_version: wire::PROTOCOL_VERSION,
+        firmware_version: wire::FirmwareVersion {
+            major: 3,
+            minor: 0,
+            patch: 0,
+        },
+        board_serial: [7; 12],
+        calibration_id: 0,
+        calibration_source: wire::CalibrationSource::Defaults,
+        rate: wire::SampleRate::Sps400,
+        model_tier: wire::Tier::MonotoneCubic,
+        streaming: true,
+        text_mode: false,
+        pad_count,
     }
 }
