@@ -10,6 +10,9 @@ pub struct Counters {
     /// Converter initialisations: the first one and every one after an error (one that only
     /// applies a requested rate change is not counted).
     pub converter_inits: u32,
+    /// Initialisations after an error: every one but each converter's first (summed over pads,
+    /// it stays the number of recoveries).
+    pub converter_reinits: u32,
     /// I2C transfers to the converter that failed.
     pub i2c_errors: u32,
     /// Converter cycles whose DONE bits did not all set in time.
@@ -47,6 +50,9 @@ impl Counters {
     pub fn plus(&self, other: &Counters) -> Counters {
         Counters {
             converter_inits: self.converter_inits.saturating_add(other.converter_inits),
+            converter_reinits: self
+                .converter_reinits
+                .saturating_add(other.converter_reinits),
             i2c_errors: self.i2c_errors.saturating_add(other.i2c_errors),
             done_timeouts: self.done_timeouts.saturating_add(other.done_timeouts),
             converter_check_failures: self
@@ -58,11 +64,6 @@ impl Counters {
                 .temperature_errors
                 .saturating_add(other.temperature_errors),
         }
-    }
-
-    /// Converter re-initialisations after an error (initialisations after the first one).
-    pub fn converter_reinits(&self) -> u32 {
-        self.converter_inits.saturating_sub(1)
     }
 }
 
@@ -82,5 +83,17 @@ mod tests {
         Counters::bump(&mut count);
         Counters::bump(&mut count);
         assert_eq!(count, u32::MAX);
+    }
+
+    #[test]
+    fn recoveries_add_up_over_pads() {
+        // Two pads, each initialised once and recovered twice: 2 + 2 recoveries, not 6 - 1.
+        let pad = Counters {
+            converter_inits: 3,
+            converter_reinits: 2,
+            ..Counters::default()
+        };
+        let total = pad.plus(&pad);
+        assert_eq!((total.converter_inits, total.converter_reinits), (6, 4));
     }
 }

@@ -235,14 +235,6 @@ where
         })
     }
 
-    /// Converter re-initialisations after errors, summed over pads (each pad's first
-    /// initialisation is no re-initialisation).
-    pub fn converter_reinits(&self) -> u32 {
-        self.pads.iter().fold(0u32, |total, pad| {
-            total.saturating_add(pad.counters().converter_reinits())
-        })
-    }
-
     /// The converters' sample rate.
     pub fn rate(&self) -> Rate {
         self.rate

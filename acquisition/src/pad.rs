@@ -177,6 +177,9 @@ where
                 if stuck.iter().any(|is_stuck| *is_stuck) {
                     Counters::bump(&mut self.counters.stuck_events);
                     self.converter_ready = false;
+                    if shares_loop {
+                        self.back_off(clock, config, true);
+                    }
                 }
                 let mut readings = [TaxelReading::Unavailable; TAXEL_COUNT];
                 for ((reading, code), capdac) in readings.iter_mut().zip(codes).zip(capdac) {
@@ -247,6 +250,9 @@ where
                 }
             }
             if !core::mem::take(&mut self.reconfiguration_requested) {
+                if self.counters.converter_inits > 0 {
+                    Counters::bump(&mut self.counters.converter_reinits);
+                }
                 Counters::bump(&mut self.counters.converter_inits);
             }
             if let Err(error) = self.converter.init().await {
@@ -261,6 +267,11 @@ where
             Ok(measurements) if measurements.all_zero() => {
                 Counters::bump(&mut self.counters.zero_reads);
                 self.converter_ready = false;
+                // Recovery is a full initialisation (its power-up wait included), which the
+                // other pads sharing the loop would pay in every set.
+                if shares_loop {
+                    self.back_off(clock, config, true);
+                }
                 None
             }
             Ok(measurements) => {
@@ -271,7 +282,9 @@ where
                 // A stalled converter answers and initialises, then makes every read wait out
                 // the DONE timeout: retrying it at once would cost the other pads that wait in
                 // every set, so it backs off like a converter that does not initialise.
-                if matches!(error, fdc1004::Error::DoneTimeout { .. }) {
+                // With other pads, any failed read is followed by an initialisation they would
+                // wait for, so it backs off too.
+                if shares_loop || matches!(error, fdc1004::Error::DoneTimeout { .. }) {
                     self.back_off(clock, config, shares_loop);
                 }
                 self.counters.count_converter_error(&error);

@@ -30,8 +30,6 @@ pub trait DeviceControl {
     fn set_sample_rate(&mut self, rate: SampleRate);
     /// Every pad's counters added up.
     fn counters(&self) -> Counters;
-    /// Converter re-initialisations after errors, summed over pads.
-    fn converter_reinits(&self) -> u32;
 }
 
 impl<I2C, D, T, F, K> DeviceControl for Acquisition<I2C, D, T, F, K>
@@ -72,9 +70,5 @@ where
 
     fn counters(&self) -> Counters {
         Acquisition::counters(self)
-    }
-
-    fn converter_reinits(&self) -> u32 {
-        Acquisition::converter_reinits(self)
     }
 }

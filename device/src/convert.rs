@@ -83,16 +83,11 @@ pub fn sample_frame(
     }
 }
 
-/// The counters frame: the loop's counters summed over pads, their re-initialisations after
-/// errors (also summed), and the host side's.
-pub fn counters_frame(
-    counters: &Counters,
-    converter_reinits: u32,
-    host: &HostCounters,
-) -> CountersFrame {
+/// The counters frame: the loop's counters summed over pads, and the host side's.
+pub fn counters_frame(counters: &Counters, host: &HostCounters) -> CountersFrame {
     CountersFrame {
         dropped_sample_sets: host.sample_sets_dropped,
-        converter_reinits,
+        converter_reinits: counters.converter_reinits,
         i2c_errors: counters.i2c_errors,
         temperature_sensor_errors: counters.temperature_errors,
         frames_dropped_no_host: host.frames_dropped_no_host,

@@ -410,7 +410,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             return;
         };
         let mut events: heapless::Vec<DeviceEvent, 3> = heapless::Vec::new();
-        let reinits = sample.counters.converter_reinits();
+        let reinits = sample.counters.converter_reinits;
         if reinits != reporting.last_converter_reinits {
             reporting.last_converter_reinits = reinits;
             let _ = events.push(DeviceEvent::ConverterReinitialised {
@@ -499,11 +499,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             && self.sets_since_counters >= self.config.counters_every_sets
         {
             self.sets_since_counters = 0;
-            let counters = counters_frame(
-                &self.control.counters(),
-                self.control.converter_reinits(),
-                &self.host_counters,
-            );
+            let counters = counters_frame(&self.control.counters(), &self.host_counters);
             self.send_status(host, DeviceFrame::Counters(counters));
         }
     }
@@ -572,20 +568,27 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
     }
 
     /// Sets every pad's tier, or none: a tier one pad's calibration cannot provide leaves every
-    /// pad as it was.
+    /// pad on the tier it had (NotSupported, as on a board without pads).
     fn set_tier_everywhere(&mut self, tier: Tier) -> Result<(), ErrorCode> {
-        let previous = self.control.pad(FIRST_PAD).map(PadModel::tier);
+        let mut previous: heapless::Vec<Tier, MAX_PADS> = heapless::Vec::new();
+        for pad in 0..self.control.pad_count() {
+            if let Some(model) = self.control.pad(pad) {
+                // Cannot fail: the loop holds at most MAX_PADS pads.
+                let _ = previous.push(model.tier());
+            }
+        }
+        if previous.is_empty() {
+            return Err(ErrorCode::NotSupported);
+        }
         for pad in 0..self.control.pad_count() {
             let Some(model) = self.control.pad_mut(pad) else {
                 continue;
             };
             if model.set_tier(tier).is_err() {
-                if let Some(previous) = previous {
-                    for changed in 0..pad {
-                        if let Some(model) = self.control.pad_mut(changed) {
-                            // The tier was in use on this pad a moment ago.
-                            let _ = model.set_tier(previous);
-                        }
+                for (changed, tier) in previous.iter().enumerate().take(pad) {
+                    if let Some(model) = self.control.pad_mut(changed) {
+                        // The tier was in use on this pad a moment ago.
+                        let _ = model.set_tier(*tier);
                     }
                 }
                 return Err(ErrorCode::NotSupported);
@@ -630,7 +633,6 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             Command::Info => Ok(ReplyPayload::Info(self.info())),
             Command::ReadCounters => Ok(ReplyPayload::Counters(counters_frame(
                 &self.control.counters(),
-                self.control.converter_reinits(),
                 &self.host_counters,
             ))),
             Command::StartStreaming => {

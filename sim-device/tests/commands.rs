@@ -705,6 +705,6 @@ fn dropped_sample_sets_counts_the_sample_sets_that_were_not_sent() {
     );
     assert!(counters.frames_dropped_no_host > counters.sample_sets_dropped);
     let control = device.device_mut().control();
-    let frame = device::counters_frame(&control.counters(), control.converter_reinits(), &counters);
+    let frame = device::counters_frame(&control.counters(), &counters);
     assert_eq!(frame.dropped_sample_sets, counters.sample_sets_dropped);
 }

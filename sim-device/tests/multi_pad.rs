@@ -235,6 +235,7 @@ fn a_failing_pad_is_flagged_and_recovers_while_the_others_keep_their_rate() {
         );
         if failing {
             let inside = sets_between(&run, pad, 2.05, 2.95);
+            assert!(!inside.is_empty(), "pad {pad}: no frame during its fault");
             assert!(
                 inside
                     .iter()
@@ -316,16 +317,19 @@ fn the_gripper_scene_grasps_with_two_pads_and_the_object_slips_down() {
     for pad in 0..2u8 {
         // Held: centred. Slipping: the centre of pressure moves towards row 2 (negative y).
         let held = sets_between(&run, pad, 3.0, 4.5);
+        assert!(!held.is_empty());
         assert!(held.iter().all(|sample| {
             let [x_mm, y_mm] = sample.summary.centre_of_pressure_mm.unwrap();
             x_mm.abs() < 0.3 && y_mm.abs() < 0.3 && sample.summary.contact
         }));
         let slipped = sets_between(&run, pad, 6.8, 7.0);
+        assert!(!slipped.is_empty());
         assert!(slipped.iter().all(|sample| {
             let [_, y_mm] = sample.summary.centre_of_pressure_mm.unwrap();
             y_mm < -1.5
         }));
         let released = sets_between(&run, pad, 7.6, 8.0);
+        assert!(!released.is_empty());
         assert!(released.iter().all(|sample| !sample.summary.contact));
     }
 }
@@ -350,8 +354,8 @@ fn the_glove_scene_loads_six_pads_and_flags_the_shorted_fingertip_only() {
                 assert!(reads(sample) && sample.summary.contact, "pad {pad}");
             }
         }
-        assert!(sets_between(&run, pad, 9.3, 10.0)
-            .iter()
-            .all(|sample| !sample.summary.contact));
+        let released = sets_between(&run, pad, 9.3, 10.0);
+        assert!(!released.is_empty());
+        assert!(released.iter().all(|sample| !sample.summary.contact));
     }
 }

@@ -124,8 +124,8 @@ pub fn pull_baselines<P: Read + Write>(
     Ok(baselines)
 }
 
-/// Writes the calibration to every pad of the device (as many as its Info says, one when the
-/// link has not seen it), taxel by taxel, then saves it to flash if `save`. Each request waits
+/// Writes the calibration to every pad of the device (as many as its Info says, asked for when
+/// the link has not seen it), taxel by taxel, then saves it to flash if `save`. Each request waits
 /// for its reply; a refusal or a timeout stops the upload.
 pub fn upload<P: Read + Write>(
     link: &mut DeviceLink<P>,
@@ -139,7 +139,20 @@ pub fn upload<P: Read + Write>(
         Ok(_) => bail!("{what}: the device answered with a reply of another kind"),
         Err(error) => Err(anyhow::Error::new(error).context(what.to_owned())),
     };
-    let pads = (0..link.pad_count().unwrap_or(1)).filter_map(PadIndex::new);
+    let pad_count = match link.pad_count() {
+        Some(pad_count) => pad_count,
+        // A fresh link has not seen the Info frame yet: writing pad 0 alone would leave the
+        // other pads on their old calibration.
+        None => match link.request(Command::Info, timeout) {
+            Ok(ReplyPayload::Info(info)) => info.pad_count,
+            Ok(_) => return Err(RequestError::UnexpectedReply("Info").into()),
+            Err(error) => return Err(anyhow::Error::new(error).context("Info")),
+        },
+    };
+    if pad_count == 0 {
+        bail!("the device found no pad to calibrate");
+    }
+    let pads = (0..pad_count).filter_map(PadIndex::new);
     for pad in pads {
         for (taxel_index, name) in (0u8..).zip(TAXEL_NAMES) {
             let record = device::calibration_record(calibration, pad, taxel_index)

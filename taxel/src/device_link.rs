@@ -411,6 +411,12 @@ impl<P: Read + Write> DeviceLink<P> {
         self.receiver.pad_count()
     }
 
+    /// Takes the device's pad count as known (from an Info frame read elsewhere, or a test's
+    /// fake device), so that what depends on it does not ask the device.
+    pub fn set_pad_count(&mut self, pad_count: u8) {
+        self.receiver.set_pad_count(pad_count);
+    }
+
     /// Frames dropped because the caller did not take them while a request waited.
     pub fn frames_dropped_from_queue(&self) -> u64 {
         self.frames_dropped_from_queue

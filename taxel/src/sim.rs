@@ -195,8 +195,12 @@ pub fn run(args: &SimArgs) -> anyhow::Result<ExitCode> {
             .with_context(|| format!("linking {}", link.display()))?;
     }
     if let Some(path_file) = &args.path_file {
-        std::fs::write(path_file, simulator.path().to_string_lossy().as_bytes())
+        // Through a temporary name: a script polling the file never reads half a path.
+        let mut file = crate::output_file::OutputFile::create(path_file)?;
+        std::io::Write::write_all(&mut file, simulator.path().to_string_lossy().as_bytes())
+            .and_then(|()| std::io::Write::flush(&mut file))
             .with_context(|| format!("writing {}", path_file.display()))?;
+        file.commit()?;
     }
     crate::outln!("{}", simulator.path().display()).context("writing the port to stdout")?;
     crate::noteln!(

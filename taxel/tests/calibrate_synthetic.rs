@@ -297,6 +297,8 @@ fn the_calibrated_c0_is_written_and_a_tare_far_from_it_is_flagged() {
     // The upload carries each taxel's C0 in its WriteCalibration (through the wire encoder and
     // the request decoder).
     let mut link = DeviceLink::new(FakeDevice::new(Box::new(|request| vec![ack(request)])));
+    // The fake device answers every request with Ack: its pad count is given, not asked for.
+    link.set_pad_count(1);
     upload(
         &mut link,
         &calibration,

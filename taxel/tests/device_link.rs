@@ -210,6 +210,8 @@ fn upload_writes_every_taxel_then_saves() {
     let calibration = calibration_with_distinct_taxels();
     let device = FakeDevice::new(Box::new(|request| vec![ack(request)]));
     let mut link = DeviceLink::new(device);
+    // The fake device answers every request with Ack: its pad count is given, not asked for.
+    link.set_pad_count(1);
     let mut messages = Vec::new();
     upload(
         &mut link,
@@ -256,6 +258,7 @@ fn upload_stops_at_the_first_refusal() {
         _ => vec![ack(request)],
     }));
     let mut link = DeviceLink::new(device);
+    link.set_pad_count(1);
     let error = upload(
         &mut link,
         &calibration,
@@ -401,4 +404,36 @@ fn a_full_disk_stops_the_recording_with_an_error_and_the_other_file_keeps_everyt
         "{} bytes logged",
         logged.len()
     );
+}
+
+/// A fresh link asks the device how many pads it has, and the calibration goes to every pad.
+#[test]
+fn upload_asks_for_the_pad_count_and_writes_every_pad() {
+    let calibration = calibration_with_distinct_taxels();
+    let device = FakeDevice::new(Box::new(|request| match &request.command {
+        Command::Info => vec![DeviceFrame::Reply(ReplyFrame {
+            request_id: request.request_id,
+            result: Ok(ReplyPayload::Info(support::info(2))),
+        })],
+        _ => vec![ack(request)],
+    }));
+    let mut link = DeviceLink::new(device);
+    upload(
+        &mut link,
+        &calibration,
+        false,
+        Duration::from_secs(5),
+        &mut |_| {},
+    )
+    .unwrap();
+    let pads: Vec<u8> = link
+        .port()
+        .requests
+        .iter()
+        .filter_map(|request| match &request.command {
+            Command::WriteCalibration(record) => Some(record.pad.get()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(pads, [0, 0, 0, 0, 1, 1, 1, 1]);
 }

@@ -12,7 +12,7 @@ use sensor_sim::{Device as SimDevice, Fault, Keyframe, ScriptedScene, Simulation
 use sim_device::{pads_topology, MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 use wire::{DeviceFrame, DeviceFrameDecoder, SampleFrame};
 
-use crate::reliability::PRESSURE_TOLERANCE_KPA;
+use crate::reliability::{recovery_words, PRESSURE_TOLERANCE_KPA};
 
 /// Pads on the board.
 pub const PADS: usize = 4;
@@ -307,9 +307,7 @@ retry waiting out its DONE timeout (25 ms), which is what the other pads lose.\n
             outcome.repetitions,
             outcome.failing_frames_flagged,
             outcome.failing_frames_during,
-            outcome
-                .worst_recovery_ms()
-                .map_or("not recovered".to_string(), |ms| format!("{ms:.1} ms")),
+            recovery_words(&outcome.recovery_us, outcome.repetitions),
             100.0 * outcome.other_rate_share(),
             outcome.other_frames_flagged,
             outcome.wrong_pressures,

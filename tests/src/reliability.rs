@@ -472,6 +472,20 @@ pub fn run_fault(kind: FaultKind, repetitions: u32) -> Result<FaultOutcome, Stri
     Ok(outcome)
 }
 
+/// The worst recovery of the runs, µs each, and how many of `repetitions` runs did not recover
+/// at all (a worst figure of the runs that did would hide them).
+pub fn recovery_words(recovery_us: &[u64], repetitions: u32) -> String {
+    let unrecovered = (repetitions as usize).saturating_sub(recovery_us.len());
+    match (recovery_us.iter().max(), unrecovered) {
+        (Some(us), 0) => format!("{:.1} ms", *us as f64 / 1000.0),
+        (Some(us), runs) => format!(
+            "{:.1} ms; **{runs} of {repetitions} runs not recovered**",
+            *us as f64 / 1000.0
+        ),
+        (None, _) => "not recovered".to_string(),
+    }
+}
+
 /// Flag names joined with `|`, escaped so that they stay in one Markdown table cell.
 fn flag_names(flags: TaxelFlags) -> String {
     let names: Vec<&str> = TaxelFlags::NAMES
@@ -538,9 +552,7 @@ temperature sensor: back on the TMP117).\n"
             outcome.sets_dropped_by_device,
             outcome.sets_damaged_in_transit,
             outcome.frames_rejected,
-            outcome
-                .worst_recovery_ms()
-                .map_or("not recovered".to_string(), |ms| format!("{ms:.1} ms")),
+            recovery_words(&outcome.recovery_us, outcome.repetitions),
             flag_names(outcome.flags_seen)
         );
     }

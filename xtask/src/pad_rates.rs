@@ -120,9 +120,11 @@ pub fn table(rates: &[PadRate]) -> String {
     let _ = writeln!(
         out,
         "Measured on the simulated device (`xtask/src/pad_rates.rs`): the firmware's discovery, \
-         acquisition and device code with 1 to 8 pads behind the simulated TCA9548A (one \
+         acquisition and device code with 2 to 8 pads behind the simulated TCA9548A (one \
          FDC1004 per channel, converting in repeat mode at 400 conversions/s, and a TMP117 on \
-         the main bus that every pad reads), each I2C transaction taking its time at the bus \
+         the main bus that every pad reads) and 1 pad as the single-pad board carries it, \
+         directly on the bus with no multiplexer (so its transactions per set include no \
+         channel selection), each I2C transaction taking its time at the bus \
          clock (start, 9 bits per byte with the acknowledge, stop). Pads are read in turn \
          within a sample set; 4 simulated seconds after 1 s of boot and start-up tare. The \
          converters convert in parallel, so a set costs one conversion cycle (10 ms) as long \
@@ -136,8 +138,13 @@ pub fn table(rates: &[PadRate]) -> String {
     for rate in rates {
         let _ = writeln!(
             out,
-            "| {} | {} kHz | {:.1}, {:.1} | {:.1} |",
+            "| {}{} | {} kHz | {:.1}, {:.1} | {:.1} |",
             rate.pads,
+            if rate.pads == 1 {
+                " (no multiplexer)"
+            } else {
+                ""
+            },
             rate.bus_frequency_hz / 1000,
             rate.slowest_pad_sets_per_s,
             rate.fastest_pad_sets_per_s,
