@@ -1,13 +1,17 @@
-//! The calibration record: `[format version][save counter, u32 LE][postcard body of
-//! CalibrationSpec][CRC-32 LE]`.
+//! The calibration record: `[format version][pad, version 4 only][save counter, u32 LE][postcard
+//! body of CalibrationSpec][CRC-32 LE]`.
 //!
-//! The CRC covers the version byte, the save counter and the body. A record is accepted only if it
+//! The CRC covers everything before it. A record is accepted only if it
 //! is intact (length, CRC), of a version this firmware reads, parses completely, and validates
 //! with [`Calibration::new`]: a record that parses into a calibration the model would refuse is
 //! as corrupt as one with a bad CRC.
 //!
 //! Versions:
-//! - 3 (written): the body is today's [`CalibrationSpec`], whose taxels carry
+//! - 4 (written for one pad, [`RecordScope::Pad`]): a version-3 record with the pad's index
+//!   (0 to [`MAX_PADS`] - 1) after the version byte. Firmware that reads only version 3 refuses
+//!   it (as it refuses anything it does not know), so going back to such firmware boots on the
+//!   defaults with the corrupt flag rather than on another pad's calibration.
+//! - 3 (written for every pad, [`RecordScope::EveryPad`]): the body is today's [`CalibrationSpec`], whose taxels carry
 //!   `unloaded_sensor_pf` (postcard `Option<f32>`: `00`, or `01` and the f32) after
 //!   `parasitic_pf`.
 //! - 2 (read, never written): the same record with the body as it was before that field existed,
@@ -31,8 +35,34 @@ use model_core::calibration::{
     TAXEL_COUNT,
 };
 
-/// The format version written in the first byte of every record.
+/// The format version of a record for every pad (the one format the single-pad firmware wrote).
 pub const RECORD_FORMAT_VERSION: u8 = 3;
+
+/// The format version of a record for one pad: [`RECORD_FORMAT_VERSION`] with the pad's index.
+pub const PAD_RECORD_FORMAT_VERSION: u8 = 4;
+
+/// Pads a device can hold a calibration for (the TCA9548A's eight channels).
+pub const MAX_PADS: u8 = 8;
+
+/// Which pads a record's calibration is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RecordScope {
+    /// Every pad without a newer record of its own (a version-3 record).
+    EveryPad,
+    /// One pad, by index (0 to [`MAX_PADS`] - 1; a version-4 record).
+    Pad(u8),
+}
+
+impl RecordScope {
+    /// Whether the record's calibration is for `pad`.
+    pub fn covers(self, pad: u8) -> bool {
+        match self {
+            RecordScope::EveryPad => true,
+            RecordScope::Pad(own) => own == pad,
+        }
+    }
+}
 
 /// The previous format version, still read: its body has no `unloaded_sensor_pf`.
 const VERSION_2: u8 = 2;
@@ -45,7 +75,9 @@ const RECORD_CRC: Crc<u32> = Crc::<u32>::new(RECORD_CRC_ALGORITHM);
 
 const VERSION_LEN: usize = 1;
 const SAVE_COUNTER_LEN: usize = 4;
+const PAD_LEN: usize = 1;
 const HEADER_LEN: usize = VERSION_LEN + SAVE_COUNTER_LEN;
+const PAD_HEADER_LEN: usize = VERSION_LEN + PAD_LEN + SAVE_COUNTER_LEN;
 const CRC_LEN: usize = 4;
 const F32_LEN: usize = 4;
 /// postcard writes a u32 as a varint: 7 bits per byte, so up to 5 bytes.
@@ -71,14 +103,17 @@ const _: () = assert!(MAX_CURVE_POINTS < 128 && MAX_TEMPERATURE_POINTS < 128);
 pub const MAX_BODY_LEN: usize =
     VARINT_U32_MAX_LEN + TAXEL_COUNT * TAXEL_MAX_LEN + TEMPERATURE_LAW_MAX_LEN + THRESHOLDS_LEN;
 
-/// The longest record: version + save counter + [`MAX_BODY_LEN`] + CRC = 651 bytes.
-pub const MAX_RECORD_LEN: usize = HEADER_LEN + MAX_BODY_LEN + CRC_LEN;
+/// The longest record: version + pad + save counter + [`MAX_BODY_LEN`] + CRC = 652 bytes.
+pub const MAX_RECORD_LEN: usize = PAD_HEADER_LEN + MAX_BODY_LEN + CRC_LEN;
 
-/// A decoded record: the calibration and the save counter it was written with.
+/// A decoded record: the calibration, which pads it is for and the save counter it was written
+/// with.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SavedRecord {
     /// The save counter: higher is newer.
     pub save_counter: u32,
+    /// The pads the calibration is for.
+    pub scope: RecordScope,
     /// The calibration, validated.
     pub spec: CalibrationSpec,
 }
@@ -115,6 +150,11 @@ pub enum RecordError {
     Postcard(postcard::Error),
     /// Decoding: the body parsed but bytes were left over before the CRC.
     TrailingBytes,
+    /// A pad index of [`MAX_PADS`] or more: refused before encoding, or found in a record.
+    PadOutOfRange {
+        /// The pad index.
+        pad: u8,
+    },
     /// The calibration does not validate: refused before encoding, or found in a record.
     Invalid(CalibrationError),
 }
@@ -130,6 +170,12 @@ impl fmt::Display for RecordError {
             }
             RecordError::Postcard(error) => write!(formatter, "record body: {error}"),
             RecordError::TrailingBytes => write!(formatter, "bytes left over after record body"),
+            RecordError::PadOutOfRange { pad } => {
+                write!(
+                    formatter,
+                    "pad {pad} out of range (at most {MAX_PADS} pads)"
+                )
+            }
             RecordError::Invalid(error) => write!(formatter, "invalid calibration: {error:?}"),
         }
     }
@@ -137,8 +183,8 @@ impl fmt::Display for RecordError {
 
 impl core::error::Error for RecordError {}
 
-/// Writes `spec` with `save_counter` as a record at the start of `out` and returns the record's
-/// length.
+/// Writes `spec` with `save_counter` as a record for every pad (version 3) at the start of `out`
+/// and returns the record's length.
 ///
 /// The calibration is validated first: a spec the model would refuse is never written.
 pub fn encode_record(
@@ -146,19 +192,51 @@ pub fn encode_record(
     save_counter: u32,
     out: &mut [u8],
 ) -> Result<usize, RecordError> {
+    encode_scoped_record(RecordScope::EveryPad, spec, save_counter, out)
+}
+
+/// Writes `spec` with `save_counter` as a record for `scope` at the start of `out` (version 3
+/// for every pad, version 4 for one pad) and returns the record's length.
+///
+/// The calibration and the pad index are validated first: nothing invalid is ever written.
+pub fn encode_scoped_record(
+    scope: RecordScope,
+    spec: &CalibrationSpec,
+    save_counter: u32,
+    out: &mut [u8],
+) -> Result<usize, RecordError> {
     Calibration::new(spec).map_err(RecordError::Invalid)?;
-    let (header, body_space) = out
-        .split_first_chunk_mut::<HEADER_LEN>()
+    let header_len = match scope {
+        RecordScope::EveryPad => {
+            let version = out.first_mut().ok_or(RecordError::BufferTooSmall)?;
+            *version = RECORD_FORMAT_VERSION;
+            HEADER_LEN
+        }
+        RecordScope::Pad(pad) if pad >= MAX_PADS => {
+            return Err(RecordError::PadOutOfRange { pad });
+        }
+        RecordScope::Pad(pad) => {
+            let (version_and_pad, _) = out
+                .split_first_chunk_mut::<2>()
+                .ok_or(RecordError::BufferTooSmall)?;
+            *version_and_pad = [PAD_RECORD_FORMAT_VERSION, pad];
+            PAD_HEADER_LEN
+        }
+    };
+    let counter_at = header_len - SAVE_COUNTER_LEN;
+    out.get_mut(counter_at..header_len)
+        .ok_or(RecordError::BufferTooSmall)?
+        .copy_from_slice(&save_counter.to_le_bytes());
+    let body_space = out
+        .get_mut(header_len..)
         .ok_or(RecordError::BufferTooSmall)?;
-    header[0] = RECORD_FORMAT_VERSION;
-    header[VERSION_LEN..].copy_from_slice(&save_counter.to_le_bytes());
     let body_len = postcard::to_slice(spec, body_space)
         .map_err(|error| match error {
             postcard::Error::SerializeBufferFull => RecordError::BufferTooSmall,
             other => RecordError::Postcard(other),
         })?
         .len();
-    let record_len = HEADER_LEN + body_len + CRC_LEN;
+    let record_len = header_len + body_len + CRC_LEN;
     let (checked, crc) = out
         .get_mut(..record_len)
         .and_then(<[u8]>::split_last_chunk_mut::<CRC_LEN>)
@@ -167,34 +245,55 @@ pub fn encode_record(
     Ok(record_len)
 }
 
+/// The scope, save counter, version and body of a record without its CRC.
+fn split_header(checked: &[u8]) -> Result<(RecordScope, u32, u8, &[u8]), RecordError> {
+    let (&version, rest) = checked.split_first().ok_or(RecordError::TooShort)?;
+    let (scope, rest) = match version {
+        PAD_RECORD_FORMAT_VERSION => {
+            let (&pad, rest) = rest.split_first().ok_or(RecordError::TooShort)?;
+            if pad >= MAX_PADS {
+                return Err(RecordError::PadOutOfRange { pad });
+            }
+            (RecordScope::Pad(pad), rest)
+        }
+        RECORD_FORMAT_VERSION | VERSION_2 => (RecordScope::EveryPad, rest),
+        found => return Err(RecordError::UnsupportedVersion { found }),
+    };
+    let (counter, body) = rest
+        .split_first_chunk::<SAVE_COUNTER_LEN>()
+        .ok_or(RecordError::TooShort)?;
+    Ok((scope, u32::from_le_bytes(*counter), version, body))
+}
+
 /// Reads a record that fills `bytes` exactly and returns its calibration, validated.
 pub fn decode_record(bytes: &[u8]) -> Result<CalibrationSpec, RecordError> {
     decode_saved_record(bytes).map(|record| record.spec)
 }
 
-/// Reads a record that fills `bytes` exactly and returns its save counter and its calibration,
-/// validated.
+/// Reads a record that fills `bytes` exactly and returns its save counter, its scope and its
+/// calibration, validated.
 pub fn decode_saved_record(bytes: &[u8]) -> Result<SavedRecord, RecordError> {
     let (checked, crc_bytes) = bytes
         .split_last_chunk::<CRC_LEN>()
         .ok_or(RecordError::TooShort)?;
-    let (header, body) = checked
-        .split_first_chunk::<HEADER_LEN>()
-        .ok_or(RecordError::TooShort)?;
+    if checked.len() < HEADER_LEN {
+        return Err(RecordError::TooShort);
+    }
     if RECORD_CRC.checksum(checked) != u32::from_le_bytes(*crc_bytes) {
         return Err(RecordError::BadCrc);
     }
-    let [version, counter @ ..] = *header;
+    let (scope, save_counter, version, body) = split_header(checked)?;
     let mut upgraded = [0u8; MAX_BODY_LEN];
-    let body = match version {
-        RECORD_FORMAT_VERSION => body,
-        VERSION_2 => version_3_body(body, &mut upgraded)?,
-        found => return Err(RecordError::UnsupportedVersion { found }),
+    let body = if version == VERSION_2 {
+        version_3_body(body, &mut upgraded)?
+    } else {
+        body
     };
     let spec = take_body(body)?;
     Calibration::new(&spec).map_err(RecordError::Invalid)?;
     Ok(SavedRecord {
-        save_counter: u32::from_le_bytes(counter),
+        save_counter,
+        scope,
         spec,
     })
 }
@@ -266,7 +365,7 @@ mod tests {
     #[test]
     fn maximum_lengths_add_up() {
         assert_eq!(MAX_BODY_LEN, 642);
-        assert_eq!(MAX_RECORD_LEN, 651);
+        assert_eq!(MAX_RECORD_LEN, 652);
     }
 
     #[test]
@@ -283,8 +382,28 @@ mod tests {
             decode_saved_record(&buffer[..length]),
             Ok(SavedRecord {
                 save_counter: 7,
+                scope: RecordScope::EveryPad,
+                spec: spec.clone()
+            })
+        );
+        let length = encode_scoped_record(RecordScope::Pad(5), &spec, 8, &mut buffer).unwrap();
+        assert_eq!(&buffer[..2], &[PAD_RECORD_FORMAT_VERSION, 5]);
+        assert_eq!(
+            decode_saved_record(&buffer[..length]),
+            Ok(SavedRecord {
+                save_counter: 8,
+                scope: RecordScope::Pad(5),
                 spec
             })
+        );
+        assert_eq!(
+            encode_scoped_record(
+                RecordScope::Pad(MAX_PADS),
+                &CalibrationSpec::default(),
+                0,
+                &mut buffer
+            ),
+            Err(RecordError::PadOutOfRange { pad: MAX_PADS })
         );
     }
 }

@@ -1,5 +1,5 @@
-//! [`CalibrationStore`]: the calibration record in a flash range of two erase pages, with the load
-//! outcomes the firmware turns into a calibration source.
+//! [`CalibrationStore`]: the pads' calibration records in a flash range of two erase pages, with
+//! the load outcomes the firmware turns into a calibration source.
 //!
 //! # On flash
 //!
@@ -15,8 +15,8 @@
 //!   written as 1 if it is 0, and with its lowest bit flipped if its first byte is 0x00 or 0xFF;
 //!   the length CRC is CRC-16 with reflected polynomial 0x1A2E from 0xFFFF, inverted, and written
 //!   as 0xFFFE if it is 0xFFFF (both as sequential-storage computes them);
-//! - the data of every item is one calibration record ([`crate::encode_record`]), which carries
-//!   its save counter and its own CRC-32.
+//! - the data of every item is one calibration record ([`crate::encode_scoped_record`]), which
+//!   carries its pad (or none: every pad), its save counter and its own CRC-32.
 //!
 //! An item is intact when both its CRCs match. Reading a page goes from item to item and stops at
 //! a header slot that reads erased; a header whose length CRC fails (torn, damaged) hides where the
@@ -26,39 +26,54 @@
 //!
 //! # Loading
 //!
-//! [`CalibrationStore::load`] reads page 0 then page 1, each from its start, and returns the valid
-//! record with the highest save counter (of equal counters, the later). It returns
-//! [`CorruptReason::Record`] (or [`CorruptReason::Storage`] for an intact item longer than any
-//! record) instead when an intact item it cannot use may be newer than that record: one after it
-//! in its page (a page is appended to in order), or one in the other page when that page holds
-//! no valid record to date it (a move erases the page it writes to, so a page with valid records
-//! of lower counters is older as a whole). Damage to the newest record (not a power loss) brings
-//! back the record before it when that one is still in flash, which is the case when the newest
-//! was appended.
+//! Records are for one pad (version 4) or for every pad (version 3, the only kind the
+//! single-pad firmware wrote). [`CalibrationStore::load`] reads page 0 then page 1, each from
+//! its start, and returns for a pad the valid record with the highest save counter among its
+//! own and those for every pad. The current page is the one holding the highest counter (of
+//! equal ones, the one with more intact items: a move torn after its last copy leaves copies
+//! in the page it was writing and everything in the page it came from). A page is appended to
+//! in increasing counters, and the other page holds only older records or copies (a move
+//! erases the page it writes to), so an intact item this firmware refuses (unknown version,
+//! does not parse or validate) may be newer than a pad's record, and the pad loads
+//! [`CorruptReason::Record`] (or [`CorruptReason::Storage`] for an item longer than any
+//! record) rather than that record, when it is in the current page, or in a page with no valid
+//! record to date it, and no valid record at most as new as the pad's follows it in its page.
+//! Its scope cannot be known, so every pad it may be newer than is flagged. A pad with no
+//! record loads [`LoadOutcome::Absent`] when other records are intact. Damage to a pad's newest
+//! record (not a power loss) brings back the record before it when that one is still in flash,
+//! which is the case when the newest was appended.
 //!
 //! # Saving
 //!
-//! [`CalibrationStore::save`] gives the new record the highest save counter plus one, then:
+//! [`CalibrationStore::save_for`] gives the new record the highest save counter plus one, then:
 //! - if the other page is erased and the new item fits in erased space after the last item of
-//!   the page holding the newest record, appends it there; appending keeps sector erases rare (an
-//!   F411 128 KiB sector takes 1 to 2 s to erase, and wears out after 10 000 erases);
-//! - otherwise, or if the appended record does not read back, moves: erases the other page unless
-//!   it reads erased, writes the marker and the new item there, reads the new record back, and
-//!   only then erases the page it came from.
+//!   the current page, appends it there; appending keeps sector erases rare (an F411 128 KiB
+//!   sector takes 1 to 2 s to erase, and wears out after 10 000 erases);
+//! - otherwise, or if the appended record does not read back, moves: erases the other page
+//!   unless it reads erased, writes the marker, copies in page order every record a pad still
+//!   loads once the new one is in (at most one per pad and one for every pad) and the current
+//!   page's last refused item when it may be newer than one of them, writes the new item,
+//!   checks that every pad loads from the new page what it should, and only then erases the
+//!   page it came from. When those records do not fit a page the save is refused
+//!   ([`StoreError::Full`]) before anything is erased; with the firmware's 128 KiB pages it
+//!   cannot happen (ten records take under 7 KiB).
 //!
 //! So outside a save one page at most holds items; when both do (a save that did not complete, or
-//! damage), the next save moves, which cleans up.
+//! damage), the next save moves, which cleans up. A move drops records no pad loads any more.
 //!
 //! # Power loss
 //!
-//! Each flash operation of a save, interrupted, leaves the previous record intact (and still the
-//! highest counter) or the new record intact (with a higher counter):
-//! - an append writes only erased space after the newest record: a torn item there is skipped;
-//! - a move erases and writes only the page without the newest record, whatever an interrupted
-//!   erase leaves in it (erased from its start, from its end, or random bits), and a torn item
-//!   there is skipped;
-//! - the old page is erased only once the new record reads back: what an interrupted erase leaves
-//!   of it are records with lower counters, or items that are not intact.
+//! Each flash operation of a save, interrupted, leaves every pad the save is not for with the
+//! record it loaded, and the saved pads with their previous record intact (and still the newest
+//! for them) or the new record intact (with a higher counter):
+//! - an append writes only erased space after the current page's last item: a torn item there
+//!   is skipped;
+//! - a move erases and writes only the page that is not current, whatever an interrupted erase
+//!   leaves in it (erased from its start, from its end, or random bits); a torn item there is
+//!   skipped, and its copies are of the same records with the same counters;
+//! - the old page is erased only once every pad reads its record back from the new one: what
+//!   an interrupted erase leaves of it are records with lower counters, or copies, or items
+//!   that are not intact.
 //!
 //! A torn item can pass for intact only by matching the length CRC, the data CRC and the record's
 //! CRC-32. A load never writes, so a power loss during a boot changes nothing.
@@ -73,7 +88,8 @@ use model_core::CalibrationSpec;
 use sequential_storage::map::{Key, SerializationError};
 
 use crate::record::{
-    decode_record, decode_saved_record, encode_record, RecordError, MAX_RECORD_LEN,
+    decode_record, decode_saved_record, encode_scoped_record, RecordError, RecordScope, MAX_PADS,
+    MAX_RECORD_LEN,
 };
 
 /// The key of the earlier firmware's sequential-storage map, whose items are the ones this store
@@ -171,6 +187,9 @@ pub enum StoreError<E> {
     Flash(E),
     /// The record read back after writing is missing or differs from what was written.
     VerifyFailed,
+    /// The records other pads still load and the new one do not fit in an erase page (nothing
+    /// was lost: the page they are in was not erased).
+    Full,
 }
 
 impl<E: fmt::Debug> fmt::Display for StoreError<E> {
@@ -179,6 +198,7 @@ impl<E: fmt::Debug> fmt::Display for StoreError<E> {
             StoreError::Record(error) => write!(formatter, "calibration record: {error}"),
             StoreError::Flash(error) => write!(formatter, "flash: {error:?}"),
             StoreError::VerifyFailed => write!(formatter, "read-back verification failed"),
+            StoreError::Full => write!(formatter, "the records do not fit in an erase page"),
         }
     }
 }
@@ -244,28 +264,150 @@ impl<E: defmt::Format> defmt::Format for LoadOutcome<E> {
     }
 }
 
-/// The newest valid record a scan found; its bytes are in the store's `newest` buffer.
+/// Scope slots a scan keeps: one per pad, then one for every pad.
+const SCOPE_SLOTS: usize = MAX_PADS as usize + 1;
+/// The slot of the records for every pad.
+const EVERY_PAD_SLOT: usize = MAX_PADS as usize;
+/// Items a move copies at most: every scope's record and one refused item.
+const MAX_COPIES: usize = SCOPE_SLOTS + 1;
+
+/// The scan slot of a record's scope (decoding keeps pad indices below [`MAX_PADS`]).
+fn slot(scope: RecordScope) -> usize {
+    match scope {
+        RecordScope::EveryPad => EVERY_PAD_SLOT,
+        RecordScope::Pad(pad) => usize::from(pad).min(EVERY_PAD_SLOT),
+    }
+}
+
+/// A valid record a scan found.
 #[derive(Debug, Clone, Copy)]
-struct NewestRecord {
+struct Located {
     save_counter: u32,
-    length: usize,
     page: u32,
+    /// Where its item (the header) starts.
+    address: u32,
+}
+
+/// The last intact item of a page whose record this firmware refuses.
+#[derive(Debug)]
+struct Refused<E> {
+    reason: CorruptReason<E>,
+    /// Where its item starts.
+    address: u32,
+    /// The save counter of the first valid record after it in its page, which is newer than it
+    /// (a page is appended to in order); none if no valid record follows it.
+    counter_after: Option<u32>,
 }
 
 /// What one pass over both pages (page 0 first, each from its start) found.
 struct Scan<E> {
-    newest: Option<NewestRecord>,
-    /// Why an intact item that may be newer than the newest record is unusable: one after it
-    /// in its page, or anywhere in a page without a valid record (whose age is unknown).
-    /// Set when the scan ends, from the per-page fields below.
-    refused_after_newest: Option<CorruptReason<E>>,
+    /// Per scope (pads 0 to 7, then every pad) and page, the valid record with the highest save
+    /// counter in that page (of equal counters, the later).
+    records: [[Option<Located>; PAGE_COUNT as usize]; SCOPE_SLOTS],
+    /// The current page: the one with the highest save counter. The other page holds only older
+    /// records, or copies of the current page's (a move erases the page it writes to, copies
+    /// in page order, and erases the page it came from once everything reads back). Of pages
+    /// with equal highest counters (a move torn after its last copy), the one with more intact
+    /// items: the page copied from holds everything the copies do.
+    current: Option<u32>,
     /// Per page, the highest save counter of a valid record in it.
     page_newest: [Option<u32>; PAGE_COUNT as usize],
-    /// Per page, why an intact item after the page's highest valid record (or anywhere in a
-    /// page without one) is unusable.
-    page_refused: [Option<CorruptReason<E>>; PAGE_COUNT as usize],
+    /// Per page, its intact items.
+    page_items: [u32; PAGE_COUNT as usize],
+    /// Per page, its last intact item that holds no usable record.
+    page_refused: [Option<Refused<E>>; PAGE_COUNT as usize],
     /// Per page, where the next item would go: after the last item, or after damage.
     free_start: [u32; PAGE_COUNT as usize],
+}
+
+impl<E> Scan<E> {
+    /// The highest save counter in the region.
+    fn highest_counter(&self) -> Option<u32> {
+        self.page_newest.iter().flatten().copied().max()
+    }
+
+    /// Chooses the current page once both pages are read.
+    fn choose_current_page(&mut self) {
+        let [first, second] = self.page_newest;
+        let [first_items, second_items] = self.page_items;
+        self.current = match (first, second) {
+            (None, None) => None,
+            (Some(_), None) => Some(0),
+            (None, Some(_)) => Some(1),
+            (Some(first), Some(second)) if first > second => Some(0),
+            (Some(first), Some(second)) if first == second && first_items > second_items => Some(0),
+            (Some(_), Some(_)) => Some(1),
+        };
+    }
+
+    /// The newest record of scope slot `slot`, in `page` only if given (of equal counters in
+    /// both pages, the current page's).
+    fn newest(&self, slot: usize, page: Option<u32>) -> Option<Located> {
+        let [first, second] = self.records.get(slot).copied().unwrap_or_default();
+        match page {
+            Some(0) => first,
+            Some(_) => second,
+            None => match (first, second) {
+                (Some(first), Some(second)) => Some(
+                    if first.save_counter > second.save_counter
+                        || (first.save_counter == second.save_counter && self.current == Some(0))
+                    {
+                        first
+                    } else {
+                        second
+                    },
+                ),
+                (first, second) => first.or(second),
+            },
+        }
+    }
+
+    /// The record `pad` loads (from `page` only if given): the newer of its own newest record
+    /// and the newest record for every pad (its own when the counters are equal). Only records
+    /// for every pad apply to pads of index [`MAX_PADS`] or more.
+    fn answer(&self, pad: u8, page: Option<u32>) -> Option<Located> {
+        let own = if pad < MAX_PADS {
+            self.newest(usize::from(pad), page)
+        } else {
+            None
+        };
+        let every = self.newest(EVERY_PAD_SLOT, page);
+        match (own, every) {
+            (Some(own), Some(every)) if every.save_counter > own.save_counter => Some(every),
+            (own, every) => own.or(every),
+        }
+    }
+
+    /// The page of a refused item that may be newer than a pad's record of save counter
+    /// `answer` (or than no record): one in the current page, or in a page with no valid record
+    /// to date it, unless a valid record no newer than the answer follows it in its page.
+    fn refusal_page(&self, answer: Option<u32>) -> Option<usize> {
+        (0..PAGE_COUNT as usize).find(|&page| {
+            let dated_other = self.current.is_some_and(|current| current as usize != page)
+                && self.page_newest.get(page).is_some_and(Option::is_some);
+            let refused = self.page_refused.get(page).and_then(Option::as_ref);
+            !dated_other
+                && refused.is_some_and(|refused| match (answer, refused.counter_after) {
+                    (Some(answer), Some(after)) => after > answer,
+                    _ => true,
+                })
+        })
+    }
+}
+
+/// One step of a walk through a page.
+enum ItemStep {
+    /// The header slot reads erased: no item here or after.
+    End,
+    /// The header is torn or damaged: where the next item starts is unknown.
+    Damaged,
+    /// An item of `length` bytes of data, intact or not, whose data (when intact and no longer
+    /// than the buffer) is in the store's buffer; the next item starts at `next`.
+    Item {
+        length: usize,
+        intact: bool,
+        next: u32,
+    },
 }
 
 /// The calibration in a flash range of two erase pages.
@@ -276,8 +418,6 @@ pub struct CalibrationStore<F: NorFlash> {
     flash: F,
     range: Range<u32>,
     buffer: ItemBuffer,
-    /// The newest record the last scan found.
-    newest: ItemBuffer,
 }
 
 impl<F: NorFlash> CalibrationStore<F> {
@@ -319,31 +459,48 @@ impl<F: NorFlash> CalibrationStore<F> {
             flash,
             range,
             buffer: ItemBuffer([0; ITEM_BUFFER_LEN]),
-            newest: ItemBuffer([0; ITEM_BUFFER_LEN]),
         })
     }
 
-    /// The valid record with the highest save counter, or why there is none. Never fails: every
+    /// The calibration of pad `pad`: the valid record with the highest save counter among its
+    /// own records and the records for every pad, or why there is none. Never fails: every
     /// problem is an outcome. Never writes: the next save cleans up whatever a power loss left,
     /// so a power loss during a boot cannot change anything.
     ///
-    /// Corrupt rather than a valid record when an intact item after the newest valid record holds
-    /// something this firmware refuses (it may be newer); Corrupt rather than Absent when the
+    /// Corrupt rather than a valid record when an intact item that may be newer holds something
+    /// this firmware refuses (see the module documentation); Corrupt rather than Absent when the
     /// region holds anything at all without an intact record (a torn save, a damaged record).
-    pub async fn load(&mut self) -> LoadOutcome<F::Error> {
-        let scan = match self.scan().await {
+    /// A single-pad device loads pad 0.
+    pub async fn load(&mut self, pad: u8) -> LoadOutcome<F::Error> {
+        let mut scan = match self.scan().await {
             Ok(scan) => scan,
             Err(error) => return LoadOutcome::Corrupt(CorruptReason::Flash(error)),
         };
-        if let Some(reason) = scan.refused_after_newest {
-            return LoadOutcome::Corrupt(reason);
+        let answer = scan.answer(pad, None);
+        if let Some(page) = scan.refusal_page(answer.map(|record| record.save_counter)) {
+            if let Some(refused) = scan.page_refused.get_mut(page).and_then(Option::take) {
+                return LoadOutcome::Corrupt(refused.reason);
+            }
         }
-        if let Some(newest) = scan.newest {
-            let bytes = self.newest.0.get(..newest.length).unwrap_or_default();
-            return match decode_record(bytes) {
-                Ok(spec) => LoadOutcome::Stored(spec),
-                Err(error) => LoadOutcome::Corrupt(CorruptReason::Record(error)),
+        if let Some(record) = answer {
+            return match self.read_item(record.address, u32::MAX).await {
+                Err(error) => LoadOutcome::Corrupt(CorruptReason::Flash(error)),
+                Ok(ItemStep::Item {
+                    length,
+                    intact: true,
+                    ..
+                }) => match decode_record(self.buffer.0.get(..length).unwrap_or_default()) {
+                    Ok(spec) => LoadOutcome::Stored(spec),
+                    Err(error) => LoadOutcome::Corrupt(CorruptReason::Record(error)),
+                },
+                // The flash changed between the scan and this read.
+                Ok(_) => LoadOutcome::Corrupt(CorruptReason::NoIntactRecord),
             };
+        }
+        if scan.current.is_some() {
+            // Other pads' records are intact: nothing was saved for this one (what else the
+            // region holds is a save torn before its record was complete, or damage).
+            return LoadOutcome::Absent;
         }
         let mut blank = true;
         for page in 0..PAGE_COUNT {
@@ -359,26 +516,37 @@ impl<F: NorFlash> CalibrationStore<F> {
         }
     }
 
-    /// Saves `spec` with the next save counter (the highest in the region plus one, from 0; it
-    /// saturates at `u32::MAX`, where the later of equal counters in a page wins) and reads it
-    /// back: appended after the newest record when the other page is erased and it fits,
-    /// otherwise (or if the appended record does not read back) moved into the other page, the
-    /// page of the older records being erased only once the new one reads back. A power loss at
-    /// any point leaves the previous or the new calibration.
+    /// Saves `spec` for every pad (a version-3 record: every pad loads it until it gets a newer
+    /// record of its own); see [`Self::save_for`].
     pub async fn save(&mut self, spec: &CalibrationSpec) -> Result<(), StoreError<F::Error>> {
+        self.save_for(RecordScope::EveryPad, spec).await
+    }
+
+    /// Saves `spec` for `scope` with the next save counter (the highest in the region plus one,
+    /// from 0; it saturates at `u32::MAX`, where the later of equal counters in a page wins) and
+    /// reads it back: appended after the newest record when the other page is erased and it
+    /// fits, otherwise (or if the appended record does not read back) moved into the other page
+    /// with every record another pad still loads, the page they came from being erased only once
+    /// all of them read back. A power loss at any point leaves every pad with its previous
+    /// calibration, or the saved pads with the new one.
+    pub async fn save_for(
+        &mut self,
+        scope: RecordScope,
+        spec: &CalibrationSpec,
+    ) -> Result<(), StoreError<F::Error>> {
         // Scanning writes nothing, so a calibration the model refuses leaves the flash untouched.
         let scan = self.scan().await.map_err(StoreError::Flash)?;
         let save_counter = scan
-            .newest
-            .map_or(0, |newest| newest.save_counter.saturating_add(1));
+            .highest_counter()
+            .map_or(0, |highest| highest.saturating_add(1));
         let mut record = [0u8; MAX_RECORD_LEN];
-        let record_len =
-            encode_record(spec, save_counter, &mut record).map_err(StoreError::Record)?;
+        let record_len = encode_scoped_record(scope, spec, save_counter, &mut record)
+            .map_err(StoreError::Record)?;
         let record = record
             .get(..record_len)
             .ok_or(StoreError::Record(RecordError::BufferTooSmall))?;
-        if let Some(newest) = scan.newest {
-            let page = newest.page;
+        let expected = Expected::after_save(&scan, scope, save_counter);
+        if let Some(page) = scan.current {
             let start = scan
                 .free_start
                 .get(page as usize)
@@ -396,19 +564,46 @@ impl<F: NorFlash> CalibrationStore<F> {
                     .map_err(StoreError::Flash)?
             {
                 self.write_item(start, record).await?;
-                if self.reads_back(record, save_counter).await? {
+                if self.reads_back(record, scope, &expected, None).await? {
                     return Ok(());
                 }
             }
         }
-        let target = scan.newest.map_or(0, |newest| other_page(newest.page));
+        let target = scan.current.map_or(0, other_page);
+        let (copies, copy_count) = copies(&scan, &expected);
         self.erase_if_written(target).await?;
         let marker = WordBuffer([0; LARGEST_WORD_SIZE]);
         let target_start = self.page_range(target).start;
         write(&mut self.flash, target_start, &marker.0, Self::WORD_LEN).await?;
-        self.write_item(target_start + Self::WORD_LEN, record)
-            .await?;
-        if !self.reads_back(record, save_counter).await? {
+        let mut address = target_start + Self::WORD_LEN;
+        for &from in copies.get(..copy_count).unwrap_or_default() {
+            let ItemStep::Item {
+                length,
+                intact: true,
+                ..
+            } = self
+                .read_item(from, u32::MAX)
+                .await
+                .map_err(StoreError::Flash)?
+            else {
+                // Changed since the scan: the read-back below finds it missing.
+                continue;
+            };
+            let next = address.saturating_add(Self::item_len(length));
+            if next > self.items_end(target) {
+                return Err(StoreError::Full);
+            }
+            self.write_buffered_item(address, length).await?;
+            address = next;
+        }
+        if address.saturating_add(Self::item_len(record_len)) > self.items_end(target) {
+            return Err(StoreError::Full);
+        }
+        self.write_item(address, record).await?;
+        if !self
+            .reads_back(record, scope, &expected, Some(target))
+            .await?
+        {
             return Err(StoreError::VerifyFailed);
         }
         self.erase_if_written(other_page(target)).await
@@ -456,72 +651,70 @@ impl<F: NorFlash> CalibrationStore<F> {
     /// Reads every item of both pages, without writing.
     async fn scan(&mut self) -> Result<Scan<F::Error>, F::Error> {
         let mut scan = Scan {
-            newest: None,
-            refused_after_newest: None,
+            records: [[None; PAGE_COUNT as usize]; SCOPE_SLOTS],
+            current: None,
             page_newest: [None; PAGE_COUNT as usize],
+            page_items: [0; PAGE_COUNT as usize],
             page_refused: [const { None }; PAGE_COUNT as usize],
             free_start: [0; PAGE_COUNT as usize],
         };
         for page in 0..PAGE_COUNT {
             let end = self.items_end(page);
             let mut address = self.page_range(page).start + Self::WORD_LEN;
-            let mut header_buffer = WordBuffer([0; LARGEST_WORD_SIZE]);
             while address.saturating_add(Self::HEADER_LEN) <= end {
-                let Some(header) = header_buffer.0.get_mut(..Self::HEADER_LEN as usize) else {
-                    break;
-                };
-                self.flash.read(address, header).await?;
-                if header.iter().all(|&byte| byte == 0xFF) {
-                    break;
-                }
-                let [c0, c1, c2, c3, l0, l1, k0, k1, ..] = *header else {
-                    break;
-                };
-                let length = u16::from_le_bytes([l0, l1]);
-                let data_address = address + Self::HEADER_LEN;
-                // A length read from flash must not wrap the address (a range near 4 GiB).
-                let next = address.saturating_add(Self::item_len(length.into()));
-                if length_crc(u16::from_le_bytes([l0, l1])) != u16::from_le_bytes([k0, k1])
-                    || next > end
-                {
+                match self.read_item(address, end).await? {
+                    ItemStep::End => break,
                     // A torn or damaged header hides where the next item starts.
-                    address += Self::WORD_LEN;
-                    continue;
+                    ItemStep::Damaged => address += Self::WORD_LEN,
+                    ItemStep::Item {
+                        length,
+                        intact,
+                        next,
+                    } => {
+                        if intact {
+                            self.add_item(&mut scan, page, address, length);
+                        }
+                        address = next;
+                    }
                 }
-                let data_crc = u32::from_le_bytes([c0, c1, c2, c3]);
-                if self
-                    .data_intact(data_address, length.into(), data_crc)
-                    .await?
-                {
-                    self.add_item(&mut scan, page, length.into());
-                }
-                address = next;
             }
             if let Some(free_start) = scan.free_start.get_mut(page as usize) {
                 *free_start = address;
             }
         }
-        // A page is appended to in order, and the other page holds only older records (a move
-        // erases it before writing): so only a refused item after the newest record in its
-        // page, or in a page with no valid record to date it, may be newer than the newest.
-        scan.refused_after_newest = match scan.newest {
-            Some(newest) => {
-                let other = other_page(newest.page) as usize;
-                let other_undated = scan.page_newest.get(other).is_some_and(Option::is_none);
-                let undated = if other_undated {
-                    scan.page_refused.get_mut(other).and_then(Option::take)
-                } else {
-                    None
-                };
-                let after_newest = scan
-                    .page_refused
-                    .get_mut(newest.page as usize)
-                    .and_then(Option::take);
-                after_newest.or(undated)
-            }
-            None => scan.page_refused.iter_mut().find_map(Option::take),
-        };
+        scan.choose_current_page();
         Ok(scan)
+    }
+
+    /// Reads the item whose header is at `address` and which must end by `end`: its data goes
+    /// into `self.buffer` when it fits.
+    async fn read_item(&mut self, address: u32, end: u32) -> Result<ItemStep, F::Error> {
+        let mut header_buffer = WordBuffer([0; LARGEST_WORD_SIZE]);
+        let Some(header) = header_buffer.0.get_mut(..Self::HEADER_LEN as usize) else {
+            return Ok(ItemStep::End);
+        };
+        self.flash.read(address, header).await?;
+        if header.iter().all(|&byte| byte == 0xFF) {
+            return Ok(ItemStep::End);
+        }
+        let [c0, c1, c2, c3, l0, l1, k0, k1, ..] = *header else {
+            return Ok(ItemStep::End);
+        };
+        let length = u16::from_le_bytes([l0, l1]);
+        // A length read from flash must not wrap the address (a range near 4 GiB).
+        let next = address.saturating_add(Self::item_len(length.into()));
+        if length_crc(length) != u16::from_le_bytes([k0, k1]) || next > end {
+            return Ok(ItemStep::Damaged);
+        }
+        let data_crc = u32::from_le_bytes([c0, c1, c2, c3]);
+        let intact = self
+            .data_intact(address + Self::HEADER_LEN, length.into(), data_crc)
+            .await?;
+        Ok(ItemStep::Item {
+            length: length.into(),
+            intact,
+            next,
+        })
     }
 
     /// Whether the `length` bytes at `address` match `expected` (a header's data CRC); they stay
@@ -547,63 +740,89 @@ impl<F: NorFlash> CalibrationStore<F> {
         Ok(adapted_crc32(digest.finalize()) == expected)
     }
 
-    /// Takes the intact item of `length` bytes in `self.buffer` into account.
-    fn add_item(&mut self, scan: &mut Scan<F::Error>, page: u32, length: usize) {
-        let Some(value) = self
+    /// Takes the intact item at `address` of `length` bytes in `self.buffer` into account.
+    fn add_item(&mut self, scan: &mut Scan<F::Error>, page: u32, address: u32, length: usize) {
+        if let Some(items) = scan.page_items.get_mut(page as usize) {
+            *items += 1;
+        }
+        let decoded = match self
             .buffer
             .0
             .get(..length)
             .filter(|_| length <= MAX_RECORD_LEN)
-        else {
-            if let Some(refused) = scan.page_refused.get_mut(page as usize) {
-                *refused = Some(CorruptReason::Storage);
-            }
-            return;
+        {
+            Some(value) => decode_saved_record(value).map_err(CorruptReason::Record),
+            None => Err(CorruptReason::Storage),
         };
-        let record = match decode_saved_record(value) {
+        let record = match decoded {
             Ok(record) => record,
-            Err(error) => {
+            Err(reason) => {
                 if let Some(refused) = scan.page_refused.get_mut(page as usize) {
-                    *refused = Some(CorruptReason::Record(error));
+                    *refused = Some(Refused {
+                        reason,
+                        address,
+                        counter_after: None,
+                    });
                 }
                 return;
             }
         };
-        if let (Some(page_newest), Some(refused)) = (
-            scan.page_newest.get_mut(page as usize),
-            scan.page_refused.get_mut(page as usize),
-        ) {
-            if page_newest.is_none_or(|counter| record.save_counter >= counter) {
-                *page_newest = Some(record.save_counter);
-                *refused = None;
-            }
+        let located = Located {
+            save_counter: record.save_counter,
+            page,
+            address,
+        };
+        if let Some(Some(refused)) = scan.page_refused.get_mut(page as usize) {
+            refused.counter_after.get_or_insert(record.save_counter);
         }
-        if scan
-            .newest
-            .is_none_or(|newest| record.save_counter >= newest.save_counter)
-        {
-            if let Some(newest) = self.newest.0.get_mut(..length) {
-                newest.copy_from_slice(value);
+        if let Some(page_newest) = scan.page_newest.get_mut(page as usize) {
+            *page_newest = Some(page_newest.map_or(record.save_counter, |counter| {
+                counter.max(record.save_counter)
+            }));
+        }
+        let kept = scan
+            .records
+            .get_mut(slot(record.scope))
+            .and_then(|pages| pages.get_mut(page as usize));
+        if let Some(kept) = kept {
+            if kept.is_none_or(|kept| record.save_counter >= kept.save_counter) {
+                *kept = Some(located);
             }
-            scan.newest = Some(NewestRecord {
-                save_counter: record.save_counter,
-                length,
-                page,
-            });
         }
     }
 
-    /// Whether the whole region now reads `record` (with `save_counter`) as the newest record.
+    /// Whether the region now reads as `expected` after saving `record` for `scope`: every pad
+    /// loads the record it should, `record` is the newest for its scope, and, after a move into
+    /// `moved_to`, every record a pad loads is there.
     async fn reads_back(
         &mut self,
         record: &[u8],
-        save_counter: u32,
+        scope: RecordScope,
+        expected: &Expected,
+        moved_to: Option<u32>,
     ) -> Result<bool, StoreError<F::Error>> {
         let scan = self.scan().await.map_err(StoreError::Flash)?;
-        Ok(scan.newest.is_some_and(|newest| {
-            newest.save_counter == save_counter
-                && self.newest.0.get(..newest.length) == Some(record)
-        }))
+        for pad in 0..MAX_PADS {
+            let answer = scan.answer(pad, moved_to);
+            if !expected.holds(pad, answer.map(|record| record.save_counter)) {
+                return Ok(false);
+            }
+        }
+        let Some(saved) = scan.newest(slot(scope), moved_to) else {
+            return Ok(false);
+        };
+        match self
+            .read_item(saved.address, u32::MAX)
+            .await
+            .map_err(StoreError::Flash)?
+        {
+            ItemStep::Item {
+                length,
+                intact: true,
+                ..
+            } => Ok(self.buffer.0.get(..length) == Some(record)),
+            _ => Ok(false),
+        }
     }
 
     /// Writes `record` as an item at `address`: header first, then the data.
@@ -612,23 +831,42 @@ impl<F: NorFlash> CalibrationStore<F> {
         address: u32,
         record: &[u8],
     ) -> Result<(), StoreError<F::Error>> {
-        let length = record.len() as u16;
+        self.buffer
+            .0
+            .get_mut(..record.len())
+            .ok_or(StoreError::Record(RecordError::BufferTooSmall))?
+            .copy_from_slice(record);
+        self.write_buffered_item(address, record.len()).await
+    }
+
+    /// Writes the first `length` bytes of `self.buffer` as an item at `address`: header first,
+    /// then the data padded with erased bytes to the flash word.
+    async fn write_buffered_item(
+        &mut self,
+        address: u32,
+        length: usize,
+    ) -> Result<(), StoreError<F::Error>> {
+        let data = self
+            .buffer
+            .0
+            .get(..length)
+            .ok_or(StoreError::Record(RecordError::BufferTooSmall))?;
+        let length16 = length as u16;
         let mut header = WordBuffer([0xFF; LARGEST_WORD_SIZE]);
         for (byte, value) in header.0.iter_mut().zip(
-            adapted_crc32(ITEM_DATA_CRC.checksum(record))
+            adapted_crc32(ITEM_DATA_CRC.checksum(data))
                 .to_le_bytes()
                 .into_iter()
-                .chain(length.to_le_bytes())
-                .chain(length_crc(length).to_le_bytes()),
+                .chain(length16.to_le_bytes())
+                .chain(length_crc(length16).to_le_bytes()),
         ) {
             *byte = value;
         }
         write(&mut self.flash, address, &header.0, Self::HEADER_LEN).await?;
-        self.buffer.0.fill(0xFF);
-        if let Some(data) = self.buffer.0.get_mut(..record.len()) {
-            data.copy_from_slice(record);
+        if let Some(padding) = self.buffer.0.get_mut(length..) {
+            padding.fill(0xFF);
         }
-        let data_len = (record.len() as u32).next_multiple_of(Self::WORD_LEN);
+        let data_len = (length as u32).next_multiple_of(Self::WORD_LEN);
         write(
             &mut self.flash,
             address + Self::HEADER_LEN,
@@ -684,6 +922,88 @@ async fn write<F: NorFlash>(
         .get(..length as usize)
         .ok_or(StoreError::Record(RecordError::BufferTooSmall))?;
     flash.write(address, bytes).await.map_err(StoreError::Flash)
+}
+
+/// The save counter of the record every pad must load after a save.
+struct Expected {
+    /// Per pad, the counter it must load (none: no record), or `None` outside when it is not
+    /// checked: a pad whose record was only in the page a move erases (flash damaged in its
+    /// newer copy) loads what is left.
+    counters: [Option<Option<u32>>; MAX_PADS as usize],
+}
+
+impl Expected {
+    /// What every pad loads once the record of `save_counter` for `scope` is in.
+    fn after_save<E>(scan: &Scan<E>, scope: RecordScope, save_counter: u32) -> Self {
+        let current_page = scan.current;
+        let mut counters = [None; MAX_PADS as usize];
+        for (pad, counter) in (0..MAX_PADS).zip(counters.iter_mut()) {
+            *counter = if scope.covers(pad) {
+                Some(Some(save_counter))
+            } else {
+                match scan.answer(pad, None) {
+                    None => Some(None),
+                    Some(answer) if Some(answer.page) == current_page => {
+                        Some(Some(answer.save_counter))
+                    }
+                    Some(_) => None,
+                }
+            };
+        }
+        Self { counters }
+    }
+
+    /// Whether `pad` loading the record of `counter` (or none) is as expected.
+    fn holds(&self, pad: u8, counter: Option<u32>) -> bool {
+        match self.counters.get(usize::from(pad)) {
+            Some(Some(expected)) => *expected == counter,
+            Some(None) | None => true,
+        }
+    }
+
+    /// Whether some pad must load the record of `counter`.
+    fn loads(&self, counter: u32) -> bool {
+        self.counters.contains(&Some(Some(counter)))
+    }
+}
+
+/// The items of the current page a move copies, in page order: every record some pad still
+/// loads after the save, and the page's last refused item when it may be newer than one of
+/// them (after the move it sits before the same records or newer ones, so it is never taken
+/// for older than it may be).
+fn copies<E>(scan: &Scan<E>, expected: &Expected) -> ([u32; MAX_COPIES], usize) {
+    let mut addresses = [0u32; MAX_COPIES];
+    let mut count = 0;
+    let Some(current) = scan.current else {
+        return (addresses, 0);
+    };
+    let mut push = |address: u32| {
+        if let Some(slot) = addresses.get_mut(count) {
+            *slot = address;
+            count += 1;
+        }
+    };
+    for record in (0..SCOPE_SLOTS).filter_map(|slot| scan.newest(slot, None)) {
+        if record.page == current && expected.loads(record.save_counter) {
+            push(record.address);
+        }
+    }
+    if let Some(Some(refused)) = scan.page_refused.get(current as usize) {
+        let may_be_newer =
+            expected
+                .counters
+                .iter()
+                .any(|counter| match (counter, refused.counter_after) {
+                    (Some(Some(loaded)), Some(after)) => after > *loaded,
+                    _ => true,
+                });
+        if may_be_newer {
+            push(refused.address);
+        }
+    }
+    let copies = addresses.get_mut(..count).unwrap_or_default();
+    copies.sort_unstable();
+    (addresses, count)
 }
 
 fn other_page(page: u32) -> u32 {

@@ -340,7 +340,7 @@ fn loading_after_a_torn_save_never_writes() {
                 flash.power_cycle();
                 let before = flash.snapshot();
                 flash.schedule_power_loss(0, Tear::words(1));
-                let outcome = block_on(small_store(&mut flash).load());
+                let outcome = block_on(small_store(&mut flash).load(0));
                 let context = format!("{prior_saves} prior saves, operation {operations}, {label}");
                 assert!(
                     !flash.is_powered_off(),

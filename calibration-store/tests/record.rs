@@ -11,8 +11,8 @@
 mod common;
 
 use calibration_store::{
-    decode_record, decode_saved_record, encode_record, RecordError, SavedRecord, MAX_RECORD_LEN,
-    RECORD_FORMAT_VERSION,
+    decode_record, decode_saved_record, encode_record, encode_scoped_record, RecordError,
+    RecordScope, SavedRecord, MAX_RECORD_LEN, PAD_RECORD_FORMAT_VERSION, RECORD_FORMAT_VERSION,
 };
 use common::{config, spec, valid_spec, worst_case_spec};
 use crc::{Crc, CRC_32_ISO_HDLC};
@@ -61,8 +61,51 @@ fn layout_is_version_save_counter_postcard_body_and_little_endian_crc32() {
         decode_saved_record(&record),
         Ok(SavedRecord {
             save_counter: 0xA1B2_C3D4,
+            scope: RecordScope::EveryPad,
             spec
         })
+    );
+}
+
+/// Version 4, one pad's record: version 3 with the pad's index after the version byte.
+#[test]
+fn a_pad_record_is_version_four_then_the_pad_then_a_version_three_record() {
+    let spec = spec(9);
+    let mut buffer = [0u8; MAX_RECORD_LEN];
+    let length =
+        encode_scoped_record(RecordScope::Pad(6), &spec, 0x0A0B_0C0D, &mut buffer).unwrap();
+    let record = &buffer[..length];
+    let mut expected = vec![4, 6, 0x0D, 0x0C, 0x0B, 0x0A];
+    expected.extend_from_slice(&postcard_body(&spec));
+    let crc = INDEPENDENT_CRC.checksum(&expected);
+    expected.extend_from_slice(&crc.to_le_bytes());
+    assert_eq!(record, expected.as_slice());
+    assert_eq!(PAD_RECORD_FORMAT_VERSION, 4);
+    assert_eq!(
+        decode_saved_record(record),
+        Ok(SavedRecord {
+            save_counter: 0x0A0B_0C0D,
+            scope: RecordScope::Pad(6),
+            spec: spec.clone()
+        })
+    );
+    // The longest record is a pad's.
+    let worst = worst_case_spec(u32::MAX);
+    let length = encode_scoped_record(RecordScope::Pad(7), &worst, u32::MAX, &mut buffer).unwrap();
+    assert_eq!(length, MAX_RECORD_LEN);
+    // A pad index beyond the eighth is refused when writing and when reading.
+    assert_eq!(
+        encode_scoped_record(RecordScope::Pad(8), &spec, 0, &mut buffer),
+        Err(RecordError::PadOutOfRange { pad: 8 })
+    );
+    let mut beyond = expected.clone();
+    beyond[1] = 8;
+    let crc_at = beyond.len() - 4;
+    let crc = INDEPENDENT_CRC.checksum(&beyond[..crc_at]);
+    beyond[crc_at..].copy_from_slice(&crc.to_le_bytes());
+    assert_eq!(
+        decode_saved_record(&beyond),
+        Err(RecordError::PadOutOfRange { pad: 8 })
     );
 }
 
@@ -81,6 +124,7 @@ fn a_calibrated_c0_round_trips_and_is_an_option_after_the_parasitic_capacitance(
         decode_saved_record(&record),
         Ok(SavedRecord {
             save_counter: 5,
+            scope: RecordScope::EveryPad,
             spec: with_c0.clone()
         })
     );
@@ -156,8 +200,9 @@ fn postcard_body(spec: &CalibrationSpec) -> Vec<u8> {
 fn worst_case_spec_fills_max_record_len_exactly() {
     let worst = worst_case_spec(u32::MAX);
     let record = encode(&worst);
-    assert_eq!(record.len(), MAX_RECORD_LEN);
-    assert_eq!(MAX_RECORD_LEN, 651);
+    // A record for every pad; one pad's record adds the pad's index.
+    assert_eq!(record.len() + 1, MAX_RECORD_LEN);
+    assert_eq!(MAX_RECORD_LEN, 652);
     assert!(worst
         .taxels
         .iter()
@@ -174,10 +219,18 @@ fn default_record_length_is_measured() {
 #[test]
 fn every_too_short_buffer_is_refused_without_writing_past_it() {
     let worst = worst_case_spec(u32::MAX);
-    for length in 0..MAX_RECORD_LEN {
+    for length in 0..MAX_RECORD_LEN - 1 {
         let mut buffer = vec![0xA5u8; length];
         assert_eq!(
             encode_record(&worst, COUNTER, &mut buffer),
+            Err(RecordError::BufferTooSmall),
+            "buffer of {length} bytes"
+        );
+    }
+    for length in 0..MAX_RECORD_LEN {
+        let mut buffer = vec![0xA5u8; length];
+        assert_eq!(
+            encode_scoped_record(RecordScope::Pad(0), &worst, COUNTER, &mut buffer),
             Err(RecordError::BufferTooSmall),
             "buffer of {length} bytes"
         );
@@ -220,7 +273,7 @@ fn a_changed_byte_is_a_crc_error() {
 #[test]
 fn an_intact_record_of_another_version_is_refused_by_version() {
     let record = encode(&spec(3));
-    for version in [0, 1, 4, 0xFF] {
+    for version in [0, 1, 5, 0xFF] {
         let other_version = record_with_body(version, &record[5..record.len() - 4]);
         assert_eq!(
             decode_record(&other_version),

@@ -66,7 +66,7 @@ fn store_raw_item(flash: &mut SmallFlash, value: &[u8]) {
 fn blank_flash_is_absent() {
     let mut flash = small_flash();
     assert_eq!(
-        block_on(small_store(&mut flash).load()),
+        block_on(small_store(&mut flash).load(0)),
         LoadOutcome::Absent
     );
     assert!(flash.as_bytes().iter().all(|&byte| byte == 0xFF));
@@ -82,7 +82,7 @@ fn save_then_load_returns_the_same_spec_before_and_after_a_reboot() {
     ] {
         let mut store = small_store(&mut flash);
         block_on(store.save(&saved)).unwrap();
-        assert_eq!(block_on(store.load()), LoadOutcome::Stored(saved.clone()));
+        assert_eq!(block_on(store.load(0)), LoadOutcome::Stored(saved.clone()));
         assert_eq!(reboot_and_load(&mut flash), LoadOutcome::Stored(saved));
     }
     assert_outside_untouched(&flash);
@@ -139,7 +139,7 @@ fn pages_must_hold_two_records_and_that_is_enough() {
     for id in 0..20 {
         let saved = worst_case_spec(id);
         block_on(store.save(&saved)).unwrap();
-        assert_eq!(block_on(store.load()), LoadOutcome::Stored(saved));
+        assert_eq!(block_on(store.load(0)), LoadOutcome::Stored(saved));
     }
 }
 
@@ -163,7 +163,7 @@ fn erase_all_restores_absent_and_saving_works_afterwards() {
     let mut store = small_store(&mut flash);
     block_on(store.save(&spec(1))).unwrap();
     block_on(store.erase_all()).unwrap();
-    assert_eq!(block_on(store.load()), LoadOutcome::Absent);
+    assert_eq!(block_on(store.load(0)), LoadOutcome::Absent);
     block_on(store.save(&spec(2))).unwrap();
     assert_eq!(reboot_and_load(&mut flash), LoadOutcome::Stored(spec(2)));
     assert_outside_untouched(&flash);
@@ -236,7 +236,7 @@ fn with_version(record: &[u8], version: u8) -> Vec<u8> {
 #[test]
 fn an_intact_item_with_an_unacceptable_record_is_corrupt_and_a_save_replaces_it() {
     let valid = record(&spec(5), 9);
-    let other_version = with_version(&valid, 4);
+    let other_version = with_version(&valid, 5);
     // Version 1 had no save counter: the bytes after the version are a version 1 body here, and
     // the version alone refuses it.
     let version_1 = with_version(&valid, 1);
@@ -245,7 +245,7 @@ fn an_intact_item_with_an_unacceptable_record_is_corrupt_and_a_save_replaces_it(
     let cases: [(&[u8], CorruptReason<RamFlashError>); 4] = [
         (
             &other_version,
-            CorruptReason::Record(RecordError::UnsupportedVersion { found: 4 }),
+            CorruptReason::Record(RecordError::UnsupportedVersion { found: 5 }),
         ),
         (
             &version_1,
@@ -290,7 +290,7 @@ fn five_hundred_saves_wrap_around_two_small_pages() {
         let mut store = small_store(&mut flash);
         block_on(store.save(&saved)).unwrap();
         assert_eq!(
-            block_on(store.load()),
+            block_on(store.load(0)),
             LoadOutcome::Stored(saved.clone()),
             "save {id}"
         );
@@ -410,7 +410,7 @@ fn the_f411_region_of_two_128_kib_sectors_wraps_and_loads_the_newest() {
         block_on(
             CalibrationStore::new(&mut *flash, range.clone())
                 .unwrap()
-                .load()
+                .load(0)
         ),
         LoadOutcome::Absent
     );
@@ -421,7 +421,7 @@ fn the_f411_region_of_two_128_kib_sectors_wraps_and_loads_the_newest() {
         if id % 50 == 0 || id == 449 {
             flash.power_cycle();
             let mut rebooted = CalibrationStore::new(&mut *flash, range.clone()).unwrap();
-            assert_eq!(block_on(rebooted.load()), LoadOutcome::Stored(saved));
+            assert_eq!(block_on(rebooted.load(0)), LoadOutcome::Stored(saved));
         }
     }
     assert!(flash.erase_count() >= 2, "{} erases", flash.erase_count());
@@ -584,6 +584,6 @@ fn the_fuzzed_zero_length_item_image_loads_without_panicking() {
     image[..bytes.len()].copy_from_slice(bytes);
     let mut store =
         CalibrationStore::new(RamFlash::<4096, 2048>::from_bytes(image), 0..4096).unwrap();
-    let outcome = block_on(store.load());
+    let outcome = block_on(store.load(0));
     assert!(!matches!(outcome, LoadOutcome::Stored(_)), "{outcome:?}");
 }

@@ -13,8 +13,8 @@
 mod common;
 
 use calibration_store::{
-    decode_record, decode_saved_record, encode_record, LoadOutcome, RecordError, SavedRecord,
-    MAX_RECORD_LEN, RECORD_FORMAT_VERSION,
+    decode_record, decode_saved_record, encode_record, LoadOutcome, RecordError, RecordScope,
+    SavedRecord, MAX_RECORD_LEN, RECORD_FORMAT_VERSION,
 };
 use common::{
     block_on, config, reboot_and_load, small_store, spec, valid_spec, version_2_flash,
@@ -127,6 +127,7 @@ fn the_previous_firmwares_records_load_as_the_same_calibration_without_c0() {
     assert_eq!(
         decode_saved_record(V2_SPEC_7),
         Ok(SavedRecord {
+            scope: RecordScope::EveryPad,
             save_counter: 41,
             spec: spec(7)
         })
@@ -135,6 +136,7 @@ fn the_previous_firmwares_records_load_as_the_same_calibration_without_c0() {
     assert_eq!(
         decode_saved_record(V2_WORST_CASE),
         Ok(SavedRecord {
+            scope: RecordScope::EveryPad,
             save_counter: 0xA1B2_C3D4,
             spec: without_c0(worst_case_spec(u32::MAX))
         })
@@ -244,7 +246,11 @@ proptest! {
         prop_assert!(record.len() <= MAX_RECORD_LEN);
         prop_assert_eq!(
             decode_saved_record(&record),
-            Ok(SavedRecord { save_counter, spec })
+            Ok(SavedRecord {
+                save_counter,
+                scope: RecordScope::EveryPad,
+                spec
+            })
         );
     }
 

@@ -6,7 +6,7 @@
 
 use core::ops::Deref;
 
-use acquisition::discovery::{PadTemperature, Topology};
+use acquisition::discovery::{PadTemperature, Topology, MAX_PADS};
 use acquisition::pad_bus::{MuxedBus, PadBus};
 use acquisition::{Acquisition, AcquisitionConfig, Clock, TemperatureSource};
 use calibration_store::LoadOutcome;
@@ -109,13 +109,12 @@ pub struct BoardParts<S, D, F, K, P> {
 pub struct BootReport {
     /// Pads found.
     pub pad_count: u8,
-    /// Where the calibration came from.
+    /// Where the first pad's calibration came from (every pad's is in its PadInfo reply).
     pub calibration_source: CalibrationSource,
     /// Sample sets of the tare taken at start (0: none).
     pub tare_sets_at_start: u16,
-    /// Taxels of the first pad whose baseline was restored from the retained record (bit n =
-    /// taxel n).
-    pub restored_mask: u8,
+    /// Taxels, over every pad, whose baseline was restored from the retained record.
+    pub restored_taxels: u8,
     /// Whether an MCU-only reset found an intact retained record.
     pub restored: bool,
 }
@@ -130,17 +129,17 @@ pub type BoardAcquisition<S, D, F, K> = Acquisition<PadI2c<S>, D, Tmp117<PadI2c<
 /// The device application the firmware and the simulated device run.
 pub type BootedDevice<S, D, F, K, P> = Device<BoardAcquisition<S, D, F, K>, P>;
 
-/// Boots: the calibration from what flash returned, one model per pad found (every pad starts
-/// on that calibration; the first pad gets the baselines and tier retained over an MCU-only
-/// reset, every pad a tare at start after a power-on), the acquisition loop reading the pads in
+/// Boots: one model per pad found, each on the calibration flash holds for it (its own, the one
+/// saved for every pad, or the default), read pad by pad from `parts.persistence`; after an
+/// MCU-only reset every pad gets back the baselines and tier of the pad that was on its channel,
+/// after a power-on every pad is tared at start; then the acquisition loop reading the pads in
 /// discovery order, and the device application.
 // Not inlined into the caller's async body, so that the models exist once in the task's state,
 // not twice.
 #[inline(never)]
-pub fn boot<S, M, BUS, D, F, K, P, E>(
-    parts: BoardParts<S, D, F, K, P>,
+pub fn boot<S, M, BUS, D, F, K, P>(
+    mut parts: BoardParts<S, D, F, K, P>,
     config: &BoardConfig,
-    stored: Option<LoadOutcome<E>>,
     reset: ResetKind,
     retained: Option<RetainedState>,
 ) -> (BootedDevice<S, D, F, K, P>, BootReport)
@@ -153,7 +152,6 @@ where
     K: Clock,
     P: CalibrationPersistence,
 {
-    let (calibration, calibration_source) = boot_calibration(stored);
     let plan = boot_plan(reset, retained, config.tare_sets_at_power_on);
     let mut acquisition = Acquisition::without_pads(
         parts.fallback_temperature,
@@ -165,12 +163,20 @@ where
         parts.delay.clone(),
         config.converter_rate,
     );
-    let mut restored_mask = 0;
+    let mut restored_taxels = 0;
+    let mut calibration_sources = heapless::Vec::<CalibrationSource, MAX_PADS>::new();
     for (index, slot) in parts.topology.pads.iter().enumerate() {
-        let mut model = PadModel::new(calibration.clone());
-        if index == 0 {
-            restored_mask = plan.apply_to(&mut model);
-        }
+        // One pad's calibration at a time: eight specs at once would not fit the MCU's RAM.
+        let (calibration, calibration_source) = boot_calibration(
+            parts
+                .persistence
+                .load(u8::try_from(index).unwrap_or(u8::MAX)),
+        );
+        // Cannot fail: discovery finds at most MAX_PADS pads.
+        let _ = calibration_sources.push(calibration_source);
+        let mut model = PadModel::new(calibration);
+        let restored = plan.apply_to(slot.channel.map(|channel| channel.index()), &mut model);
+        restored_taxels += restored.count_ones() as u8;
         let converter = Fdc1004::new(
             PadBus::new(parts.bus.clone(), slot.channel),
             parts.delay.clone(),
@@ -195,15 +201,18 @@ where
         acquisition,
         parts.persistence,
         parts.identity,
-        calibration_source,
+        &calibration_sources,
         &parts.topology.pads,
         config.device,
     );
     let report = BootReport {
         pad_count,
-        calibration_source,
+        calibration_source: calibration_sources
+            .first()
+            .copied()
+            .unwrap_or(CalibrationSource::Defaults),
         tare_sets_at_start: plan.tare_sets_at_start,
-        restored_mask,
+        restored_taxels,
         restored: plan.restore.is_some(),
     };
     (device, report)

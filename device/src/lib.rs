@@ -31,14 +31,15 @@ pub use convert::{
 };
 pub use host_input::{HostInput, HostInputEvent};
 pub use persistence::{CalibrationPersistence, PersistenceFailed};
-pub use retained::{boot_plan, BootPlan, ResetKind, RetainedState, RETAINED_LEN};
+pub use retained::{boot_plan, BootPlan, ResetKind, RetainedPad, RetainedState, RETAINED_LEN};
 pub use supervisor::{Supervisor, SupervisorAction};
 
 use acquisition::discovery::{PadSlot, PadTemperature, MAX_PADS};
 use acquisition::{ProcessedSample, TemperatureOrigin};
+use calibration_store::RecordScope;
 use model_core::{
     pad_force, BaselineError, Calibration, ContactConfig, ContactDetector, ContactEvent,
-    PadGeometry, PadModel, TareStatus, Tier, TAXEL_COUNT,
+    PadGeometry, PadModel, TareStatus, Tier,
 };
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
@@ -208,25 +209,33 @@ pub struct Device<A, P> {
     pads: heapless::Vec<PadReporting, MAX_PADS>,
 }
 
-/// The pad whose calibration the Info frame shows and whose baselines the retained record keeps.
+/// The pad whose calibration the Info frame shows.
 const FIRST_PAD: usize = 0;
 
 impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
-    /// The application around an acquisition loop whose models already hold the calibration
-    /// that `calibration_source` describes; `slots` says where each of the loop's pads is.
+    /// The application around an acquisition loop whose models already hold the calibrations
+    /// that `calibration_sources` describe, pad by pad; `slots` says where each of the loop's
+    /// pads is.
     pub fn new(
         control: A,
         persistence: P,
         identity: DeviceIdentity,
-        calibration_source: CalibrationSource,
+        calibration_sources: &[CalibrationSource],
         slots: &[PadSlot],
         config: DeviceConfig,
     ) -> Self {
         let mut pads = heapless::Vec::new();
-        for slot in slots.iter().take(control.pad_count()) {
+        for (index, slot) in slots.iter().take(control.pad_count()).enumerate() {
+            let source = calibration_sources
+                .get(index)
+                .copied()
+                .unwrap_or(CalibrationSource::Defaults);
             // Cannot fail: at most MAX_PADS slots are taken.
-            let _ = pads.push(PadReporting::new(slot, calibration_source, config.contact));
+            let _ = pads.push(PadReporting::new(slot, source, config.contact));
         }
+        let announce_flash_corrupt = pads.iter().any(|pad: &PadReporting| {
+            pad.calibration_source == CalibrationSource::DefaultsAfterCorruptFlash
+        });
         Self {
             control,
             persistence,
@@ -238,8 +247,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             pending_tare: None,
             host_counters: HostCounters::default(),
             sets_since_counters: 0,
-            announce_flash_corrupt: calibration_source
-                == CalibrationSource::DefaultsAfterCorruptFlash,
+            announce_flash_corrupt,
             retained_written: None,
             pads,
         }
@@ -270,18 +278,17 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         self.streaming
     }
 
-    /// What must survive an MCU-only reset: the first pad's baselines and the tier.
+    /// What must survive an MCU-only reset: every pad's baselines and tier, with its channel.
     pub fn retained_state(&self) -> RetainedState {
-        match self.control.pad(FIRST_PAD) {
-            Some(pad) => RetainedState {
+        let mut pads = [None; MAX_PADS];
+        for (index, (slot, reporting)) in pads.iter_mut().zip(&self.pads).enumerate() {
+            *slot = self.control.pad(index).map(|pad| RetainedPad {
+                channel: reporting.channel,
                 baselines: pad.baseline_records(),
                 tier: pad.tier(),
-            },
-            None => RetainedState {
-                baselines: [None; TAXEL_COUNT],
-                tier: Tier::default(),
-            },
+            });
         }
+        RetainedState { pads }
     }
 
     /// The state to keep in no-init RAM when it changed since the last call (after a tare or a
@@ -597,9 +604,10 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         Ok(())
     }
 
-    /// Saves the pads' calibration. Flash holds one calibration, which every pad boots with:
-    /// when the pads' calibrations differ, nothing is written and the reply is NotSupported
-    /// (each pad keeps its own in RAM until a reboot).
+    /// Saves the pads' calibrations: one record for every pad when they all hold the same
+    /// calibration, otherwise one record per pad, in pad order. Each record is saved whole or
+    /// not at all; if one fails, the pads before it are saved, the others keep what flash held,
+    /// and the reply is FlashError.
     async fn save_calibrations(&mut self) -> Result<ReplyPayload, ErrorCode> {
         let Some(first) = self.control.pad(FIRST_PAD) else {
             return Err(ErrorCode::NotSupported);
@@ -610,18 +618,30 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 .pad(pad)
                 .is_some_and(|model| model.calibration().to_spec() == spec)
         });
-        if !all_alike {
-            return Err(ErrorCode::NotSupported);
-        }
-        match self.persistence.save(&spec).await {
-            Ok(()) => {
-                for reporting in self.pads.iter_mut() {
-                    reporting.calibration_source = CalibrationSource::Flash;
-                }
-                Ok(ReplyPayload::Ack)
+        if all_alike {
+            self.persistence
+                .save(RecordScope::EveryPad, &spec)
+                .await
+                .map_err(|PersistenceFailed| ErrorCode::FlashError)?;
+            for reporting in self.pads.iter_mut() {
+                reporting.calibration_source = CalibrationSource::Flash;
             }
-            Err(PersistenceFailed) => Err(ErrorCode::FlashError),
+            return Ok(ReplyPayload::Ack);
         }
+        for pad in 0..self.control.pad_count() {
+            let (Some(model), Ok(index)) = (self.control.pad(pad), u8::try_from(pad)) else {
+                continue;
+            };
+            let spec = model.calibration().to_spec();
+            self.persistence
+                .save(RecordScope::Pad(index), &spec)
+                .await
+                .map_err(|PersistenceFailed| ErrorCode::FlashError)?;
+            if let Some(reporting) = self.pads.get_mut(pad) {
+                reporting.calibration_source = CalibrationSource::Flash;
+            }
+        }
+        Ok(ReplyPayload::Ack)
     }
 
     async fn apply(

@@ -1,15 +1,30 @@
-//! Where a saved calibration goes (flash on the board, a RAM or file model on the desktop).
+//! Where saved calibrations go (flash on the board, a RAM model on the desktop).
 
+use calibration_store::{LoadOutcome, RecordScope};
 use model_core::CalibrationSpec;
 
-/// Saving failed; the previous saved calibration is still in place.
+/// Saving failed; the previous saved calibrations still load.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PersistenceFailed;
 
-/// Stores a calibration so that it survives a reset.
+/// Stores calibrations, one per pad or one for every pad, so that they survive a reset.
 #[allow(async_fn_in_trait)]
 pub trait CalibrationPersistence {
-    /// Saves the calibration; on failure the previous one must still load.
-    async fn save(&mut self, spec: &CalibrationSpec) -> Result<(), PersistenceFailed>;
+    /// The flash driver's error, in load outcomes.
+    type Error;
+
+    /// What flash holds for pad `pad` (its own calibration, or the one saved for every pad),
+    /// read by the boot one pad at a time so that a single calibration is held at once; `None`
+    /// when there is no usable flash region. It only reads, and flash reads do not wait, so it
+    /// is not async.
+    fn load(&mut self, pad: u8) -> Option<LoadOutcome<Self::Error>>;
+
+    /// Saves the calibration for `scope`; on failure every pad's previous calibration must still
+    /// load.
+    async fn save(
+        &mut self,
+        scope: RecordScope,
+        spec: &CalibrationSpec,
+    ) -> Result<(), PersistenceFailed>;
 }

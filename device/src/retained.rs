@@ -10,25 +10,39 @@
 //! Record: postcard of [`RetainedRecord`] (magic "TXRS", format version, the state) followed by
 //! postcard's CRC-32/ISO-HDLC of those bytes, in a buffer of [`RETAINED_LEN`] bytes.
 
+use acquisition::discovery::MAX_PADS;
 use crc::{Crc, CRC_32_ISO_HDLC};
 use model_core::{BaselineRecord, PadModel, Tier, TAXEL_COUNT};
 use serde::{Deserialize, Serialize};
 
-/// Bytes kept for the record: the largest encoding (every taxel tared) is 4 + 1 + 4 × 17 + 1 +
-/// 4 = 78 bytes; a test checks that it fits. The bytes after the CRC must be 0.
-pub const RETAINED_LEN: usize = 80;
+/// Bytes kept for the record: the largest encoding (eight pads, every taxel tared) is 4 + 1 +
+/// 8 × (1 + 2 + 4 × 17 + 1) + 4 = 585 bytes; a test checks that it fits. The bytes after the
+/// CRC must be 0.
+pub const RETAINED_LEN: usize = 588;
 
 const MAGIC: [u8; 4] = *b"TXRS";
-const FORMAT_VERSION: u8 = 2;
+/// 3: one entry per pad (2 held the first pad's alone, and is refused: those taxels stay
+/// untared after the update's reset until the host tares).
+const FORMAT_VERSION: u8 = 3;
 const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
 
-/// What survives an MCU-only reset.
+/// What one pad had before an MCU-only reset.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct RetainedState {
+pub struct RetainedPad {
+    /// The multiplexer channel the pad is on (`None`: on the bus itself): a pad is given back
+    /// its own baselines only if discovery finds it on the same channel again.
+    pub channel: Option<u8>,
     /// Per taxel, the baseline in force before the reset (with its tracked drift).
     pub baselines: [Option<BaselineRecord>; TAXEL_COUNT],
     /// The tier in force before the reset.
     pub tier: Tier,
+}
+
+/// What survives an MCU-only reset: every pad's state, in discovery order.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RetainedState {
+    /// Per pad found before the reset; the rest `None`.
+    pub pads: [Option<RetainedPad>; MAX_PADS],
 }
 
 /// The record as encoded: the magic and version make a record of another layout unreadable
@@ -89,15 +103,23 @@ pub struct BootPlan {
 }
 
 impl BootPlan {
-    /// Restores the retained baselines and tier into a model built from the boot's calibration;
-    /// returns the taxels restored (bit n = taxel n). The tare at start is the caller's to pass
-    /// to the acquisition loop.
-    pub fn apply_to(&self, pad: &mut PadModel) -> u8 {
+    /// Restores into a model built from the boot's calibration the retained baselines and tier
+    /// of the pad that was on `channel` (none: nothing); returns the taxels restored (bit n =
+    /// taxel n). The tare at start is the caller's to pass to the acquisition loop.
+    pub fn apply_to(&self, channel: Option<u8>, pad: &mut PadModel) -> u8 {
         let Some(state) = self.restore else {
             return 0;
         };
-        let _ = pad.set_tier(state.tier);
-        pad.restore_baselines(&state.baselines)
+        let Some(retained) = state
+            .pads
+            .iter()
+            .flatten()
+            .find(|retained| retained.channel == channel)
+        else {
+            return 0;
+        };
+        let _ = pad.set_tier(retained.tier);
+        pad.restore_baselines(&retained.baselines)
     }
 }
 
@@ -122,7 +144,18 @@ mod tests {
     use model_core::SplitCapacitance;
 
     fn state() -> RetainedState {
-        RetainedState {
+        let mut pads = [None; MAX_PADS];
+        pads[0] = Some(pad(Some(2)));
+        pads[1] = Some(RetainedPad {
+            tier: Tier::Linear,
+            ..pad(Some(5))
+        });
+        RetainedState { pads }
+    }
+
+    fn pad(channel: Option<u8>) -> RetainedPad {
+        RetainedPad {
+            channel,
             baselines: [
                 Some(BaselineRecord {
                     capacitance: SplitCapacitance {
@@ -154,9 +187,9 @@ mod tests {
 
     #[test]
     fn the_largest_record_fits() {
-        let mut full = state();
-        full.baselines = [full.baselines[0]; TAXEL_COUNT];
-        full.baselines[3] = Some(BaselineRecord {
+        let mut full_pad = pad(Some(7));
+        full_pad.baselines = [full_pad.baselines[0]; TAXEL_COUNT];
+        full_pad.baselines[3] = Some(BaselineRecord {
             capacitance: SplitCapacitance {
                 offset_pf: f32::MAX,
                 fine_pf: f32::MIN,
@@ -164,22 +197,48 @@ mod tests {
             temperature_c: f32::NAN,
             tracked_drift_pf: f32::INFINITY,
         });
-        full.tier = Tier::ALL[Tier::ALL.len() - 1];
-        let decoded = RetainedState::decode(&full.encode());
+        full_pad.tier = Tier::ALL[Tier::ALL.len() - 1];
+        let full = RetainedState {
+            pads: [Some(full_pad); MAX_PADS],
+        };
+        let bytes = full.encode();
+        assert_ne!(bytes, [0u8; RETAINED_LEN], "the record did not fit");
+        let decoded = RetainedState::decode(&bytes);
         // NaN != NaN, so compare the bits of the odd one.
         let bits = |state: &RetainedState| {
-            state.baselines.map(|record| {
-                record.map(|record| {
-                    [
-                        record.capacitance.offset_pf.to_bits(),
-                        record.capacitance.fine_pf.to_bits(),
-                        record.temperature_c.to_bits(),
-                        record.tracked_drift_pf.to_bits(),
-                    ]
+            state.pads.map(|pad| {
+                pad.map(|pad| {
+                    (
+                        pad.channel,
+                        pad.tier,
+                        pad.baselines.map(|record| {
+                            record.map(|record| {
+                                [
+                                    record.capacitance.offset_pf.to_bits(),
+                                    record.capacitance.fine_pf.to_bits(),
+                                    record.temperature_c.to_bits(),
+                                    record.tracked_drift_pf.to_bits(),
+                                ]
+                            })
+                        }),
+                    )
                 })
             })
         };
         assert_eq!(decoded.as_ref().map(bits), Some(bits(&full)));
+    }
+
+    #[test]
+    fn a_pad_gets_back_the_state_of_the_pad_that_was_on_its_channel() {
+        let plan = boot_plan(ResetKind::McuOnly, Some(state()), 16);
+        let calibration = model_core::Calibration::default();
+        let mut on_five = PadModel::new(calibration.clone());
+        assert_eq!(plan.apply_to(Some(5), &mut on_five), 0b0101);
+        assert_eq!(on_five.tier(), Tier::Linear);
+        assert_eq!(on_five.baseline_records(), pad(None).baselines);
+        let mut elsewhere = PadModel::new(calibration);
+        assert_eq!(plan.apply_to(Some(3), &mut elsewhere), 0);
+        assert_eq!(elsewhere.baseline_records(), [None; TAXEL_COUNT]);
     }
 
     #[test]

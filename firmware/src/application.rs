@@ -33,7 +33,7 @@ impl Clock for EmbassyClock {
 pub async fn acquisition_task(
     mut bus: I2cBus,
     adc: Peri<'static, ADC1>,
-    mut persistence: FlashPersistence,
+    persistence: FlashPersistence,
     reset: ResetKind,
 ) -> ! {
     let topology = discover(&mut bus, &mut Delay, BOARD.multiplexer).await;
@@ -59,7 +59,6 @@ pub async fn acquisition_task(
         }
     }
     let die_temperature = DieTemperature::new(adc).await;
-    let stored = persistence.load().await;
     let parts = BoardParts {
         bus: shared,
         topology,
@@ -73,7 +72,7 @@ pub async fn acquisition_task(
         },
     };
     info!("{}", parts.identity);
-    let (mut device, report) = device::boot(parts, &BOARD, stored, reset, retained::read());
+    let (mut device, report) = device::boot(parts, &BOARD, reset, retained::read());
     info!("booted after {}: {}", reset, report);
     if reset == ResetKind::McuOnly && !report.restored {
         warn!("MCU reset without a retained record: not tared until the host tares");

@@ -1,8 +1,10 @@
-//! The calibration in flash for the device application: [`FlashPersistence`] loads it at boot and
-//! implements `device::CalibrationPersistence` over `taxel-calibration-store`, in sectors 6 and 7,
+//! The pads' calibrations in flash for the device application: [`FlashPersistence`] loads them
+//! at boot, pad by pad, and implements `device::CalibrationPersistence` over `taxel-calibration-store`, in sectors 6 and 7,
 //! feeding the watchdog between sector erases.
 
-use calibration_store::{CalibrationStore, EraseHook, LoadOutcome, STM32F411_CALIBRATION_RANGE};
+use calibration_store::{
+    CalibrationStore, EraseHook, LoadOutcome, RecordScope, STM32F411_CALIBRATION_RANGE,
+};
 use defmt::{error, info, warn};
 use device::{CalibrationPersistence, PersistenceFailed};
 use embassy_stm32::flash::{self, Flash, FLASH_BASE};
@@ -47,33 +49,38 @@ impl FlashPersistence {
             }
         }
     }
-
-    /// What the flash holds, for the boot (`device::boot` chooses the calibration from it);
-    /// `None` when the region is unusable.
-    pub async fn load(&mut self) -> Option<LoadOutcome<flash::Error>> {
-        let store = self.store.as_mut()?;
-        let outcome = store.load().await;
-        match &outcome {
-            LoadOutcome::Stored(spec) => info!("calibration {=u32} found in flash", spec.id),
-            LoadOutcome::Absent => info!("no calibration saved; using the defaults"),
-            LoadOutcome::Corrupt(reason) => {
-                warn!(
-                    "stored calibration corrupt ({}); using the defaults",
-                    reason
-                )
-            }
-        }
-        Some(outcome)
-    }
 }
 
 impl CalibrationPersistence for FlashPersistence {
+    type Error = flash::Error;
+
+    /// Reads only: embassy-stm32's flash reads complete on the first poll.
+    fn load(&mut self, pad: u8) -> Option<LoadOutcome<flash::Error>> {
+        let store = self.store.as_mut()?;
+        let outcome = embassy_futures::block_on(store.load(pad));
+        match &outcome {
+            LoadOutcome::Stored(spec) => {
+                info!("pad {=u8}: calibration {=u32} found in flash", pad, spec.id)
+            }
+            LoadOutcome::Absent => info!("pad {=u8}: no calibration saved; the defaults", pad),
+            LoadOutcome::Corrupt(reason) => warn!(
+                "pad {=u8}: stored calibration corrupt ({}); the defaults",
+                pad, reason
+            ),
+        }
+        Some(outcome)
+    }
+
     /// Stalls the whole MCU for 1-2 s per sector erase (single-bank flash); USB answers NAK meanwhile.
-    async fn save(&mut self, spec: &CalibrationSpec) -> Result<(), PersistenceFailed> {
+    async fn save(
+        &mut self,
+        scope: RecordScope,
+        spec: &CalibrationSpec,
+    ) -> Result<(), PersistenceFailed> {
         let store = self.store.as_mut().ok_or(PersistenceFailed)?;
-        match store.save(spec).await {
+        match store.save_for(scope, spec).await {
             Ok(()) => {
-                info!("calibration {=u32} saved", spec.id);
+                info!("calibration {=u32} saved for {}", spec.id, scope);
                 Ok(())
             }
             Err(store_error) => {

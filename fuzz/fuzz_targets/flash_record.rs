@@ -20,7 +20,9 @@ fuzz_target!(|bytes: &[u8]| {
     else {
         return;
     };
-    if let LoadOutcome::Stored(spec) = embassy_futures::block_on(store.load()) {
-        assert!(model_core::Calibration::new(&spec).is_ok());
+    for pad in 0..=calibration_store::MAX_PADS {
+        if let LoadOutcome::Stored(spec) = embassy_futures::block_on(store.load(pad)) {
+            assert!(model_core::Calibration::new(&spec).is_ok());
+        }
     }
 });

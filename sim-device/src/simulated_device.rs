@@ -9,7 +9,7 @@ use acquisition::discovery::discover;
 use acquisition::pad_bus::MuxedBus;
 use acquisition::TemperatureSource;
 use acquisition::{Clock, ProcessedSample};
-use calibration_store::CalibrationStore;
+use calibration_store::{CalibrationStore, LoadOutcome, RamFlashError, RecordScope};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::mutex::Mutex;
 
@@ -91,8 +91,22 @@ impl TemperatureSource for SimulatedDieTemperature {
 pub struct SimulatedPersistence(CalibrationStore<SimulatedFlash>);
 
 impl CalibrationPersistence for SimulatedPersistence {
-    async fn save(&mut self, spec: &CalibrationSpec) -> Result<(), PersistenceFailed> {
-        self.0.save(spec).await.map_err(|_| PersistenceFailed)
+    type Error = RamFlashError;
+
+    fn load(&mut self, pad: u8) -> Option<LoadOutcome<RamFlashError>> {
+        // The RAM flash never waits: the future completes on its first poll.
+        Some(embassy_futures::block_on(self.0.load(pad)))
+    }
+
+    async fn save(
+        &mut self,
+        scope: RecordScope,
+        spec: &CalibrationSpec,
+    ) -> Result<(), PersistenceFailed> {
+        self.0
+            .save_for(scope, spec)
+            .await
+            .map_err(|_| PersistenceFailed)
     }
 }
 
@@ -322,15 +336,22 @@ impl SimulatedDevice {
     /// One sample set with its requests and frames; returns the first pad's sample (`None`
     /// when no pad was found).
     pub fn step<H: HostPort>(&mut self, host: &mut H) -> Option<ProcessedSample> {
-        self.schedule_scene_faults();
         let mut first = None;
-        embassy_futures::block_on(self.device.step_observed(host, |sample| {
-            first = first.or(Some(*sample));
-        }));
+        self.step_observed(host, |sample| first = first.or(Some(*sample)));
+        first
+    }
+
+    /// One sample set with its requests and frames; `observe` sees every pad's sample.
+    pub fn step_observed<H: HostPort>(
+        &mut self,
+        host: &mut H,
+        observe: impl FnMut(&ProcessedSample),
+    ) {
+        self.schedule_scene_faults();
+        embassy_futures::block_on(self.device.step_observed(host, observe));
         if let Some(state) = self.device.retained_state_change() {
             self.retained_ram = state.encode();
         }
-        first
     }
 
     /// Steps until `stop` is set or the scene's simulated time passes `until_s`.
@@ -381,13 +402,12 @@ impl SimulatedDevice {
 /// simulated board's parts: its I2C bus, clock, die sensor and flash.
 fn boot_simulated(
     simulation: &Simulation,
-    mut persistence: SimulatedPersistence,
+    persistence: SimulatedPersistence,
     seed: u64,
     reset: ResetKind,
     retained: Option<RetainedState>,
     clock_error: ClockError,
 ) -> Device<SimulatedAcquisition, SimulatedPersistence> {
-    let stored = embassy_futures::block_on(persistence.0.load());
     let mut bus = simulation.i2c();
     let topology = embassy_futures::block_on(discover(
         &mut bus,
@@ -409,6 +429,6 @@ fn boot_simulated(
             board_serial: simulated_board_serial(seed),
         },
     };
-    let (device, _) = device::boot(parts, &BOARD, Some(stored), reset, retained);
+    let (device, _) = device::boot(parts, &BOARD, reset, retained);
     device
 }

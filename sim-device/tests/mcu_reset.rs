@@ -1,13 +1,14 @@
-//! An MCU-only reset while the pad is loaded (a watchdog reset in a gripper holding an object):
-//! the baselines come back from the retained RAM, so the held load still reads as itself (the
-//! policy without an intact record, "not tared" rather than a zero, is tested in `device`).
+//! An MCU-only reset while the pads are loaded (a watchdog reset in a gripper holding an
+//! object): every pad's baselines come back from the retained RAM, so each held load still reads
+//! as itself (the policy without an intact record, "not tared" rather than a zero, is tested in
+//! `device`).
 
 // Test helpers may unwrap: a failure is the test failing.
 #![allow(clippy::unwrap_used)]
 
 use device::{HostInputEvent, HostPort, Outgoing, QueueFull};
 use sensor_sim::{Keyframe, ScriptedScene};
-use sim_device::{SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+use sim_device::{PadScene, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 
 /// A host that is connected and throws everything away.
 struct Sink;
@@ -67,5 +68,75 @@ fn a_held_load_survives_an_mcu_only_reset() {
             (before - expected).abs() < 0.5 && (after - expected).abs() < 0.5,
             "taxel {taxel}: {before} -> {after}"
         );
+    }
+}
+
+/// Three pads holding three different loads, on multiplexer channels 0 to 2.
+#[test]
+fn every_pads_held_load_survives_an_mcu_only_reset() {
+    let held: [[f32; 4]; 3] = [
+        [30.0, 12.0, 0.0, 45.0],
+        [5.0, 40.0, 22.0, 0.0],
+        [0.0, 0.0, 18.0, 36.0],
+    ];
+    let pad_scene = |pressures: [f32; 4]| PadScene {
+        name: String::new(),
+        scene: ScriptedScene::new(vec![
+            Keyframe {
+                time_s: 0.0,
+                pressure_kpa: [0.0; 4],
+                temperature_c: 26.0,
+            },
+            Keyframe {
+                time_s: 1.0,
+                pressure_kpa: [0.0; 4],
+                temperature_c: 26.0,
+            },
+            Keyframe {
+                time_s: 1.5,
+                pressure_kpa: pressures,
+                temperature_c: 26.0,
+            },
+        ])
+        .unwrap(),
+        faults: Vec::new(),
+    };
+    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
+        scene: SceneFile {
+            name: "held by three pads".into(),
+            repeat: false,
+            pads: held.iter().map(|pressures| pad_scene(*pressures)).collect(),
+        },
+        seed: 5,
+        speed: None,
+        topology: sim_device::pads_topology(3),
+        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
+    })
+    .unwrap();
+    let run_until = |device: &mut SimulatedDevice, until_s: f64| {
+        let mut last = [None; 3];
+        while device.simulation().now_us() < (until_s * 1e6) as u64 {
+            device.step_observed(&mut Sink, |sample| {
+                last[usize::from(sample.pad)] = Some(sample.output);
+            });
+        }
+        last.map(Option::unwrap)
+    };
+    let before = run_until(&mut device, 3.0);
+    device.restart_mcu().unwrap();
+    let after = run_until(&mut device, 4.0);
+    for (pad, pressures) in held.iter().enumerate() {
+        for (taxel, expected) in pressures.iter().enumerate() {
+            let before = before[pad].taxels[taxel].pressure_kpa().unwrap();
+            let after = after[pad].taxels[taxel].pressure_kpa();
+            assert!(
+                (before - expected).abs() < 0.5,
+                "pad {pad} taxel {taxel} before: {before}"
+            );
+            assert!(
+                after.is_some_and(|after| (after - expected).abs() < 0.5),
+                "pad {pad} taxel {taxel}: {before} -> {after:?}"
+            );
+        }
     }
 }

@@ -1,6 +1,6 @@
 //! The per-pad commands on a simulated device with several pads: PadInfo describes where each
-//! pad is, calibration and baseline commands address one pad, and a pad index the device does
-//! not have is refused.
+//! pad is, calibration and baseline commands address one pad, each pad's saved calibration
+//! survives a reboot, and a pad index the device does not have is refused.
 
 // Test helpers may unwrap and panic: a failure is the test failing.
 #![allow(clippy::unwrap_used, clippy::panic)]
@@ -87,14 +87,26 @@ fn a_calibration_written_to_one_pad_changes_that_pad_only() {
         (second.calibration_id, second.calibration_source),
         (77, CalibrationSource::Host)
     );
-    // Flash keeps one calibration per device: different pads cannot be saved, and nothing is.
+    // Saved, each pad keeps its own calibration over a reboot.
     assert_eq!(
         host.request(Command::SaveCalibration),
-        Err(ErrorCode::NotSupported)
+        Ok(ReplyPayload::Ack)
     );
     assert_eq!(
-        pad_info(&mut host, 0).calibration_source,
+        pad_info(&mut host, 1).calibration_source,
         CalibrationSource::Flash
+    );
+    host.device.restart_mcu().unwrap();
+    host.steps(20);
+    assert_eq!(read(&mut host, 1), record);
+    let (first, second) = (pad_info(&mut host, 0), pad_info(&mut host, 1));
+    assert_eq!(
+        (first.calibration_id, first.calibration_source),
+        (sim_device::FACTORY_CALIBRATION_ID, CalibrationSource::Flash)
+    );
+    assert_eq!(
+        (second.calibration_id, second.calibration_source),
+        (77, CalibrationSource::Flash)
     );
     // A pad the device does not have.
     record.pad = pad(2);

@@ -66,7 +66,7 @@ pub fn small_store(flash: &mut SmallFlash) -> CalibrationStore<&mut SmallFlash> 
 /// "Reboot": power on, a new store on the same bytes, load.
 pub fn reboot_and_load(flash: &mut SmallFlash) -> LoadOutcome<RamFlashError> {
     flash.power_cycle();
-    block_on(small_store(flash).load())
+    block_on(small_store(flash).load(0))
 }
 
 /// Saves through a fresh store and panics on failure.
