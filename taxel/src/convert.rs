@@ -19,6 +19,7 @@
 mod csv_input;
 pub mod multi_pad;
 mod pad_run;
+mod resolve;
 
 use std::fs::File;
 use std::io::{self, BufReader, BufWriter, Read, Write};
@@ -36,9 +37,10 @@ use crate::csv_format::{
 use crate::device_link::FrameReceiver;
 use crate::noteln;
 use crate::output_file::{refuse_same_file, OutputFile};
-use crate::recording::{device_state_path, BaselineChange, RecordedDeviceState};
+use crate::recording::BaselineChange;
 use csv_input::{parse_sample, CsvColumns};
 use pad_run::{frame_input, PadRun};
+pub use resolve::resolve_options;
 
 /// Exit status when at least one input row could not be read.
 pub const EXIT_BAD_ROWS: u8 = 3;
@@ -66,11 +68,12 @@ pad0_c11_pf..., then pad1_..., as `taxel record` writes it) is recognised from i
 each pad is converted with a model of its own (its own tare with --tare-rows), and the output \
 is seq, then for each pad N: padN_time_s,padN_temp_c,padN_p11_kpa..padN_p22_kpa,\
 padN_flags11..padN_flags22. A pad whose frame is missing from a set has every cell empty, in the \
-input and the output. The device state describes pad 0 (the device cannot yet report the other \
-pads' calibrations and baselines): its calibration and baselines are used for every pad, so \
-the other pads' pressures may differ from the device's. A raw log of several pads is converted \
-the same way when its device-state file says how many pads there are; without it, pad 0 only. \
-A header whose pads are out of order or incomplete is an error.\n\n\
+input and the output. The device state holds every pad's calibration, tier and baselines, and \
+each pad is converted with its own. A device-state file written before every pad's state was \
+recorded describes pad 0 only: its calibration and baselines are then used for every pad, so \
+the other pads' pressures may differ from the device's, and convert says so. A raw log of \
+several pads is converted the same way when its device-state file says how many pads there \
+are; without it, pad 0 only. A header whose pads are out of order or incomplete is an error.\n\n\
 Exit status: 0 when every row was read, 3 when some rows could not be read (each is reported \
 on stderr with its line number and written as empty cells), 1 on any other error (no data rows \
 or frames at all, a missing column, a file that cannot be read or written).\n\n\
@@ -138,18 +141,49 @@ pub enum TareSource {
     Recorded(Vec<BaselineChange>),
 }
 
-/// What the model needs besides the data.
+/// One pad's calibration, tier and baselines.
 #[derive(Debug, Clone, PartialEq)]
-pub struct ConvertOptions {
+pub struct PadOptions {
     /// The calibration.
     pub calibration: Calibration,
     /// The inversion tier.
     pub tier: Tier,
     /// The baselines.
     pub tare: TareSource,
+}
+
+/// What the model needs besides the data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConvertOptions {
+    /// The calibration of pad 0, and of every pad without options of its own.
+    pub calibration: Calibration,
+    /// The inversion tier of pad 0, and of every pad without options of its own.
+    pub tier: Tier,
+    /// The baselines of pad 0, and of every pad without options of its own.
+    pub tare: TareSource,
     /// The pads of the recording, from its device state: a raw log of several pads is converted
     /// to the pad-prefixed layout (a CSV file says it in its header).
     pub pad_count: u8,
+    /// Pads 1 and up with options of their own (from a device state holding every pad's), in
+    /// pad order: pad n at index n − 1.
+    pub other_pads: Vec<PadOptions>,
+}
+
+impl ConvertOptions {
+    /// The options pad `pad` is converted with: its own, else pad 0's.
+    pub fn pad_options(&self, pad: usize) -> PadOptions {
+        match pad
+            .checked_sub(1)
+            .and_then(|index| self.other_pads.get(index))
+        {
+            Some(options) => options.clone(),
+            None => PadOptions {
+                calibration: self.calibration.clone(),
+                tier: self.tier,
+                tare: self.tare.clone(),
+            },
+        }
+    }
 }
 
 impl Default for ConvertOptions {
@@ -159,6 +193,7 @@ impl Default for ConvertOptions {
             tier: Tier::default(),
             tare: TareSource::Rows(1),
             pad_count: 1,
+            other_pads: Vec::new(),
         }
     }
 }
@@ -274,7 +309,7 @@ pub fn convert_csv<R: Read, W: Write>(
         return multi_pad::convert_csv(reader, &header, dialect, pad_count, output, options);
     }
     let columns = CsvColumns::find(&header, dialect)?;
-    let mut run = PadRun::new(options)?;
+    let mut run = PadRun::new(&options.pad_options(0))?;
     let mut writer = csv_writer(output);
     writer.write_record(output_header())?;
     let mut summary = ConvertSummary {
@@ -325,7 +360,7 @@ pub fn convert_raw<R: Read, W: Write>(
     if options.pad_count > 1 {
         return multi_pad::convert_raw(input, output, options);
     }
-    let mut run = PadRun::new(options)?;
+    let mut run = PadRun::new(&options.pad_options(0))?;
     let mut writer = csv_writer(output);
     writer.write_record(output_header())?;
     let mut summary = ConvertSummary {
@@ -413,96 +448,6 @@ fn open_input(path: &Path) -> anyhow::Result<Box<dyn Read>> {
         let file = File::open(path).with_context(|| format!("opening {}", path.display()))?;
         Ok(Box::new(BufReader::new(file)))
     }
-}
-
-/// The options a conversion runs with, and a sentence saying where each came from.
-pub fn resolve_options(args: &ConvertArgs) -> anyhow::Result<(ConvertOptions, String)> {
-    let input = args.raw.as_ref().or(args.input.as_ref());
-    let state_path = match (&args.device_state, input) {
-        _ if args.no_device_state => None,
-        (Some(path), _) => Some(path.clone()),
-        (None, Some(input)) if input.as_os_str() != "-" => {
-            Some(device_state_path(input)).filter(|path| path.exists())
-        }
-        (None, _) => None,
-    };
-    let state = match &state_path {
-        Some(path) => Some(RecordedDeviceState::read(path)?),
-        None => None,
-    };
-    let mut said = Vec::new();
-    let calibration = match (&args.calibration, &state) {
-        (Some(path), _) => {
-            let calibration = crate::calibration_file::read(path)
-                .with_context(|| format!("reading the calibration {}", path.display()))?;
-            said.push(format!(
-                "the calibration in {} (id {})",
-                path.display(),
-                calibration.id()
-            ));
-            calibration
-        }
-        (None, Some(state)) => {
-            let calibration = state.calibration()?;
-            said.push(format!(
-                "the device's calibration recorded with it (id {}, {})",
-                calibration.id(),
-                state.calibration_source
-            ));
-            calibration
-        }
-        (None, None) => {
-            said.push(
-                "the built-in default calibration (the article's curve; no device-state file beside the input)"
-                    .to_owned(),
-            );
-            Calibration::default()
-        }
-    };
-    let tier = match (args.tier, &state) {
-        (Some(tier), _) => tier,
-        (None, Some(state)) => Tier::from_name(&state.tier)
-            .with_context(|| format!("the recording's tier '{}' is unknown here", state.tier))?,
-        (None, None) => Tier::default(),
-    };
-    said.push(format!("tier {}", tier.name()));
-    let tare = match (args.tare_rows, &state) {
-        (Some(rows), _) => TareSource::Rows(rows),
-        (None, Some(state)) if !state.baselines.is_empty() => {
-            said.push(format!(
-                "the device's baselines ({} recorded)",
-                state.baselines.len()
-            ));
-            TareSource::Recorded(state.baselines.clone())
-        }
-        (None, _) => TareSource::Rows(1),
-    };
-    if let TareSource::Rows(rows) = tare {
-        said.push(format!("a tare on the first {rows} readable row(s)"));
-    }
-    let pad_count = state.as_ref().map_or(1, |state| state.pad_count.max(1));
-    if pad_count > 1 {
-        said.push(format!(
-            "for each of the {pad_count} pads (the device state describes pad 0: the other pads' pressures may differ from the device's)"
-        ));
-    }
-    let source = match &state_path {
-        Some(path) => format!(
-            "converting with {} (from {})",
-            said.join(", "),
-            path.display()
-        ),
-        None => format!("converting with {}", said.join(", ")),
-    };
-    Ok((
-        ConvertOptions {
-            calibration,
-            tier,
-            tare,
-            pad_count,
-        },
-        source,
-    ))
 }
 
 /// Runs `taxel convert`.

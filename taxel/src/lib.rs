@@ -5,7 +5,7 @@
 //! - [`plot`]: SVG/PNG pictures of recordings and calibrations.
 //! - [`list`], [`record`], [`view`]: attached boards, recording, the live terminal view.
 //! - [`device_link`]: the serial link: board discovery, frame decoding, requests and replies.
-//! - [`calibration_file`], [`csv_format`]: the file formats.
+//! - [`calibration_file`], [`csv_format`], [`device_state`]: the file formats.
 #![deny(missing_docs)]
 // Output goes through `console`, which never panics on a closed stdout or stderr.
 #![deny(clippy::print_stdout, clippy::print_stderr)]
@@ -20,6 +20,7 @@ pub mod console;
 pub mod convert;
 pub mod csv_format;
 pub mod device_link;
+pub mod device_state;
 pub mod device_words;
 pub mod frame_receiver;
 pub mod host_timeline;

@@ -16,7 +16,7 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::time::{Duration, Instant, SystemTime};
 
 use anyhow::Context;
-use wire::{Command, InfoFrame, ReplyPayload, SampleFrame};
+use wire::{Command, InfoFrame, PadIndex, ReplyPayload, SampleFrame};
 
 use crate::clock_sync::ClockEstimate;
 use crate::device_link::{
@@ -257,8 +257,10 @@ impl SampleSink for StampingSink<'_> {
         Ok(())
     }
 
-    fn baselines_changed(&mut self, change: BaselineChange) {
-        self.state.baselines.push(change);
+    fn baselines_changed(&mut self, pad: PadIndex, change: BaselineChange) {
+        if let Some(history) = self.state.baselines_mut(pad.get()) {
+            history.push(change);
+        }
     }
 }
 

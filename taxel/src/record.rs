@@ -45,8 +45,9 @@ none), padN_partial (1 when faulted taxels were left out of force and centre) an
 frame of its set arrived, or when a later set began or the recording ended without them: a pad \
 whose frame is missing has every cell empty, padN_time_s included (a pad that arrived always \
 has its time and 0/1 in partial and contact), and the end says how many rows lack which pad. \
---samples then counts sample sets (rows). FILE.device.json describes pad 0 (the device cannot \
-yet report the other pads' calibrations and baselines) and says how many pads there are.\n\n\
+--samples then counts sample sets (rows). FILE.device.json then holds every pad's calibration, \
+tier and baselines (pad 0's where a single pad's are, the others' in other_pads) and how many \
+pads there are; a tare's new baselines are read for the pad its TareFinished event names.\n\n\
 Frames that were waiting in the port from before the connection are discarded. At the end the \
 tool says how many sample sets were received, lost on the link (sequence gaps the device's \
 counters do not explain) and dropped by the device (its counters, since the start).\n\n\
@@ -295,7 +296,7 @@ fn run_single(args: &RecordArgs, port_path: &str, stop: &AtomicBool) -> anyhow::
     noteln!("device on {port_path}: {}", info_words(&info));
     if info.pad_count > 1 {
         noteln!(
-            "the device reads {} pads: one row per sample set; the device state recorded is pad 0's",
+            "the device reads {} pads: one row per sample set; every pad's calibration and baselines are recorded",
             info.pad_count
         );
     }

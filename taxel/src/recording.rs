@@ -9,42 +9,35 @@
 //!   [`crate::record_rows`]).
 //! - `NAME.csv.raw`: every byte received, for `taxel convert --raw`.
 //! - `NAME.csv.device.json`: the device's state the pressures were computed with: identity,
-//!   tier, the whole calibration in use and the baselines (tares) with the sequence number
-//!   from which each applies. `taxel convert` finds it beside the CSV and uses it, so a
-//!   re-processed recording agrees with the device. The device cannot yet report the
-//!   calibration and baselines of pads other than pad 0: with several pads, this file describes
-//!   pad 0 (and says how many pads there are).
+//!   and for every pad its tier, the whole calibration in use and the baselines (tares) with the
+//!   sequence number from which each applies (see [`crate::device_state`] for the layout).
+//!   `taxel convert` finds it beside the CSV and uses it, so a re-processed recording agrees
+//!   with the device, pad by pad.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 use anyhow::{bail, Context};
-use model_core::{BaselineRecord, Calibration, CalibrationSpec, TAXEL_COUNT};
-use serde::{Deserialize, Serialize};
-use wire::{InfoFrame, PadIndex, SampleFrame};
+use wire::{PadIndex, SampleFrame};
 
 use crate::csv_format::{
     format_number, format_optional, format_time_us, temperature_source_name, wire_flag_names,
     CAPACITANCE_COLUMNS, FLAGS_COLUMNS, PRESSURE_COLUMNS,
 };
-use crate::device_link::DeviceLink;
-use crate::device_words::{board_serial_hex, calibration_source_words, tier_words};
 use crate::output_file::{OutputFile, PendingRename};
 use crate::record_rows::RecordRows;
+
+pub use crate::device_state::{
+    read_device_state, BaselineChange, BaselineFollower, RecordedDeviceState, RecordedPadState,
+    DEVICE_STATE_FORMAT, DEVICE_STATE_VERSION,
+};
 
 /// The marker column of a recording.
 pub const MARKER_COLUMN: &str = "marker";
 
 /// The sequence-number column of a recording.
 pub const SEQUENCE_COLUMN: &str = "seq";
-
-/// The `format` field of a device-state file.
-pub const DEVICE_STATE_FORMAT: &str = "taxel-recording-device-state";
-
-/// The version of the device-state file format.
-pub const DEVICE_STATE_VERSION: u64 = 1;
 
 /// The CSV header of a recording.
 pub fn record_header() -> Vec<&'static str> {
@@ -105,192 +98,6 @@ pub fn default_raw_path(csv_path: &Path) -> PathBuf {
     PathBuf::from(name)
 }
 
-/// Baselines in use from a sample sequence number on.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct BaselineChange {
-    /// The first sample (by sequence number) computed with these baselines; 0 for the ones in
-    /// use when the recording started.
-    pub from_sequence: u32,
-    /// Per taxel in pad order; `None` for a taxel without a baseline (not tared).
-    pub taxels: [Option<BaselineRecord>; TAXEL_COUNT],
-}
-
-/// What the device computed a recording's pressures with (the `.device.json` file).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RecordedDeviceState {
-    /// Always [`DEVICE_STATE_FORMAT`].
-    pub format: String,
-    /// Always [`DEVICE_STATE_VERSION`].
-    pub version: u64,
-    /// Firmware version, dotted.
-    pub firmware: String,
-    /// Protocol version.
-    pub protocol_version: u8,
-    /// Board serial number, hex.
-    pub board_serial: String,
-    /// Where the calibration came from, in words.
-    pub calibration_source: String,
-    /// The inversion tier's name.
-    pub tier: String,
-    /// Converter conversions per second.
-    pub converter_rate_sps: u16,
-    /// The whole calibration in use.
-    pub calibration: CalibrationSpec,
-    /// The baselines, in the order they took effect; empty when the device could not say.
-    pub baselines: Vec<BaselineChange>,
-    /// How many pads the device reads. Written only when above 1, so that a single-pad
-    /// device's file stays as it was; calibration and baselines above are pad 0's.
-    #[serde(default = "one_pad", skip_serializing_if = "is_one_pad")]
-    pub pad_count: u8,
-}
-
-fn one_pad() -> u8 {
-    1
-}
-
-fn is_one_pad(pad_count: &u8) -> bool {
-    *pad_count == 1
-}
-
-impl RecordedDeviceState {
-    /// The state of a device from its identity and calibration.
-    pub fn new(info: &InfoFrame, calibration: &Calibration) -> Self {
-        let version = info.firmware_version;
-        Self {
-            format: DEVICE_STATE_FORMAT.to_owned(),
-            version: DEVICE_STATE_VERSION,
-            firmware: format!("{}.{}.{}", version.major, version.minor, version.patch),
-            protocol_version: info.protocol_version,
-            board_serial: board_serial_hex(info),
-            calibration_source: calibration_source_words(info.calibration_source).to_owned(),
-            tier: tier_words(info.model_tier),
-            converter_rate_sps: info.rate.sps(),
-            calibration: calibration.to_spec(),
-            baselines: Vec::new(),
-            pad_count: info.pad_count.max(1),
-        }
-    }
-
-    /// The calibration, validated.
-    pub fn calibration(&self) -> anyhow::Result<Calibration> {
-        Calibration::new(&self.calibration).map_err(|error| {
-            anyhow::anyhow!(
-                "the recorded calibration is not valid: {}",
-                crate::calibration_file::describe_calibration_error(&error)
-            )
-        })
-    }
-
-    /// The baselines in use for the sample with this sequence number.
-    pub fn baselines_at(&self, sequence: u32) -> Option<&[Option<BaselineRecord>; TAXEL_COUNT]> {
-        self.baselines
-            .iter()
-            .rev()
-            .find(|change| change.from_sequence <= sequence)
-            .or(self.baselines.first())
-            .map(|change| &change.taxels)
-    }
-
-    /// Reads a device-state file.
-    pub fn read(path: &Path) -> anyhow::Result<Self> {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        let state: Self =
-            serde_json::from_str(&text).with_context(|| format!("reading {}", path.display()))?;
-        if state.format != DEVICE_STATE_FORMAT || state.version != DEVICE_STATE_VERSION {
-            bail!(
-                "{} is not a version-{DEVICE_STATE_VERSION} {DEVICE_STATE_FORMAT} file",
-                path.display()
-            );
-        }
-        Ok(state)
-    }
-
-    /// Writes a device-state file (under a temporary name, renamed when complete).
-    pub fn write(&self, path: &Path) -> anyhow::Result<()> {
-        let mut file = OutputFile::create(path)?;
-        serde_json::to_writer_pretty(&mut file, self)
-            .with_context(|| format!("writing {}", path.display()))?;
-        file.write_all(b"\n")
-            .with_context(|| format!("writing {}", path.display()))?;
-        file.commit()
-    }
-}
-
-/// Reads the device's whole calibration and its baselines (four ReadCalibration and four
-/// ReadBaseline requests) as the state a recording starts with. Frames that arrived meanwhile
-/// are discarded: they were computed before the state was read, so the recording starts after
-/// them. If a tare finished meanwhile, the baselines are read again.
-pub fn read_device_state<P: std::io::Read + Write>(
-    link: &mut DeviceLink<P>,
-    info: &InfoFrame,
-    timeout: Duration,
-) -> anyhow::Result<RecordedDeviceState> {
-    let calibration =
-        crate::calibration_transfer::pull(link, PadIndex::default(), info.calibration_id, timeout)?;
-    let mut state = RecordedDeviceState::new(info, &calibration);
-    let mut attempts = 0;
-    let baselines = loop {
-        let baselines =
-            crate::calibration_transfer::pull_baselines(link, PadIndex::default(), timeout)?;
-        let tare_finished_meanwhile = link.take_queued().iter().any(|frame| {
-            matches!(
-                frame,
-                wire::DeviceFrame::Event(wire::EventFrame {
-                    event: wire::DeviceEvent::TareFinished { .. },
-                    ..
-                })
-            )
-        });
-        attempts += 1;
-        if !tare_finished_meanwhile || attempts == 3 {
-            break baselines;
-        }
-    };
-    state.baselines.push(BaselineChange {
-        from_sequence: 0,
-        taxels: baselines,
-    });
-    Ok(state)
-}
-
-/// Follows the device's baselines during a recording: after a TareFinished event it reads the
-/// new baselines (ReadBaseline), which apply from the next sample frame on.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct BaselineFollower {
-    pending: Option<[Option<model_core::BaselineRecord>; TAXEL_COUNT]>,
-}
-
-impl BaselineFollower {
-    /// Takes a device event; on TareFinished reads the new baselines (frames that arrive
-    /// meanwhile stay queued in the link, in order).
-    pub fn on_event<P: std::io::Read + Write>(
-        &mut self,
-        link: &mut DeviceLink<P>,
-        event: &wire::EventFrame,
-        timeout: Duration,
-    ) -> anyhow::Result<()> {
-        if matches!(event.event, wire::DeviceEvent::TareFinished { .. }) {
-            self.pending = Some(crate::calibration_transfer::pull_baselines(
-                link,
-                PadIndex::default(),
-                timeout,
-            )?);
-        }
-        Ok(())
-    }
-
-    /// Before a sample is written: records the new baselines as applying from it.
-    pub fn before_sample<S: SampleSink + ?Sized>(&mut self, sink: &mut S, sample: &SampleFrame) {
-        if let Some(taxels) = self.pending.take() {
-            sink.baselines_changed(BaselineChange {
-                from_sequence: sample.sequence,
-                taxels,
-            });
-        }
-    }
-}
-
 /// Where recorded samples go: a [`Recording`], [`RecordRows`] over any writer, or any CSV
 /// writer (one pad only: it writes one single-pad row per frame).
 pub trait SampleSink {
@@ -308,10 +115,10 @@ pub trait SampleSink {
         let _ = sample;
         false
     }
-    /// The device's baselines changed (a tare finished); they apply from the sample with
-    /// `change.from_sequence` on. Sinks that keep no device state ignore it.
-    fn baselines_changed(&mut self, change: BaselineChange) {
-        let _ = change;
+    /// The baselines of one of the device's pads changed (a tare finished); they apply from
+    /// that pad's sample with `change.from_sequence` on. Sinks that keep no device state ignore it.
+    fn baselines_changed(&mut self, pad: PadIndex, change: BaselineChange) {
+        let _ = (pad, change);
     }
 }
 
@@ -349,9 +156,13 @@ impl SampleSink for Recording {
         self.rows.would_close_set(sample)
     }
 
-    fn baselines_changed(&mut self, change: BaselineChange) {
-        if let Some(state) = self.device_state.as_mut() {
-            state.baselines.push(change);
+    fn baselines_changed(&mut self, pad: PadIndex, change: BaselineChange) {
+        if let Some(history) = self
+            .device_state
+            .as_mut()
+            .and_then(|state| state.baselines_mut(pad.get()))
+        {
+            history.push(change);
         }
     }
 }
@@ -385,7 +196,7 @@ pub struct RecordingFiles {
 
 impl Recording {
     /// Starts a recording of a single-pad device into `csv_path` and, if given, a raw log whose
-    /// writer is returned to be handed to the link ([`DeviceLink::set_raw_log`]). Nothing
+    /// writer is returned to be handed to the link ([`crate::device_link::DeviceLink::set_raw_log`]). Nothing
     /// existing is touched until [`Recording::finish`].
     pub fn create(
         csv_path: &Path,
@@ -547,36 +358,6 @@ impl Recording {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_pad_count_is_in_the_device_state_only_with_several_pads() {
-        let info = |pad_count| InfoFrame {
-            protocol_version: wire::PROTOCOL_VERSION,
-            firmware_version: wire::FirmwareVersion {
-                major: 1,
-                minor: 2,
-                patch: 3,
-            },
-            board_serial: [1; 12],
-            calibration_id: 0,
-            calibration_source: wire::CalibrationSource::Defaults,
-            rate: wire::SampleRate::Sps400,
-            model_tier: wire::Tier::MonotoneCubic,
-            streaming: false,
-            text_mode: false,
-            pad_count,
-        };
-        let one = RecordedDeviceState::new(&info(1), &Calibration::default());
-        let text = serde_json::to_string(&one).unwrap();
-        assert!(!text.contains("pad_count"), "{text}");
-        let read: RecordedDeviceState = serde_json::from_str(&text).unwrap();
-        assert_eq!(read.pad_count, 1);
-        let eight = RecordedDeviceState::new(&info(8), &Calibration::default());
-        let text = serde_json::to_string(&eight).unwrap();
-        assert!(text.contains("\"pad_count\":8"), "{text}");
-        let read: RecordedDeviceState = serde_json::from_str(&text).unwrap();
-        assert_eq!(read, eight);
-    }
 
     #[test]
     fn device_state_sits_beside_the_csv_for_either_file() {

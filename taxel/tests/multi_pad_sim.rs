@@ -232,4 +232,15 @@ fn two_devices_with_several_pads_are_recorded_on_one_timeline() {
     assert!(frames[0][0].abs_diff(frames[0][1]) <= 1, "{frames:?}");
     assert!(frames[1].iter().all(|count| *count >= 130), "{frames:?}");
     assert!(checked > 400, "{checked} pad frames checked");
+    // Each device's state holds every one of its pads' state.
+    for (device, pad_count) in [(0, 2u8), (1, 3)] {
+        let path = directory
+            .path()
+            .join(format!("both.csv.dev{device}.device.json"));
+        let state = taxel::recording::RecordedDeviceState::read(&path).unwrap();
+        assert_eq!(state.pad_count, pad_count, "device {device}");
+        let pads: Vec<u8> = state.other_pads.iter().map(|pad| pad.pad).collect();
+        assert_eq!(pads, (1..pad_count).collect::<Vec<_>>(), "device {device}");
+        assert!(state.pads_without_state().is_empty(), "device {device}");
+    }
 }

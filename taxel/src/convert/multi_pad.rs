@@ -1,7 +1,8 @@
 //! Converting a recording of several pads: a CSV file in the pad-prefixed layout of
 //! [`crate::pad_set`] (recognised from its header), or a raw log whose device state says how
-//! many pads there are. Each pad runs through a model of its own with the same options (the
-//! recorded device state describes pad 0; per-pad calibrations cannot be read back yet), and the
+//! many pads there are. Each pad runs through a model of its own with its own calibration, tier
+//! and baselines ([`ConvertOptions::pad_options`]: the ones recorded for it, or pad 0's when the
+//! device state describes pad 0 only, as files written before per-pad read-back do), and the
 //! output is `seq`, then per pad `pad<n>_time_s,pad<n>_temp_c,pad<n>_p11_kpa..,pad<n>_flags11..`.
 //!
 //! A pad whose frame is missing from a set has every input cell empty; its output cells are all
@@ -100,6 +101,13 @@ pub fn header_pad_count(header: &csv::StringRecord) -> anyhow::Result<Option<u8>
     Ok(Some(pads.len() as u8))
 }
 
+/// One run per pad, each with its pad's options; an error names the pad.
+fn pad_runs(options: &ConvertOptions, pad_count: u8) -> anyhow::Result<Vec<PadRun>> {
+    (0..usize::from(pad_count))
+        .map(|pad| PadRun::new(&options.pad_options(pad)).with_context(|| format!("pad {pad}")))
+        .collect()
+}
+
 /// Converts a CSV recording of `pad_count` pads whose header was read (see the module
 /// documentation).
 pub(super) fn convert_csv<R: Read, W: Write>(
@@ -117,9 +125,7 @@ pub(super) fn convert_csv<R: Read, W: Write>(
     let columns = (0..usize::from(pad_count))
         .map(|pad| CsvColumns::find_prefixed(header, dialect, &pad_prefix(pad)))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let mut runs = (0..pad_count)
-        .map(|_| PadRun::new(options))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut runs = pad_runs(options, pad_count)?;
     let mut writer = csv_writer(output);
     writer.write_record(output_header(pad_count))?;
     let mut summary = ConvertSummary {
@@ -229,9 +235,7 @@ pub(super) fn convert_raw<R: Read, W: Write>(
     options: &ConvertOptions,
 ) -> anyhow::Result<ConvertSummary> {
     let pad_count = options.pad_count.clamp(1, MAX_PAD_COUNT);
-    let mut runs = (0..pad_count)
-        .map(|_| PadRun::new(options))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut runs = pad_runs(options, pad_count)?;
     let mut writer = csv_writer(output);
     writer.write_record(output_header(pad_count))?;
     let mut summary = ConvertSummary {

@@ -8,7 +8,7 @@ use model_core::{
 };
 use wire::SampleFrame;
 
-use super::{ConvertOptions, TareSource};
+use super::{PadOptions, TareSource};
 use crate::csv_format::{flag_names, format_optional};
 use crate::recording::BaselineChange;
 
@@ -18,7 +18,7 @@ pub(super) const ACQUISITION_FLAGS: TaxelFlags = TaxelFlags::CONVERTER_ERROR
     .union(TaxelFlags::STUCK)
     .union(TaxelFlags::SATURATED);
 
-fn new_model(options: &ConvertOptions) -> anyhow::Result<PadModel> {
+fn new_model(options: &PadOptions) -> anyhow::Result<PadModel> {
     let mut pad = PadModel::new(options.calibration.clone());
     pad.set_tier(options.tier).map_err(|_| {
         anyhow::anyhow!(
@@ -159,8 +159,8 @@ pub(super) struct PadRun {
 }
 
 impl PadRun {
-    /// A fresh run with the options' calibration, tier and baselines.
-    pub(super) fn new(options: &ConvertOptions) -> anyhow::Result<Self> {
+    /// A fresh run with a pad's calibration, tier and baselines.
+    pub(super) fn new(options: &PadOptions) -> anyhow::Result<Self> {
         Ok(Self {
             model: new_model(options)?,
             baselines: RecordedBaselines::new(&options.tare),
