@@ -16,7 +16,7 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
 use std::time::{Duration, Instant, SystemTime};
 
 use anyhow::Context;
-use wire::{Command, InfoFrame, PadIndex, ReplyPayload, SampleFrame};
+use wire::{InfoFrame, PadIndex, SampleFrame};
 
 use crate::clock_sync::ClockEstimate;
 use crate::device_link::{
@@ -26,8 +26,10 @@ use crate::device_link::{
 use crate::device_words::{board_serial_hex, counters_words, info_words};
 use crate::host_timeline::{DeviceTimelineCounts, HostTimeline, TimelineConfig};
 use crate::noteln;
-use crate::record::{record_accounted, RecordArgs, StopReason};
-use crate::recording::{read_device_state, BaselineChange, RecordedDeviceState, SampleSink};
+use crate::record::{
+    identify_device, record_accounted, start_stream, stop_stream, RecordArgs, StopReason,
+};
+use crate::recording::{BaselineChange, RecordedDeviceState, SampleSink};
 use crate::stream_accounting::StreamAccounting;
 use crate::timeline_files::{device_raw_path, format_sync_error_ms, TimelineFiles};
 
@@ -61,9 +63,23 @@ impl MultiBoardArgs {
         }
     }
 
+    /// Refuses a PORT or a serial number given twice: each device is `handled` (recorded,
+    /// shown) once.
+    pub fn refuse_repeats(&self, handled: &str) -> anyhow::Result<()> {
+        if let Some(port) = first_repeated(&self.ports) {
+            anyhow::bail!("{port} is given twice: each device is {handled} once");
+        }
+        if let Some(serial) = first_repeated(&self.serial) {
+            anyhow::bail!("--serial {serial} is given twice: each device is {handled} once");
+        }
+        Ok(())
+    }
+
     /// The ports to open, in device order: the PORTs, then the boards with the serial numbers;
-    /// with neither, the only attached board. A port named twice is refused.
+    /// with neither, the only attached board. A port named twice, also once as a PORT and once
+    /// by its board's serial number, is refused.
     pub fn select_ports(&self) -> anyhow::Result<Vec<String>> {
+        self.refuse_repeats("recorded")?;
         let mut ports = self.ports.clone();
         if !self.serial.is_empty() {
             let boards = attached_boards(self.vid, self.pid)?;
@@ -74,13 +90,19 @@ impl MultiBoardArgs {
         if ports.is_empty() {
             ports.push(select_port(None, None, self.vid, self.pid)?);
         }
-        for (index, port) in ports.iter().enumerate() {
-            if ports[..index].contains(port) {
-                anyhow::bail!("{port} is given twice: each device is recorded once");
-            }
+        if let Some(port) = first_repeated(&ports) {
+            anyhow::bail!("{port} is given twice: each device is recorded once");
         }
         Ok(ports)
     }
+}
+
+/// The first item that an earlier one equals, if any.
+fn first_repeated<T: PartialEq>(items: &[T]) -> Option<&T> {
+    items
+        .iter()
+        .enumerate()
+        .find_map(|(index, item)| items[..index].contains(item).then_some(item))
 }
 
 /// The host's clock as the reader threads stamp arrivals with it: µs since an origin, never
@@ -307,21 +329,12 @@ fn read_device<P: Read + Write>(
     };
     let timeout = context.options.timeout;
     let mut link = DeviceLink::new(port);
-    let (info, stale) = link
-        .synchronise(timeout)
-        .context("asking the device who it is")
-        .map_err(failure(false))?;
-    (context.status)(&format!("device {device} on {name}: {}", info_words(&info)));
-    let state = read_device_state(&mut link, &info, timeout).map_err(failure(false))?;
+    let (info, state, stale) = identify_device(&mut link, timeout, &mut |info| {
+        (context.status)(&format!("device {device} on {name}: {}", info_words(info)))
+    })
+    .map_err(failure(false))?;
     link.set_raw_log(Box::new(raw_writer));
-    let mut accounting = StreamAccounting::new();
-    accounting.stale_discarded(stale);
-    if let Ok(ReplyPayload::Counters(counters)) = link.request(Command::ReadCounters, timeout) {
-        accounting.counters(&counters);
-    }
-    link.request(Command::StartStreaming, timeout)
-        .context("starting the stream")
-        .map_err(failure(false))?;
+    let mut accounting = start_stream(&mut link, stale, timeout).map_err(failure(false))?;
     let mut sink = StampingSink {
         device,
         clock: context.clock,
@@ -349,18 +362,11 @@ fn read_device<P: Read + Write>(
             return Err(failure(true)(error));
         }
     };
-    if !matches!(stop_reason, StopReason::Disconnected(_)) {
-        // Best effort: the recording is complete whether or not the device hears this.
-        let _ = link.send(Command::StopStreaming);
-        if let Ok(ReplyPayload::Counters(counters)) =
-            link.request(Command::ReadCounters, Duration::from_millis(500))
-        {
-            accounting.counters(&counters);
-            (context.status)(&format!(
-                "device {device} counters {}",
-                counters_words(&counters)
-            ));
-        }
+    if let Some(counters) = stop_stream(&mut link, &mut accounting, &stop_reason) {
+        (context.status)(&format!(
+            "device {device} counters {}",
+            counters_words(&counters)
+        ));
     }
     if let Some(mut log) = raw_log {
         log.flush()
@@ -652,6 +658,18 @@ mod tests {
     fn a_port_given_twice_is_refused() {
         let args = MultiBoardArgs::for_ports(vec!["/dev/a".into(), "/dev/a".into()]);
         assert!(args.select_ports().is_err());
+        let error = args.refuse_repeats("shown").unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "/dev/a is given twice: each device is shown once"
+        );
+        let mut args = MultiBoardArgs::for_ports(vec!["/dev/a".into()]);
+        args.serial = vec!["S1".into(), "S2".into(), "S1".into()];
+        let error = args.refuse_repeats("recorded").unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "--serial S1 is given twice: each device is recorded once"
+        );
         let args = MultiBoardArgs::for_ports(vec!["/dev/a".into(), "/dev/b".into()]);
         assert_eq!(args.select_ports().unwrap(), ["/dev/a", "/dev/b"]);
     }

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use wire::{Command, DeviceFrame, ReplyPayload};
+use wire::{Command, CountersFrame, DeviceFrame, InfoFrame, ReplyPayload};
 
 pub use crate::device_link::parse_hex_u16;
 use crate::device_link::{self, DeviceLink, LinkError};
@@ -20,7 +20,8 @@ use crate::device_words::{counters_words, event_words, info_words};
 use crate::multi_record::MultiBoardArgs;
 use crate::noteln;
 use crate::recording::{
-    default_raw_path, read_device_state, BaselineFollower, Recording, SampleSink,
+    default_raw_path, read_device_state, BaselineFollower, RecordedDeviceState, Recording,
+    SampleSink,
 };
 use crate::stream_accounting::StreamAccounting;
 
@@ -265,6 +266,61 @@ fn record_until_stopped<P: Read + Write, S: SampleSink + ?Sized>(
     Ok(stop_reason)
 }
 
+/// The start of a recording on an open link: asks who the device is (`announce` gets its Info
+/// to say so), then reads its state, every pad's. The stream starts later ([`start_stream`]),
+/// once the raw log is in place. Returns the Info, the state and how many stale frames were
+/// discarded.
+pub fn identify_device<P: Read + Write>(
+    link: &mut DeviceLink<P>,
+    timeout: Duration,
+    announce: &mut dyn FnMut(&InfoFrame),
+) -> anyhow::Result<(InfoFrame, RecordedDeviceState, u64)> {
+    let (info, stale) = link
+        .synchronise(timeout)
+        .context("asking the device who it is")?;
+    announce(&info);
+    let state = read_device_state(link, &info, timeout)?;
+    Ok((info, state, stale))
+}
+
+/// Starts the stream: an accounting that begins with the `stale` frames discarded and the
+/// device's counters now (when it gives them), then StartStreaming.
+pub fn start_stream<P: Read + Write>(
+    link: &mut DeviceLink<P>,
+    stale: u64,
+    timeout: Duration,
+) -> anyhow::Result<StreamAccounting> {
+    let mut accounting = StreamAccounting::new();
+    accounting.stale_discarded(stale);
+    if let Ok(ReplyPayload::Counters(counters)) = link.request(Command::ReadCounters, timeout) {
+        accounting.counters(&counters);
+    }
+    link.request(Command::StartStreaming, timeout)
+        .context("starting the stream")?;
+    Ok(accounting)
+}
+
+/// The end of a recording: unless the device went away, StopStreaming and the device's
+/// counters, which go to the accounting and are returned for the user.
+pub fn stop_stream<P: Read + Write>(
+    link: &mut DeviceLink<P>,
+    accounting: &mut StreamAccounting,
+    stop_reason: &StopReason,
+) -> Option<CountersFrame> {
+    if matches!(stop_reason, StopReason::Disconnected(_)) {
+        return None;
+    }
+    // Best effort: the recording is complete whether or not the device hears this.
+    let _ = link.send(Command::StopStreaming);
+    match link.request(Command::ReadCounters, Duration::from_millis(500)) {
+        Ok(ReplyPayload::Counters(counters)) => {
+            accounting.counters(&counters);
+            Some(counters)
+        }
+        _ => None,
+    }
+}
+
 /// Runs `taxel record`: one device as a single recording, several onto one host timeline.
 pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
     let ports = args.board.select_ports()?;
@@ -290,32 +346,29 @@ fn run_single(args: &RecordArgs, port_path: &str, stop: &AtomicBool) -> anyhow::
     }
     let mut link = DeviceLink::new(opened.port);
     let timeout = Duration::from_millis(args.timeout_ms);
-    let (info, stale) = link
-        .synchronise(timeout)
-        .with_context(|| format!("asking the device on {port_path} who it is"))?;
-    noteln!("device on {port_path}: {}", info_words(&info));
-    if info.pad_count > 1 {
-        noteln!(
-            "the device reads {} pads: one row per sample set; every pad's calibration and baselines are recorded",
-            info.pad_count
-        );
-    }
-    let device_state = read_device_state(&mut link, &info, timeout)?;
+    let (info, device_state, stale) = identify_device(&mut link, timeout, &mut |info| {
+        noteln!("device on {port_path}: {}", info_words(info));
+        if info.pad_count > 1 {
+            noteln!(
+                "the device reads {} pads: one row per sample set; every pad's calibration and baselines are recorded",
+                info.pad_count
+            );
+        }
+    })
+    .with_context(|| format!("the device on {port_path}"))?;
     let (mut recording, raw_writer) =
         Recording::create_with_pads(&args.output, Some(&raw_path), info.pad_count.max(1))?;
     recording.set_device_state(device_state);
     if let Some(writer) = raw_writer {
         link.set_raw_log(Box::new(writer));
     }
-    let mut accounting = StreamAccounting::new();
-    accounting.stale_discarded(stale);
-    if let Ok(ReplyPayload::Counters(counters)) = link.request(Command::ReadCounters, timeout) {
-        accounting.counters(&counters);
-    }
-    if let Err(error) = link.request(Command::StartStreaming, timeout) {
-        drop(recording);
-        return Err(error).context("starting the stream (nothing was recorded)");
-    }
+    let mut accounting = match start_stream(&mut link, stale, timeout) {
+        Ok(accounting) => accounting,
+        Err(error) => {
+            drop(recording);
+            return Err(error.context("nothing was recorded"));
+        }
+    };
     noteln!(
         "recording from {port_path} to {} and {} (Ctrl-C to stop)",
         args.output.display(),
@@ -343,15 +396,8 @@ fn run_single(args: &RecordArgs, port_path: &str, stop: &AtomicBool) -> anyhow::
             )));
         }
     };
-    if !matches!(stop_reason, StopReason::Disconnected(_)) {
-        // Best effort: the recording is complete whether or not the device hears this.
-        let _ = link.send(Command::StopStreaming);
-        if let Ok(ReplyPayload::Counters(counters)) =
-            link.request(Command::ReadCounters, Duration::from_millis(500))
-        {
-            accounting.counters(&counters);
-            noteln!("device counters {}", counters_words(&counters));
-        }
+    if let Some(counters) = stop_stream(&mut link, &mut accounting, &stop_reason) {
+        noteln!("device counters {}", counters_words(&counters));
     }
     // The raw log's writer went to the link boxed; flushing and dropping it closes the file,
     // which the recording then renames into place.

@@ -445,16 +445,7 @@ fn apply_report(view: &mut DevicesView, pending: &mut [HashMap<u16, Pending>], r
 /// serial number named twice is refused.
 fn targets(args: &ViewArgs) -> anyhow::Result<Vec<BoardTarget>> {
     let board = &args.board;
-    for (index, port) in board.ports.iter().enumerate() {
-        if board.ports[..index].contains(port) {
-            anyhow::bail!("{port} is given twice: each device is shown once");
-        }
-    }
-    for (index, serial) in board.serial.iter().enumerate() {
-        if board.serial[..index].contains(serial) {
-            anyhow::bail!("--serial {serial} is given twice: each device is shown once");
-        }
-    }
+    board.refuse_repeats("shown")?;
     let by_port = board
         .ports
         .iter()
