@@ -574,24 +574,28 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         Some(ReplyFrame { request_id, result })
     }
 
-    /// Sets every pad's tier, or none: a tier one pad's calibration cannot provide leaves every
-    /// pad on the tier it had (NotSupported, as on a board without pads).
-    fn set_tier_everywhere(&mut self, tier: Tier) -> Result<(), ErrorCode> {
+    /// Sets every pad's tier to the one `choose` picks for it, or none: when `choose` has no
+    /// tier for one pad, or one pad's calibration cannot provide its tier, every pad keeps the
+    /// tier it had (NotSupported, as on a board without pads). Returns the first pad's tier.
+    fn set_tiers(
+        &mut self,
+        mut choose: impl FnMut(&PadModel) -> Option<Tier>,
+    ) -> Result<Tier, ErrorCode> {
         let mut previous: heapless::Vec<Tier, MAX_PADS> = heapless::Vec::new();
+        let mut chosen: heapless::Vec<Tier, MAX_PADS> = heapless::Vec::new();
         for pad in 0..self.control.pad_count() {
             if let Some(model) = self.control.pad(pad) {
+                let tier = choose(model).ok_or(ErrorCode::NotSupported)?;
                 // Cannot fail: the loop holds at most MAX_PADS pads.
                 let _ = previous.push(model.tier());
+                let _ = chosen.push(tier);
             }
         }
-        if previous.is_empty() {
-            return Err(ErrorCode::NotSupported);
-        }
-        for pad in 0..self.control.pad_count() {
+        for (pad, tier) in chosen.iter().enumerate() {
             let Some(model) = self.control.pad_mut(pad) else {
                 continue;
             };
-            if model.set_tier(tier).is_err() {
+            if model.set_tier(*tier).is_err() {
                 for (changed, tier) in previous.iter().enumerate().take(pad) {
                     if let Some(model) = self.control.pad_mut(changed) {
                         // The tier was in use on this pad a moment ago.
@@ -601,7 +605,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 return Err(ErrorCode::NotSupported);
             }
         }
-        Ok(())
+        chosen.first().copied().ok_or(ErrorCode::NotSupported)
     }
 
     /// Saves the pads' calibrations: one record for every pad when they all hold the same
@@ -683,18 +687,17 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 }
             }
             Command::SetModelTier { tier } => {
-                self.set_tier_everywhere(tier).map(|()| ReplyPayload::Ack)
+                self.set_tiers(|_| Some(tier)).map(|_| ReplyPayload::Ack)
             }
-            Command::SetUseCase(use_case) => match self.control.pad(FIRST_PAD) {
-                // The first pad's evidence chooses; every pad then runs that tier.
-                Some(model) => match model.select_tier_for(&use_case) {
-                    Ok(choice) => self
-                        .set_tier_everywhere(choice.tier)
-                        .map(|()| ReplyPayload::ModelTier(choice.tier)),
-                    Err(_) => Err(ErrorCode::NotSupported),
-                },
-                None => Err(ErrorCode::NotSupported),
-            },
+            // Each pad chooses on its own calibration's evidence; none changes unless all fit.
+            Command::SetUseCase(use_case) => self
+                .set_tiers(|model| {
+                    model
+                        .select_tier_for(&use_case)
+                        .ok()
+                        .map(|choice| choice.tier)
+                })
+                .map(ReplyPayload::ModelTier),
             Command::ReadCalibration { pad, taxel_index } => {
                 match self.control.pad(usize::from(pad.get())) {
                     Some(model) => calibration_record(model.calibration(), pad, taxel_index)

@@ -10,6 +10,7 @@ mod support;
 use support::Host;
 use wire::{
     CalibrationSource, Command, ErrorCode, PadIndex, PadInfoFrame, ReplyPayload, TemperatureSensor,
+    UseCase,
 };
 
 fn pad(index: u8) -> PadIndex {
@@ -131,4 +132,54 @@ fn a_calibration_written_to_one_pad_changes_that_pad_only() {
         }
         other => panic!("{other:?}"),
     }
+}
+
+/// A use case one pad's calibration cannot serve (it was calibrated to 20 kPa only, the use
+/// case needs 50) is refused, and no pad's tier changes; within 20 kPa each pad chooses on its
+/// own calibration.
+#[test]
+fn every_pad_must_fit_a_use_case_and_each_chooses_its_own_tier() {
+    let mut host = Host::with_pads(2);
+    for taxel_index in 0..4 {
+        let mut record = match host.request(Command::ReadCalibration {
+            pad: pad(1),
+            taxel_index,
+        }) {
+            Ok(ReplyPayload::Calibration(record)) => record,
+            other => panic!("{other:?}"),
+        };
+        record.calibration_id = 88;
+        record
+            .calibration
+            .points
+            .retain(|&(pressure_kpa, _)| pressure_kpa <= 20.0);
+        assert!(record.calibration.points.len() >= 2);
+        assert_eq!(
+            host.request(Command::WriteCalibration(record)),
+            Ok(ReplyPayload::Ack)
+        );
+    }
+    let tiers = |host: &mut Host| [pad_info(host, 0).model_tier, pad_info(host, 1).model_tier];
+    let before = tiers(&mut host);
+    let full_range = UseCase {
+        pressure_max_kpa: 50.0,
+        temperature_min_c: 25.0,
+        temperature_max_c: 40.0,
+        error_budget_kpa: 1.0,
+    };
+    assert_eq!(
+        host.request(Command::SetUseCase(full_range)),
+        Err(ErrorCode::NotSupported)
+    );
+    assert_eq!(tiers(&mut host), before);
+    let light_touch = UseCase {
+        pressure_max_kpa: 15.0,
+        ..full_range
+    };
+    let first = match host.request(Command::SetUseCase(light_touch)) {
+        Ok(ReplyPayload::ModelTier(tier)) => tier,
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(tiers(&mut host)[0], first);
+    assert_eq!(host.info().model_tier, first);
 }
