@@ -153,7 +153,7 @@ pub struct DeviceInput<P> {
 pub struct MultiRecordOptions {
     /// How long to wait for each reply from a device.
     pub timeout: Duration,
-    /// Stop reading a device after this many sample frames of it (each device on its own).
+    /// Stop reading a device after this many sample sets of it (each device on its own).
     pub samples_per_device: Option<u64>,
     /// How often the CSV and raw logs are flushed at least.
     pub flush_interval: Duration,
@@ -261,10 +261,18 @@ struct StampingSink<'a> {
     clock: &'a dyn HostClock,
     sender: Sender<Stamped>,
     state: RecordedDeviceState,
+    /// The sample set in progress and the sets started, so that `--samples` counts sample sets
+    /// for several devices as for one.
+    current_set: Option<u32>,
+    sets_started: u64,
 }
 
 impl SampleSink for StampingSink<'_> {
     fn write_sample(&mut self, sample: &SampleFrame) -> anyhow::Result<()> {
+        if self.current_set != Some(sample.sequence) {
+            self.current_set = Some(sample.sequence);
+            self.sets_started += 1;
+        }
         let stamped = Stamped {
             device: self.device,
             sample: *sample,
@@ -277,6 +285,15 @@ impl SampleSink for StampingSink<'_> {
 
     fn flush(&mut self) -> anyhow::Result<()> {
         Ok(())
+    }
+
+    /// Sample sets closed: every set started but the one in progress.
+    fn rows(&self) -> Option<u64> {
+        Some(self.sets_started.saturating_sub(1))
+    }
+
+    fn would_close_set(&self, sample: &SampleFrame) -> bool {
+        self.current_set.is_some_and(|set| set != sample.sequence)
     }
 
     fn baselines_changed(&mut self, pad: PadIndex, change: BaselineChange) {
@@ -340,6 +357,8 @@ fn read_device<P: Read + Write>(
         clock: context.clock,
         sender,
         state,
+        current_set: None,
+        sets_started: 0,
     };
     let result = record_accounted(
         &mut link,
@@ -417,7 +436,7 @@ fn merge_frames(
 /// Records several devices onto one host timeline in `csv_path` and the files beside it (see
 /// the module documentation), stamping arrivals with `clock`, until `stop` is set (Ctrl-C),
 /// one device disconnects or fails (which sets `stop`), or every device gave
-/// [`MultiRecordOptions::samples_per_device`] frames. `status` gets progress lines (from the
+/// [`MultiRecordOptions::samples_per_device`] sample sets. `status` gets progress lines (from the
 /// reader threads too).
 ///
 /// A device that cannot be set up (no answer, a refused request) fails the whole recording,

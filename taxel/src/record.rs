@@ -70,7 +70,7 @@ and then written with the clock estimate of that moment, so the CSV follows the 
 behind; a frame arriving later than that is written after the rows already written, and the \
 shift is added to its error. Device n gets its own raw log FILE.dev<n>.raw and state \
 FILE.dev<n>.device.json (`taxel convert --raw FILE.dev<n>.raw` finds it; --raw is for one \
-device). --samples N counts the sample frames of each device; Ctrl-C or one device unplugged \
+device). --samples N counts the sample sets of each device (as for one device); Ctrl-C or one device unplugged \
 ends the recording of all. At the end each device's line says: received, lost on the link, \
 dropped by the device, and its clock's offset, drift (ppm) and synchronisation error.\n\n\
 Examples:\n  taxel record /dev/ttyACM0 -o rec.csv --samples 1000\n  \

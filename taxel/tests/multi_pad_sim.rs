@@ -229,8 +229,10 @@ fn two_devices_with_several_pads_are_recorded_on_one_timeline() {
     // 400 sample frames per device (the limit counts each device's frames): 200 sets of the
     // gripper's two pads; the three-pad board's frames are split between its pads.
     assert_eq!(frames[0][2], 0);
-    assert!(frames[0][0].abs_diff(frames[0][1]) <= 1, "{frames:?}");
-    assert!(frames[1].iter().all(|count| *count >= 130), "{frames:?}");
+    // --samples counts sample sets of each device, however many pads it has.
+    for count in frames[0][..2].iter().chain(&frames[1]) {
+        assert!(count.abs_diff(400) <= 1, "{frames:?}");
+    }
     assert!(checked > 400, "{checked} pad frames checked");
     // Each device's state holds every one of its pads' state.
     for (device, pad_count) in [(0, 2u8), (1, 3)] {

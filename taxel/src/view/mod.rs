@@ -134,10 +134,10 @@ pub struct ViewArgs {
     #[arg(long, value_name = "N", default_value_t = 64)]
     pub tare_sets: u16,
     /// Pressure shown as the hottest colour and the top of the time series, kPa.
-    #[arg(long, value_name = "KPA", default_value_t = 50.0)]
+    #[arg(long, value_name = "KPA", default_value_t = 50.0, value_parser = parse_full_scale_kpa)]
     pub full_scale_kpa: f32,
-    /// Seconds of history in the time series.
-    #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
+    /// Seconds of history in the time series (1 to 3600).
+    #[arg(long, value_name = "SECONDS", default_value_t = 10.0, value_parser = parse_history_s)]
     pub history_s: f64,
     /// Directory the record key writes recordings to.
     #[arg(long, value_name = "DIR", default_value = ".")]
@@ -591,11 +591,43 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
     result.map(|()| ExitCode::SUCCESS)
 }
 
+/// `--history-s`: a finite number of seconds from 1 to an hour (the chart's x axis).
+fn parse_history_s(text: &str) -> Result<f64, String> {
+    let seconds: f64 = text.parse().map_err(|error| format!("{error}"))?;
+    if (1.0..=3600.0).contains(&seconds) {
+        Ok(seconds)
+    } else {
+        Err(format!("{text} is not between 1 and 3600 seconds"))
+    }
+}
+
+/// `--full-scale-kpa`: a finite pressure above 0 (the colour scale and the chart's y axis).
+fn parse_full_scale_kpa(text: &str) -> Result<f32, String> {
+    let kpa: f32 = text.parse().map_err(|error| format!("{error}"))?;
+    if kpa.is_finite() && kpa > 0.0 {
+        Ok(kpa)
+    } else {
+        Err(format!("{text} is not a pressure above 0 kPa"))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use ratatui::style::Color;
     use wire::ReplyPayload;
+
+    #[test]
+    fn history_and_full_scale_must_be_finite_and_positive() {
+        assert_eq!(parse_history_s("30"), Ok(30.0));
+        for bad in ["inf", "NaN", "0", "-5", "1e9", "ten"] {
+            assert!(parse_history_s(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_full_scale_kpa("20"), Ok(20.0));
+        for bad in ["inf", "NaN", "0", "-1"] {
+            assert!(parse_full_scale_kpa(bad).is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn tare_replies_are_matched_by_request_id() {
