@@ -51,12 +51,15 @@
 //!   sector takes 1 to 2 s to erase, and wears out after 10 000 erases);
 //! - otherwise, or if the appended record does not read back, moves: erases the other page
 //!   unless it reads erased, writes the marker, copies in page order every record a pad still
-//!   loads once the new one is in (at most one per pad and one for every pad) and the current
-//!   page's last refused item when it may be newer than one of them, writes the new item,
-//!   checks that every pad loads from the new page what it should, and only then erases the
-//!   page it came from. When those records do not fit a page the save is refused
-//!   ([`StoreError::Full`]) before anything is erased; with the firmware's 128 KiB pages it
-//!   cannot happen (ten records take under 7 KiB).
+//!   loads once the new one is in (at most one per pad and one for every pad), writes the new
+//!   item, checks that every pad loads from the new page what it should, and only then erases
+//!   the page it came from (if the check fails, it erases the new page instead and reports
+//!   [`StoreError::VerifyFailed`]). Before erasing anything it refuses the save when those
+//!   records do not fit a page ([`StoreError::Full`]; with the firmware's 128 KiB pages it
+//!   cannot happen: ten records take under 7 KiB), and when an item this firmware refuses may
+//!   be newer than the record of a pad the save is not for ([`StoreError::Unreadable`]): a move
+//!   copies only records it reads, so that pad would lose its flag and load an older
+//!   calibration. A save for every pad, newer than anything, always may move.
 //!
 //! So outside a save one page at most holds items; when both do (a save that did not complete, or
 //! damage), the next save moves, which cleans up. A move drops records no pad loads any more.
@@ -73,7 +76,10 @@
 //!   skipped, and its copies are of the same records with the same counters;
 //! - the old page is erased only once every pad reads its record back from the new one: what
 //!   an interrupted erase leaves of it are records with lower counters, or copies, or items
-//!   that are not intact.
+//!   that are not intact. One exception: an item this firmware refuses that a move left behind
+//!   (it was older than every pad's record) and that an erase torn from the page's end or in
+//!   random bits leaves intact alone in its page can no longer be dated, so the pads load the
+//!   defaults flagged corrupt until a save for every pad.
 //!
 //! A torn item can pass for intact only by matching the length CRC, the data CRC and the record's
 //! CRC-32. A load never writes, so a power loss during a boot changes nothing.
@@ -188,8 +194,13 @@ pub enum StoreError<E> {
     /// The record read back after writing is missing or differs from what was written.
     VerifyFailed,
     /// The records other pads still load and the new one do not fit in an erase page (nothing
-    /// was lost: the page they are in was not erased).
+    /// was written).
     Full,
+    /// The save needs a move, and flash holds a record this firmware cannot read that may be
+    /// newer than the calibration of a pad the save is not for: the move would drop it and that
+    /// pad would load an older calibration. Nothing was written; a save for every pad, which
+    /// is newer than anything, replaces it.
+    Unreadable,
 }
 
 impl<E: fmt::Debug> fmt::Display for StoreError<E> {
@@ -199,6 +210,10 @@ impl<E: fmt::Debug> fmt::Display for StoreError<E> {
             StoreError::Flash(error) => write!(formatter, "flash: {error:?}"),
             StoreError::VerifyFailed => write!(formatter, "read-back verification failed"),
             StoreError::Full => write!(formatter, "the records do not fit in an erase page"),
+            StoreError::Unreadable => write!(
+                formatter,
+                "flash holds a record this firmware cannot read; save every pad's calibration at once"
+            ),
         }
     }
 }
@@ -268,8 +283,6 @@ impl<E: defmt::Format> defmt::Format for LoadOutcome<E> {
 const SCOPE_SLOTS: usize = MAX_PADS as usize + 1;
 /// The slot of the records for every pad.
 const EVERY_PAD_SLOT: usize = MAX_PADS as usize;
-/// Items a move copies at most: every scope's record and one refused item.
-const MAX_COPIES: usize = SCOPE_SLOTS + 1;
 
 /// The scan slot of a record's scope (decoding keeps pad indices below [`MAX_PADS`]).
 fn slot(scope: RecordScope) -> usize {
@@ -286,14 +299,14 @@ struct Located {
     page: u32,
     /// Where its item (the header) starts.
     address: u32,
+    /// The record's length.
+    length: usize,
 }
 
 /// The last intact item of a page whose record this firmware refuses.
 #[derive(Debug)]
 struct Refused<E> {
     reason: CorruptReason<E>,
-    /// Where its item starts.
-    address: u32,
     /// The save counter of the first valid record after it in its page, which is newer than it
     /// (a page is appended to in order); none if no valid record follows it.
     counter_after: Option<u32>,
@@ -569,41 +582,64 @@ impl<F: NorFlash> CalibrationStore<F> {
                 }
             }
         }
+        // A move keeps only records this firmware reads: refused items go with the pages it
+        // erases. So it must not move while one may be newer than the record of a pad the
+        // save is not for (that pad would silently load an older calibration).
+        let keeps_flag = (0..MAX_PADS).any(|pad| {
+            !scope.covers(pad)
+                && scan
+                    .refusal_page(scan.answer(pad, None).map(|record| record.save_counter))
+                    .is_some()
+        });
+        if keeps_flag {
+            return Err(StoreError::Unreadable);
+        }
         let target = scan.current.map_or(0, other_page);
         let (copies, copy_count) = copies(&scan, &expected);
+        let copies = copies.get(..copy_count).unwrap_or_default();
+        let target_start = self.page_range(target).start;
+        let needed = copies
+            .iter()
+            .flatten()
+            .fold(Self::item_len(record_len), |total, record| {
+                total.saturating_add(Self::item_len(record.length))
+            });
+        if (target_start + Self::WORD_LEN).saturating_add(needed) > self.items_end(target) {
+            return Err(StoreError::Full);
+        }
         self.erase_if_written(target).await?;
         let marker = WordBuffer([0; LARGEST_WORD_SIZE]);
-        let target_start = self.page_range(target).start;
         write(&mut self.flash, target_start, &marker.0, Self::WORD_LEN).await?;
         let mut address = target_start + Self::WORD_LEN;
-        for &from in copies.get(..copy_count).unwrap_or_default() {
+        let mut copied = true;
+        for record in copies.iter().flatten() {
+            let step = self
+                .read_item(record.address, u32::MAX)
+                .await
+                .map_err(StoreError::Flash)?;
             let ItemStep::Item {
                 length,
                 intact: true,
                 ..
-            } = self
-                .read_item(from, u32::MAX)
-                .await
-                .map_err(StoreError::Flash)?
+            } = step
             else {
-                // Changed since the scan: the read-back below finds it missing.
-                continue;
+                // Changed since the scan.
+                copied = false;
+                break;
             };
-            let next = address.saturating_add(Self::item_len(length));
-            if next > self.items_end(target) {
-                return Err(StoreError::Full);
-            }
             self.write_buffered_item(address, length).await?;
-            address = next;
+            address = address.saturating_add(Self::item_len(length));
         }
-        if address.saturating_add(Self::item_len(record_len)) > self.items_end(target) {
-            return Err(StoreError::Full);
+        if copied {
+            self.write_item(address, record).await?;
         }
-        self.write_item(address, record).await?;
-        if !self
-            .reads_back(record, scope, &expected, Some(target))
-            .await?
+        if !copied
+            || !self
+                .reads_back(record, scope, &expected, Some(target))
+                .await?
         {
+            // Undone, so that the page with every record stays the current one.
+            self.erase_if_written(target).await?;
             return Err(StoreError::VerifyFailed);
         }
         self.erase_if_written(other_page(target)).await
@@ -760,7 +796,6 @@ impl<F: NorFlash> CalibrationStore<F> {
                 if let Some(refused) = scan.page_refused.get_mut(page as usize) {
                     *refused = Some(Refused {
                         reason,
-                        address,
                         counter_after: None,
                     });
                 }
@@ -771,6 +806,7 @@ impl<F: NorFlash> CalibrationStore<F> {
             save_counter: record.save_counter,
             page,
             address,
+            length,
         };
         if let Some(Some(refused)) = scan.page_refused.get_mut(page as usize) {
             refused.counter_after.get_or_insert(record.save_counter);
@@ -967,43 +1003,27 @@ impl Expected {
     }
 }
 
-/// The items of the current page a move copies, in page order: every record some pad still
-/// loads after the save, and the page's last refused item when it may be newer than one of
-/// them (after the move it sits before the same records or newer ones, so it is never taken
-/// for older than it may be).
-fn copies<E>(scan: &Scan<E>, expected: &Expected) -> ([u32; MAX_COPIES], usize) {
-    let mut addresses = [0u32; MAX_COPIES];
+/// The records of the current page a move copies, in page order: every record some pad still
+/// loads after the save.
+fn copies<E>(scan: &Scan<E>, expected: &Expected) -> ([Option<Located>; SCOPE_SLOTS], usize) {
+    let mut copies = [None; SCOPE_SLOTS];
     let mut count = 0;
     let Some(current) = scan.current else {
-        return (addresses, 0);
-    };
-    let mut push = |address: u32| {
-        if let Some(slot) = addresses.get_mut(count) {
-            *slot = address;
-            count += 1;
-        }
+        return (copies, 0);
     };
     for record in (0..SCOPE_SLOTS).filter_map(|slot| scan.newest(slot, None)) {
         if record.page == current && expected.loads(record.save_counter) {
-            push(record.address);
+            if let Some(copy) = copies.get_mut(count) {
+                *copy = Some(record);
+                count += 1;
+            }
         }
     }
-    if let Some(Some(refused)) = scan.page_refused.get(current as usize) {
-        let may_be_newer =
-            expected
-                .counters
-                .iter()
-                .any(|counter| match (counter, refused.counter_after) {
-                    (Some(Some(loaded)), Some(after)) => after > *loaded,
-                    _ => true,
-                });
-        if may_be_newer {
-            push(refused.address);
-        }
-    }
-    let copies = addresses.get_mut(..count).unwrap_or_default();
-    copies.sort_unstable();
-    (addresses, count)
+    copies
+        .get_mut(..count)
+        .unwrap_or_default()
+        .sort_unstable_by_key(|record| record.map(|record| record.address));
+    (copies, count)
 }
 
 fn other_page(page: u32) -> u32 {

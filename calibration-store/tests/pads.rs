@@ -179,9 +179,10 @@ fn store_raw_item(flash: &mut PadFlash, value: &[u8]) {
     block_on(map.store_item(&mut buffer, &CALIBRATION_KEY, &value)).unwrap();
 }
 
-/// A pad's record of a format this firmware does not read (version 5), after pad 1's record:
+/// A pad's record of a format this firmware does not read (version 5), before pad 1's record:
 /// it may be any pad's newest, so every pad whose record is older loads Corrupt; pad 1's newer
-/// record and later saves are unaffected, and a save for a pad keeps the others flagged.
+/// record and later saves are unaffected, a save for one pad never drops it, and a save for
+/// every pad replaces it.
 #[test]
 fn a_record_this_firmware_refuses_flags_every_pad_whose_record_may_be_older() {
     let mut flash = Box::new(PadFlash::new());
@@ -207,15 +208,25 @@ fn a_record_this_firmware_refuses_flags_every_pad_whose_record_may_be_older() {
         };
         assert_eq!(outcome, expected, "pad {pad}");
     }
-    // Saves for one pad, through moves: the pad gets its calibration, the others stay flagged.
-    for round in 0..30 {
-        save(&mut flash, RecordScope::Pad(2), &mixed_spec(100 + round));
-    }
+    // Saves for one pad append while they fit; the move that would drop the unreadable record
+    // (and with it the other pads' flag) is refused, with nothing written.
+    let mut saved = 0;
+    let refusal = loop {
+        match block_on(store(&mut flash).save_for(RecordScope::Pad(2), &mixed_spec(100 + saved))) {
+            Ok(()) => saved += 1,
+            Err(error) => break error,
+        }
+        assert!(saved < 30, "no move in 30 saves");
+    };
+    assert_eq!(refusal, StoreError::Unreadable);
     let outcomes = load_every_pad(&mut flash);
-    assert_eq!(outcomes[2], LoadOutcome::Stored(mixed_spec(129)));
+    assert_eq!(
+        outcomes[2],
+        LoadOutcome::Stored(mixed_spec(100 + saved - 1))
+    );
     assert_eq!(outcomes[1], LoadOutcome::Stored(spec(3)));
     for pad in [0, 3, 4, 5, 6, 7, 8] {
-        assert_eq!(outcomes[pad], refused, "pad {pad} after the moves");
+        assert_eq!(outcomes[pad], refused, "pad {pad} after the refused move");
     }
     // A save for every pad is newer than anything: it clears the flag.
     save(&mut flash, RecordScope::EveryPad, &spec(4));
@@ -340,18 +351,26 @@ fn power_loss_during_a_pads_save_leaves_the_other_pads_untouched() {
                         assert_eq!(*outcome, before[other], "{context}: pad {other}");
                     }
                 }
-                let next = mixed_spec(9000 + history_length);
-                block_on(tight_store(&mut flash).save_for(RecordScope::Pad(pad), &next))
+                // The next save is for another pad: the torn save's pad keeps what it loaded
+                // (a wrong choice of the current page would lose it here).
+                let other_pad = (pad + 1) % MAX_PADS;
+                let next = spec(9000 + history_length);
+                block_on(tight_store(&mut flash).save_for(RecordScope::Pad(other_pad), &next))
                     .unwrap_or_else(|error| panic!("{context}: next save failed: {error:?}"));
-                let mut expected = saves.clone();
-                expected.0.push((RecordScope::Pad(pad), next));
                 let healed = tight_load_every_pad(&mut flash);
-                for other in 0..=usize::from(MAX_PADS) {
-                    if before[other] != LoadOutcome::Absent || other == usize::from(pad) {
+                for (index, outcome) in healed.iter().enumerate() {
+                    if index == usize::from(other_pad) {
+                        assert_eq!(*outcome, LoadOutcome::Stored(next.clone()), "{context}");
+                    } else if after[index].is_corrupt() && before[index] == LoadOutcome::Absent {
+                        assert!(
+                            *outcome == LoadOutcome::Absent || outcome.is_corrupt(),
+                            "{context}: after the next save, pad {index}: {}",
+                            describe(outcome)
+                        );
+                    } else {
                         assert_eq!(
-                            healed[other],
-                            expected.outcomes()[other],
-                            "{context}: after the next save, pad {other}"
+                            *outcome, after[index],
+                            "{context}: after the next save, pad {index}"
                         );
                     }
                 }
@@ -364,4 +383,130 @@ fn power_loss_during_a_pads_save_leaves_the_other_pads_untouched() {
          writes and erases in one save)"
     );
     assert!(moves >= 5, "only {moves} saves under test moved");
+}
+
+/// Writes `spec` for `scope` with `save_counter` as a raw item, in `version` if given (a format
+/// this firmware does not read).
+fn raw_record(
+    flash: &mut PadFlash,
+    scope: RecordScope,
+    spec: &CalibrationSpec,
+    save_counter: u32,
+    version: Option<u8>,
+) {
+    let mut bytes = [0u8; MAX_RECORD_LEN];
+    let length = encode_scoped_record(scope, spec, save_counter, &mut bytes).unwrap();
+    let mut bytes = bytes[..length].to_vec();
+    if let Some(version) = version {
+        bytes[0] = version;
+        let crc_at = bytes.len() - 4;
+        let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(&bytes[..crc_at]);
+        bytes[crc_at..].copy_from_slice(&crc.to_le_bytes());
+    }
+    store_raw_item(flash, &bytes);
+}
+
+/// The other page, not erased (what a torn erase leaves): the next save must move.
+fn dirty_other_page(flash: &mut PadFlash) {
+    flash.as_bytes_mut()[2 * PAGE + 4000] = 0x00;
+}
+
+/// A save for one pad over records of a later firmware that may be newer than other pads' (or
+/// over nothing else): refused, nothing written, the flags kept; a save for every pad works.
+#[test]
+fn a_pads_save_never_drops_an_unreadable_record_another_pad_may_load() {
+    for pad_first in [false, true] {
+        let mut flash = Box::new(PadFlash::new());
+        if pad_first {
+            raw_record(&mut flash, RecordScope::Pad(1), &spec(1), 1, None);
+        }
+        raw_record(&mut flash, RecordScope::Pad(4), &spec(50), 7, Some(5));
+        dirty_other_page(&mut flash);
+        let before = load_every_pad(&mut flash);
+        assert!(before[0].is_corrupt());
+        let snapshot = flash.snapshot();
+        assert_eq!(
+            block_on(store(&mut flash).save_for(RecordScope::Pad(2), &spec(2))),
+            Err(StoreError::Unreadable)
+        );
+        assert!(flash.snapshot() == snapshot, "the refused save wrote");
+        save(&mut flash, RecordScope::EveryPad, &spec(3));
+        assert!(load_every_pad(&mut flash)
+            .iter()
+            .all(|outcome| *outcome == LoadOutcome::Stored(spec(3))));
+    }
+}
+
+/// An intact item longer than any record (a later firmware's) after pad 0's record: a save for
+/// one pad that must move is refused; a save for every pad replaces it.
+#[test]
+fn an_item_longer_than_any_record_is_never_copied_and_a_save_for_every_pad_replaces_it() {
+    let mut flash = Box::new(PadFlash::new());
+    save(&mut flash, RecordScope::Pad(0), &spec(1));
+    let mut long = vec![0x5Au8; 800];
+    long[0] = 6;
+    store_raw_item(&mut flash, &long);
+    dirty_other_page(&mut flash);
+    assert!(load_every_pad(&mut flash)[0].is_corrupt());
+    assert_eq!(
+        block_on(store(&mut flash).save_for(RecordScope::Pad(1), &spec(2))),
+        Err(StoreError::Unreadable)
+    );
+    save(&mut flash, RecordScope::EveryPad, &spec(4));
+    assert!(load_every_pad(&mut flash)
+        .iter()
+        .all(|outcome| *outcome == LoadOutcome::Stored(spec(4))));
+}
+
+/// Page 0: pad 0's and pad 1's records; a save for pad 0 that moves is torn after pad 1's copy
+/// (both pages then end on the same save counter). A later save for pad 2 keeps pad 0's record:
+/// the page copied from stays the current one.
+#[test]
+fn a_move_torn_after_its_last_copy_then_another_pads_save_keeps_every_record() {
+    let mut base = Box::new(PadFlash::new());
+    save(&mut base, RecordScope::Pad(0), &spec(10));
+    save(&mut base, RecordScope::Pad(1), &spec(11));
+    dirty_other_page(&mut base);
+    let mut torn = 0;
+    for operations in 0..12 {
+        let mut flash = Box::new((*base).clone());
+        flash.schedule_power_loss(operations, Tear::NOTHING);
+        if block_on(store(&mut flash).save_for(RecordScope::Pad(0), &spec(12))).is_ok() {
+            break;
+        }
+        torn += 1;
+        let pad_0 = load_every_pad(&mut flash)[0].clone();
+        assert!(pad_0 == LoadOutcome::Stored(spec(10)) || pad_0 == LoadOutcome::Stored(spec(12)));
+        save(&mut flash, RecordScope::Pad(2), &spec(13));
+        let after = load_every_pad(&mut flash);
+        assert_eq!(after[0], pad_0, "operation {operations}");
+        assert_eq!(
+            after[1],
+            LoadOutcome::Stored(spec(11)),
+            "operation {operations}"
+        );
+        assert_eq!(
+            after[2],
+            LoadOutcome::Stored(spec(13)),
+            "operation {operations}"
+        );
+    }
+    assert!(torn >= 4, "{torn}");
+}
+
+/// Full is found before anything is erased or written.
+#[test]
+fn full_is_refused_before_anything_is_written() {
+    let mut flash = small_flash();
+    let long = common::worst_case_spec;
+    for pad in 0..3 {
+        block_on(small_store(&mut flash).save_for(RecordScope::Pad(pad), &long(u32::from(pad))))
+            .unwrap();
+    }
+    let snapshot = flash.snapshot();
+    assert_eq!(
+        block_on(small_store(&mut flash).save_for(RecordScope::Pad(3), &long(3))),
+        Err(StoreError::Full)
+    );
+    assert!(flash.snapshot() == snapshot);
 }

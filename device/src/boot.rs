@@ -6,7 +6,7 @@
 
 use core::ops::Deref;
 
-use acquisition::discovery::{PadTemperature, Topology, MAX_PADS};
+use acquisition::discovery::{PadSlot, PadTemperature, Topology, MAX_PADS};
 use acquisition::pad_bus::{MuxedBus, PadBus};
 use acquisition::{Acquisition, AcquisitionConfig, Clock, TemperatureSource};
 use calibration_store::LoadOutcome;
@@ -82,6 +82,13 @@ pub fn boot_calibration<E>(stored: Option<LoadOutcome<E>>) -> (Calibration, Cali
         ),
         Some(LoadOutcome::Absent) | None => (Calibration::default(), CalibrationSource::Defaults),
     }
+}
+
+/// The pad index a pad's calibration is saved under: its multiplexer channel (a pad keeps its
+/// calibration when another pad is unplugged, which shifts the discovery order), 0 for the pad
+/// on the bus itself.
+pub fn calibration_key(slot: &PadSlot) -> u8 {
+    slot.channel.map_or(0, |channel| channel.index())
 }
 
 /// The board's parts the device runs on.
@@ -165,13 +172,10 @@ where
     );
     let mut restored_taxels = 0;
     let mut calibration_sources = heapless::Vec::<CalibrationSource, MAX_PADS>::new();
-    for (index, slot) in parts.topology.pads.iter().enumerate() {
+    for slot in &parts.topology.pads {
         // One pad's calibration at a time: eight specs at once would not fit the MCU's RAM.
-        let (calibration, calibration_source) = boot_calibration(
-            parts
-                .persistence
-                .load(u8::try_from(index).unwrap_or(u8::MAX)),
-        );
+        let (calibration, calibration_source) =
+            boot_calibration(parts.persistence.load(calibration_key(slot)));
         // Cannot fail: discovery finds at most MAX_PADS pads.
         let _ = calibration_sources.push(calibration_source);
         let mut model = PadModel::new(calibration);

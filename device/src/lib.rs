@@ -20,8 +20,8 @@ mod retained;
 mod supervisor;
 
 pub use boot::{
-    boot, boot_calibration, BoardAcquisition, BoardConfig, BoardParts, BootReport, BootedDevice,
-    PadI2c, BOARD,
+    boot, boot_calibration, calibration_key, BoardAcquisition, BoardConfig, BoardParts, BootReport,
+    BootedDevice, PadI2c, BOARD,
 };
 pub use control::DeviceControl;
 pub use convert::{
@@ -205,7 +205,6 @@ pub struct Device<A, P> {
     host_counters: HostCounters,
     sets_since_counters: u32,
     announce_flash_corrupt: bool,
-    retained_written: Option<RetainedState>,
     pads: heapless::Vec<PadReporting, MAX_PADS>,
 }
 
@@ -248,7 +247,6 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             host_counters: HostCounters::default(),
             sets_since_counters: 0,
             announce_flash_corrupt,
-            retained_written: None,
             pads,
         }
     }
@@ -291,15 +289,11 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         RetainedState { pads }
     }
 
-    /// The state to keep in no-init RAM when it changed since the last call (after a tare or a
-    /// tier change), `None` otherwise: the sampling loop encodes and writes the record only then.
-    pub fn retained_state_change(&mut self) -> Option<RetainedState> {
-        let state = self.retained_state();
-        if self.retained_written == Some(state) {
-            return None;
-        }
-        self.retained_written = Some(state);
-        Some(state)
+    /// The record to keep in no-init RAM: [`Self::retained_state`] encoded. The caller writes
+    /// it only where it differs from what the RAM holds (comparing the bytes costs less RAM than
+    /// keeping a copy of the state here).
+    pub fn retained_record(&self) -> [u8; RETAINED_LEN] {
+        self.retained_state().encode()
     }
 
     /// The info frame as of now (calibration and tier: the first pad's).
@@ -581,64 +575,55 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         &mut self,
         mut choose: impl FnMut(&PadModel) -> Option<Tier>,
     ) -> Result<Tier, ErrorCode> {
-        let mut previous: heapless::Vec<Tier, MAX_PADS> = heapless::Vec::new();
-        let mut chosen: heapless::Vec<Tier, MAX_PADS> = heapless::Vec::new();
+        // (pad, tier before, tier chosen) for every pad the loop holds.
+        let mut changes: heapless::Vec<(usize, Tier, Tier), MAX_PADS> = heapless::Vec::new();
         for pad in 0..self.control.pad_count() {
             if let Some(model) = self.control.pad(pad) {
                 let tier = choose(model).ok_or(ErrorCode::NotSupported)?;
                 // Cannot fail: the loop holds at most MAX_PADS pads.
-                let _ = previous.push(model.tier());
-                let _ = chosen.push(tier);
+                let _ = changes.push((pad, model.tier(), tier));
             }
         }
-        for (pad, tier) in chosen.iter().enumerate() {
+        for (done, &(pad, _, tier)) in changes.iter().enumerate() {
             let Some(model) = self.control.pad_mut(pad) else {
                 continue;
             };
-            if model.set_tier(*tier).is_err() {
-                for (changed, tier) in previous.iter().enumerate().take(pad) {
+            if model.set_tier(tier).is_err() {
+                for &(changed, previous, _) in changes.iter().take(done) {
                     if let Some(model) = self.control.pad_mut(changed) {
                         // The tier was in use on this pad a moment ago.
-                        let _ = model.set_tier(*tier);
+                        let _ = model.set_tier(previous);
                     }
                 }
                 return Err(ErrorCode::NotSupported);
             }
         }
-        chosen.first().copied().ok_or(ErrorCode::NotSupported)
+        changes
+            .first()
+            .map(|&(_, _, tier)| tier)
+            .ok_or(ErrorCode::NotSupported)
     }
 
-    /// Saves the pads' calibrations: one record for every pad when they all hold the same
-    /// calibration, otherwise one record per pad, in pad order. Each record is saved whole or
-    /// not at all; if one fails, the pads before it are saved, the others keep what flash held,
-    /// and the reply is FlashError.
+    /// Saves the pads' calibrations. A pad on the bus itself (no multiplexer) gets a record for
+    /// every pad, the format earlier firmware reads; pads behind a multiplexer get one record
+    /// each, under their channel (a record for every pad would also replace the calibration of
+    /// a pad unplugged at the time). Each record is saved whole or not at all; if one fails, the
+    /// pads before it are saved, the others keep what flash held, and the reply is FlashError.
     async fn save_calibrations(&mut self) -> Result<ReplyPayload, ErrorCode> {
-        let Some(first) = self.control.pad(FIRST_PAD) else {
+        if self.control.pad_count() == 0 {
             return Err(ErrorCode::NotSupported);
-        };
-        let spec = first.calibration().to_spec();
-        let all_alike = (0..self.control.pad_count()).all(|pad| {
-            self.control
-                .pad(pad)
-                .is_some_and(|model| model.calibration().to_spec() == spec)
-        });
-        if all_alike {
-            self.persistence
-                .save(RecordScope::EveryPad, &spec)
-                .await
-                .map_err(|PersistenceFailed| ErrorCode::FlashError)?;
-            for reporting in self.pads.iter_mut() {
-                reporting.calibration_source = CalibrationSource::Flash;
-            }
-            return Ok(ReplyPayload::Ack);
         }
         for pad in 0..self.control.pad_count() {
-            let (Some(model), Ok(index)) = (self.control.pad(pad), u8::try_from(pad)) else {
+            let (Some(model), Some(reporting)) = (self.control.pad(pad), self.pads.get(pad)) else {
                 continue;
+            };
+            let scope = match reporting.channel {
+                None => RecordScope::EveryPad,
+                Some(channel) => RecordScope::Pad(channel),
             };
             let spec = model.calibration().to_spec();
             self.persistence
-                .save(RecordScope::Pad(index), &spec)
+                .save(scope, &spec)
                 .await
                 .map_err(|PersistenceFailed| ErrorCode::FlashError)?;
             if let Some(reporting) = self.pads.get_mut(pad) {

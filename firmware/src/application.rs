@@ -80,9 +80,7 @@ pub async fn acquisition_task(
     let mut port = UsbHostPort::new();
     loop {
         device.step(&mut port).await;
-        if let Some(state) = device.retained_state_change() {
-            retained::write(&state);
-        }
+        retained::write_if_changed(&device.retained_record());
         watchdog::heartbeat();
     }
 }

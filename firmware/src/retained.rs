@@ -28,13 +28,18 @@ pub fn read() -> Option<RetainedState> {
     RetainedState::decode(&bytes)
 }
 
-/// Replaces the record (called after every converter cycle).
+/// Replaces the record where it differs from `record` (called after every sample set; it
+/// changes after a tare or a tier change, or every set while baselines are tracked).
 #[allow(unsafe_code)]
-pub fn write(state: &RetainedState) {
-    let bytes = state.encode();
+pub fn write_if_changed(record: &[u8; RETAINED_LEN]) {
     let base = addr_of_mut!(RETAINED).cast::<u8>();
-    for (index, byte) in bytes.iter().enumerate() {
+    for (index, byte) in record.iter().enumerate() {
         // SAFETY: as in `read`: in bounds, one writer, no concurrent reader.
-        unsafe { core::ptr::write_volatile(base.add(index), *byte) };
+        unsafe {
+            let address = base.add(index);
+            if core::ptr::read_volatile(address) != *byte {
+                core::ptr::write_volatile(address, *byte);
+            }
+        }
     }
 }

@@ -349,9 +349,7 @@ impl SimulatedDevice {
     ) {
         self.schedule_scene_faults();
         embassy_futures::block_on(self.device.step_observed(host, observe));
-        if let Some(state) = self.device.retained_state_change() {
-            self.retained_ram = state.encode();
-        }
+        self.retained_ram = self.device.retained_record();
     }
 
     /// Steps until `stop` is set or the scene's simulated time passes `until_s`.

@@ -183,3 +183,65 @@ fn every_pad_must_fit_a_use_case_and_each_chooses_its_own_tier() {
     assert_eq!(tiers(&mut host)[0], first);
     assert_eq!(host.info().model_tier, first);
 }
+
+/// Each pad's calibration is saved under its multiplexer channel: when the pad on channel 1 is
+/// unplugged at the next boot, the pad on channel 2 becomes the second pad found and still
+/// boots on its own calibration.
+#[test]
+fn a_saved_calibration_follows_its_pads_channel_when_another_pad_is_missing() {
+    let mut scene = sim_device::SceneFile::default_scene().unwrap();
+    let default_pad = scene.pads[0].clone();
+    let mut unplugged = default_pad.clone();
+    unplugged.faults.push(sim_device::SceneFault {
+        kind: sim_device::FaultKind::Unplugged,
+        taxel: 0,
+        start_s: 2.0,
+        end_s: 1000.0,
+    });
+    scene.pads = vec![default_pad.clone(), unplugged, default_pad];
+    let mut host = Host::with_scene(scene, 3);
+    for (index, id) in [(0u8, 100u32), (1, 101), (2, 102)] {
+        for taxel_index in 0..4 {
+            let mut record = match host.request(Command::ReadCalibration {
+                pad: pad(index),
+                taxel_index,
+            }) {
+                Ok(ReplyPayload::Calibration(record)) => record,
+                other => panic!("{other:?}"),
+            };
+            record.calibration_id = id;
+            record.calibration.parasitic_pf += 0.1 * f32::from(index);
+            assert_eq!(
+                host.request(Command::WriteCalibration(record)),
+                Ok(ReplyPayload::Ack)
+            );
+        }
+    }
+    assert_eq!(
+        host.request(Command::SaveCalibration),
+        Ok(ReplyPayload::Ack)
+    );
+    while host.device.simulation().now_us() < 2_500_000 {
+        host.steps(10);
+    }
+    host.device.restart_mcu().unwrap();
+    host.steps(20);
+    assert_eq!(host.info().pad_count, 2);
+    let (first, second) = (pad_info(&mut host, 0), pad_info(&mut host, 1));
+    assert_eq!(
+        (
+            first.channel,
+            first.calibration_id,
+            first.calibration_source
+        ),
+        (Some(0), 100, CalibrationSource::Flash)
+    );
+    assert_eq!(
+        (
+            second.channel,
+            second.calibration_id,
+            second.calibration_source
+        ),
+        (Some(2), 102, CalibrationSource::Flash)
+    );
+}

@@ -28,8 +28,13 @@ impl Host {
 
     /// The default scene on `pads` pads, after 20 sample sets.
     pub fn with_pads(pads: usize) -> Self {
+        Self::with_scene(SceneFile::default_scene().unwrap(), pads)
+    }
+
+    /// `scene` on `pads` pads, after 20 sample sets.
+    pub fn with_scene(scene: SceneFile, pads: usize) -> Self {
         let device = SimulatedDevice::new(SimulatedDeviceConfig {
-            scene: SceneFile::default_scene().unwrap(),
+            scene,
             seed: 9,
             speed: None,
             topology: sim_device::pads_topology(pads),
