@@ -1,0 +1,239 @@
+//! `taxel.Calibration`: a pad's calibration (curve points per taxel, parasitic and unloaded
+//! capacitances, temperature law, thresholds) read from and written to the calibration files of
+//! `taxel calibrate`, or fitted from reference loads with the same code and report.
+
+use std::path::PathBuf;
+
+use model_core::{Calibration as ModelCalibration, TAXEL_COUNT, TAXEL_NAMES};
+use numpy::{PyUntypedArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use taxel::calibrate::{
+    cross_validate, curve_points, fit_calibration, reference_data, LoadRow, TierFitError,
+};
+use taxel::calibration_file;
+
+use crate::errors::{anyhow_error, taxel_error, ErrorKind};
+
+/// One tier's leave-one-out result on one taxel.
+#[derive(Debug, Clone)]
+struct LeaveOneOut {
+    taxel: &'static str,
+    result: TierFitError,
+}
+
+/// A calibration: per taxel the curve of dC/C0 against pressure, the parasitic and unloaded
+/// capacitances; the temperature law; the fault thresholds. Files are the JSON files
+/// ``taxel calibrate`` writes and ``taxel convert --calibration`` reads.
+#[pyclass(frozen, module = "taxel")]
+pub struct Calibration {
+    model: ModelCalibration,
+    report: Option<String>,
+    leave_one_out: Vec<LeaveOneOut>,
+}
+
+impl Calibration {
+    /// A calibration without a fit report.
+    pub fn from_model(model: ModelCalibration) -> Self {
+        Self {
+            model,
+            report: None,
+            leave_one_out: Vec::new(),
+        }
+    }
+
+    /// The model's calibration.
+    pub fn model(&self) -> &ModelCalibration {
+        &self.model
+    }
+}
+
+fn column_of<'a>(
+    values: &'a PyReadonlyArray1<'_, f64>,
+    name: &str,
+) -> PyResult<&'a [f64]> {
+    values
+        .as_slice()
+        .map_err(|_| PyValueError::new_err(format!("{name} must be a contiguous array")))
+}
+
+#[pymethods]
+impl Calibration {
+    /// The built-in default calibration (the article's curve), which a device without a
+    /// calibration of its own uses.
+    #[staticmethod]
+    fn default() -> Self {
+        Self::from_model(ModelCalibration::default())
+    }
+
+    /// Reads a calibration file.
+    #[staticmethod]
+    fn load(path: PathBuf) -> PyResult<Self> {
+        calibration_file::read(&path)
+            .map(Self::from_model)
+            .map_err(|error| {
+                taxel_error(
+                    ErrorKind::Calibration,
+                    format!("reading {}: {error}", path.display()),
+                )
+            })
+    }
+
+    /// Reads a calibration from the file's JSON text.
+    #[staticmethod]
+    fn from_json(text: &str) -> PyResult<Self> {
+        calibration_file::from_json(text)
+            .map(Self::from_model)
+            .map_err(|error| taxel_error(ErrorKind::Calibration, error.to_string()))
+    }
+
+    /// Writes the calibration file (under a temporary name, renamed when complete).
+    fn save(&self, path: PathBuf) -> PyResult<()> {
+        calibration_file::write(&path, &self.model)
+            .map_err(|error| anyhow_error(&error, ErrorKind::Calibration))
+    }
+
+    /// The calibration file's JSON text.
+    fn to_json(&self) -> PyResult<String> {
+        calibration_file::to_json(&self.model)
+            .map_err(|error| taxel_error(ErrorKind::Calibration, error.to_string()))
+    }
+
+    /// Fits a calibration from reference loads, as ``taxel calibrate`` does: ``pressure_kpa``
+    /// (N,) applied pressures (several rows at 0 kPa give C0), ``capacitance_pf`` (N, 4)
+    /// measured capacitances, ``temp_c`` (N,) pad temperatures (NaN or omitted: none). The
+    /// result's :attr:`fit_report` is the command's report and :attr:`leave_one_out` its
+    /// cross-validation of every tier.
+    #[staticmethod]
+    #[pyo3(signature = (pressure_kpa, capacitance_pf, temp_c=None, id=1, parasitic_pf=0.0, budget_kpa=model_core::UseCase::GRIPPER.error_budget_kpa))]
+    fn fit(
+        py: Python<'_>,
+        pressure_kpa: PyReadonlyArray1<'_, f64>,
+        capacitance_pf: PyReadonlyArray2<'_, f64>,
+        temp_c: Option<PyReadonlyArray1<'_, f64>>,
+        id: u32,
+        parasitic_pf: f32,
+        budget_kpa: f32,
+    ) -> PyResult<Self> {
+        let pressures = column_of(&pressure_kpa, "pressure_kpa")?;
+        let rows = pressures.len();
+        let shape = capacitance_pf.shape();
+        if shape != [rows, TAXEL_COUNT] {
+            return Err(taxel_error(
+                ErrorKind::Calibration,
+                format!(
+                    "capacitance_pf has shape {shape:?}; with {rows} pressures it must be ({rows}, {TAXEL_COUNT}): one row per load, one column per taxel of one pad"
+                ),
+            ));
+        }
+        let capacitances = capacitance_pf
+            .as_slice()
+            .map_err(|_| PyValueError::new_err("capacitance_pf must be a contiguous array"))?;
+        let temperatures = match &temp_c {
+            Some(values) => {
+                let values = column_of(values, "temp_c")?;
+                if values.len() != rows {
+                    return Err(taxel_error(
+                        ErrorKind::Calibration,
+                        format!("temp_c has {} values for {rows} pressures", values.len()),
+                    ));
+                }
+                Some(values)
+            }
+            None => None,
+        };
+        let mut loads = Vec::with_capacity(rows);
+        for (row, &pressure) in pressures.iter().enumerate() {
+            let capacitances_pf: [f64; TAXEL_COUNT] =
+                std::array::from_fn(|taxel| capacitances[row * TAXEL_COUNT + taxel]);
+            if !pressure.is_finite() || capacitances_pf.iter().any(|value| !value.is_finite()) {
+                return Err(taxel_error(
+                    ErrorKind::Calibration,
+                    format!("row {row}: a pressure or capacitance is NaN or infinite"),
+                ));
+            }
+            if pressure < 0.0 {
+                return Err(taxel_error(
+                    ErrorKind::Calibration,
+                    format!("row {row}: negative pressure {pressure} kPa"),
+                ));
+            }
+            loads.push(LoadRow {
+                line: row as u64,
+                pressure_kpa: pressure,
+                capacitances_pf,
+                temperature_c: temperatures
+                    .and_then(|values| values.get(row).copied())
+                    .filter(|value| value.is_finite()),
+            });
+        }
+        let fitted = py.allow_threads(|| -> anyhow::Result<Self> {
+            let law = ModelCalibration::default().temperature_law().clone();
+            let data = reference_data(&loads, [f64::from(parasitic_pf); TAXEL_COUNT], &law)?;
+            let model = fit_calibration(&data, id, parasitic_pf)?;
+            let report = taxel::calibrate_report::fit_report(&data, &model, budget_kpa);
+            let leave_one_out = (0..TAXEL_COUNT)
+                .flat_map(|taxel| {
+                    cross_validate(&curve_points(&data, taxel))
+                        .into_iter()
+                        .map(move |result| LeaveOneOut {
+                            taxel: TAXEL_NAMES[taxel],
+                            result,
+                        })
+                })
+                .collect();
+            Ok(Self {
+                model,
+                report: Some(report),
+                leave_one_out,
+            })
+        });
+        fitted.map_err(|error| anyhow_error(&error, ErrorKind::Calibration))
+    }
+
+    /// The calibration id (reported by a device that uses it).
+    #[getter]
+    fn id(&self) -> u32 {
+        self.model.id()
+    }
+
+    /// The report of :meth:`fit` (levels, cross-validation, conditioning), as ``taxel
+    /// calibrate`` prints it; ``None`` for a calibration that was not fitted here.
+    #[getter]
+    fn fit_report(&self) -> Option<String> {
+        self.report.clone()
+    }
+
+    /// The cross-validation of :meth:`fit`: one dict per taxel and tier with ``taxel``,
+    /// ``tier``, ``fit_max_kpa`` (largest error at the points with the full curve),
+    /// ``leave_one_out_kpa`` (the error of each interior level predicted without it),
+    /// ``leave_one_out_max_kpa`` and ``leave_one_out_rms_kpa``; ``None`` where the tier is not
+    /// available. Empty for a calibration that was not fitted here.
+    #[getter]
+    fn leave_one_out<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        self.leave_one_out
+            .iter()
+            .map(|entry| {
+                let dict = PyDict::new(py);
+                dict.set_item("taxel", entry.taxel)?;
+                dict.set_item("tier", entry.result.tier.name())?;
+                dict.set_item("fit_max_kpa", entry.result.fit_max_kpa)?;
+                dict.set_item("leave_one_out_kpa", entry.result.leave_one_out_kpa.clone())?;
+                dict.set_item("leave_one_out_max_kpa", entry.result.leave_one_out_max_kpa())?;
+                dict.set_item("leave_one_out_rms_kpa", entry.result.leave_one_out_rms_kpa())?;
+                Ok(dict)
+            })
+            .collect()
+    }
+
+    fn __eq__(&self, other: &Bound<'_, PyAny>) -> bool {
+        other
+            .downcast::<Calibration>()
+            .is_ok_and(|other| other.get().model == self.model)
+    }
+
+    fn __repr__(&self) -> String {
+        format!("Calibration(id={})", self.model.id())
+    }
+}

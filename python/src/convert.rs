@@ -1,0 +1,189 @@
+//! `taxel.convert`: capacitances and temperatures to pressures and flags with the pressure
+//! model of `model-core`, exactly as `taxel convert` runs it on a CSV file: one model per pad,
+//! its tier set, and a tare on the mean of the first `tare_rows` readable rows.
+
+use model_core::{
+    PadModel, SampleInput, TareStatus, TaxelReading, Tier, TAXEL_COUNT, TAXEL_NAMES,
+};
+use numpy::{PyUntypedArrayMethods, PyArray2, PyReadonlyArray1, PyReadonlyArray2, ToPyArray};
+use pyo3::prelude::*;
+
+use crate::calibration::Calibration;
+use crate::errors::{taxel_error, ErrorKind};
+
+/// What one pad's run produces: pressures and flags in place, and the tare's warnings.
+fn run_pad(
+    model: &mut PadModel,
+    pad: usize,
+    pads: usize,
+    capacitance_pf: &[f64],
+    temperature_c: &[f64],
+    time_s: Option<&[f64]>,
+    pressure_kpa: &mut [f64],
+    flags: &mut [u16],
+) {
+    let taxels = pads * TAXEL_COUNT;
+    let rows = temperature_c.len() / pads.max(1);
+    for row in 0..rows {
+        let first = row * taxels + pad * TAXEL_COUNT;
+        let readings: [TaxelReading; TAXEL_COUNT] = std::array::from_fn(|taxel| {
+            let value = capacitance_pf[first + taxel];
+            if value.is_nan() {
+                TaxelReading::Unavailable
+            } else {
+                TaxelReading::CapacitancePf(value as f32)
+            }
+        });
+        let temperature = temperature_c[row * pads + pad];
+        let temperature = (!temperature.is_nan()).then_some(temperature as f32);
+        let mut input = SampleInput::new(readings, temperature);
+        if let Some(time_s) = time_s {
+            let time_s = time_s[row];
+            // As `taxel convert` reads a time cell: a non-negative time in µs for the
+            // temperature plausibility rule.
+            if time_s >= 0.0 {
+                input = input.at_time_us((time_s * 1.0e6) as u64);
+            }
+        }
+        let output = model.process(&input);
+        for (taxel, result) in output.taxels.iter().enumerate() {
+            pressure_kpa[first + taxel] = result.pressure_kpa().map_or(f64::NAN, f64::from);
+            flags[first + taxel] = result.flags().bits();
+        }
+    }
+}
+
+/// The tare's problems, in `taxel convert`'s words.
+fn tare_warnings(model: &PadModel, pad: usize, pads: usize) -> Vec<String> {
+    let prefix = if pads > 1 {
+        format!("pad {pad}: ")
+    } else {
+        String::new()
+    };
+    match model.tare_status() {
+        TareStatus::Running { remaining } => vec![format!(
+            "{prefix}the tare never finished ({remaining} more readable rows were needed); every pressure is empty (not_tared)"
+        )],
+        TareStatus::Finished { tared_mask } => {
+            let errors = model.last_tare_errors();
+            (0..TAXEL_COUNT)
+                .filter(|taxel| tared_mask & (1 << taxel) == 0)
+                .map(|taxel| {
+                    format!(
+                        "{prefix}taxel {} could not be tared ({}); it stays not_tared",
+                        TAXEL_NAMES[taxel],
+                        errors[taxel]
+                            .map(|error| taxel::device_words::baseline_error_words(&error))
+                            .unwrap_or_else(|| "no usable reading".to_owned())
+                    )
+                })
+                .collect()
+        }
+        _ => Vec::new(),
+    }
+}
+
+/// Converts checked, contiguous arrays (the Python wrapper `taxel.convert` checks and shapes
+/// them): `capacitance_pf` (N, 4 × pads), `temp_c` (N, pads), `time_s` (N,) or None. Returns
+/// pressures (N, taxels) float64, flags (N, taxels) uint16 and the tare's warnings.
+#[pyfunction]
+#[pyo3(signature = (capacitance_pf, temp_c, time_s, calibration, tier, tare_rows))]
+#[allow(clippy::type_complexity)]
+pub fn convert_arrays<'py>(
+    py: Python<'py>,
+    capacitance_pf: PyReadonlyArray2<'py, f64>,
+    temp_c: PyReadonlyArray2<'py, f64>,
+    time_s: Option<PyReadonlyArray1<'py, f64>>,
+    calibration: Option<PyRef<'py, Calibration>>,
+    tier: Option<&str>,
+    tare_rows: u16,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u16>>, Vec<String>)> {
+    let [rows, taxels] = [capacitance_pf.shape()[0], capacitance_pf.shape()[1]];
+    if taxels == 0 || taxels % TAXEL_COUNT != 0 {
+        return Err(taxel_error(
+            ErrorKind::Convert,
+            format!("capacitance_pf has {taxels} columns: it needs 4 per pad (C11, C12, C21, C22)"),
+        ));
+    }
+    let pads = taxels / TAXEL_COUNT;
+    if temp_c.shape() != [rows, pads] {
+        return Err(taxel_error(
+            ErrorKind::Convert,
+            format!("temp_c has shape {:?}; it must be ({rows},) or ({rows}, {pads})", temp_c.shape()),
+        ));
+    }
+    if tare_rows == 0 {
+        return Err(taxel_error(ErrorKind::Convert, "tare_rows must be at least 1"));
+    }
+    let tier = match tier {
+        Some(name) => taxel::convert::parse_tier(name)
+            .map_err(|message| taxel_error(ErrorKind::Convert, message))?,
+        None => Tier::default(),
+    };
+    let model_calibration = calibration
+        .map(|calibration| calibration.model().clone())
+        .unwrap_or_default();
+    let contiguous = |name: &str| taxel_error(ErrorKind::Convert, format!("{name} must be a contiguous array"));
+    let capacitances = capacitance_pf.as_slice().map_err(|_| contiguous("capacitance_pf"))?;
+    let temperatures = temp_c.as_slice().map_err(|_| contiguous("temp_c"))?;
+    let times = match &time_s {
+        Some(times) => {
+            let times = times.as_slice().map_err(|_| contiguous("time_s"))?;
+            if times.len() != rows {
+                return Err(taxel_error(
+                    ErrorKind::Convert,
+                    format!("time_s has {} values for {rows} rows", times.len()),
+                ));
+            }
+            if let Some(row) = times.iter().position(|time| !time.is_finite()) {
+                return Err(taxel_error(
+                    ErrorKind::Convert,
+                    format!("time_s[{row}]: the time must be a finite number of seconds"),
+                ));
+            }
+            Some(times)
+        }
+        None => None,
+    };
+    let mut models = Vec::with_capacity(pads);
+    for _ in 0..pads {
+        let mut model = PadModel::new(model_calibration.clone());
+        model.set_tier(tier).map_err(|_| {
+            taxel_error(
+                ErrorKind::Convert,
+                format!(
+                    "tier {} is not available for this calibration (the saturating fit needs a concave curve on every taxel)",
+                    tier.name()
+                ),
+            )
+        })?;
+        model.start_tare(tare_rows);
+        models.push(model);
+    }
+    let (pressure_kpa, flags, warnings) = py.allow_threads(|| {
+        let mut pressure_kpa = vec![f64::NAN; rows * taxels];
+        let mut flags = vec![0u16; rows * taxels];
+        let mut warnings = Vec::new();
+        for (pad, model) in models.iter_mut().enumerate() {
+            run_pad(
+                model,
+                pad,
+                pads,
+                capacitances,
+                temperatures,
+                times,
+                &mut pressure_kpa,
+                &mut flags,
+            );
+            warnings.extend(tare_warnings(model, pad, pads));
+        }
+        (pressure_kpa, flags, warnings)
+    });
+    let pressure_kpa = numpy::ndarray::ArrayView2::from_shape((rows, taxels), &pressure_kpa)
+        .map_err(|error| taxel_error(ErrorKind::Convert, error.to_string()))?
+        .to_pyarray(py);
+    let flags = numpy::ndarray::ArrayView2::from_shape((rows, taxels), &flags)
+        .map_err(|error| taxel_error(ErrorKind::Convert, error.to_string()))?
+        .to_pyarray(py);
+    Ok((pressure_kpa, flags, warnings))
+}

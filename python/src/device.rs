@@ -1,0 +1,601 @@
+//! `taxel.Device`: one board (or, through `taxel.Simulator`, the simulated device) as a Python
+//! object: its identity, sample sets one at a time or collected in the background, and its
+//! commands. Every wait releases the GIL and looks for Ctrl-C every [`SLICE`].
+
+use std::sync::{mpsc, Arc, Mutex};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use pyo3::exceptions::{PyStopIteration, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use taxel::device_link::{open_serial, select_port, RequestError, DEFAULT_PID, DEFAULT_VID};
+use wire::{Command, PadIndex, ReplyPayload, SampleRate};
+
+use crate::buffering::{lock, Buffer, Buffering, SharedSession};
+use crate::calibration::Calibration;
+use crate::errors::{anyhow_error, taxel_error, ErrorKind};
+use crate::sample_set::SampleSet;
+use crate::session::{Session, Transport};
+
+/// How long a blocking call waits with the GIL released before it looks for Ctrl-C.
+const SLICE: Duration = Duration::from_millis(50);
+
+/// The read timeout of a serial port: one poll of the link waits at most this.
+const PORT_READ_TIMEOUT: Duration = Duration::from_millis(20);
+
+/// What stops the thing behind a device when it closes (the simulated device's thread).
+pub trait Backend: Send + Sync {
+    /// Stops it and waits.
+    fn stop(&mut self);
+}
+
+/// A board or the simulated device, with its sample sets and commands (see the package's
+/// documentation). Use it as a context manager, or call :meth:`close`.
+#[pyclass(subclass, module = "taxel")]
+pub struct Device {
+    session: SharedSession,
+    buffering: Option<Buffering>,
+    backend: Option<Box<dyn Backend>>,
+    timeout: Duration,
+    pads: usize,
+    port_name: String,
+}
+
+/// A timeout given in seconds, checked.
+pub fn timeout_from_s(timeout_s: f64) -> PyResult<Duration> {
+    if !(timeout_s.is_finite() && timeout_s > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "timeout must be a positive number of seconds (got {timeout_s})"
+        )));
+    }
+    Ok(Duration::from_secs_f64(timeout_s))
+}
+
+impl Device {
+    /// A device on an open byte stream: the session starts (identity, stream) with the GIL
+    /// released.
+    pub fn connect(
+        py: Python<'_>,
+        port: Box<dyn Transport>,
+        port_name: String,
+        timeout: Duration,
+        backend: Option<Box<dyn Backend>>,
+    ) -> PyResult<Self> {
+        let started = start_interruptibly(py, port, timeout);
+        let session = match started {
+            Ok(session) => session,
+            Err(error) => {
+                if let Some(mut backend) = backend {
+                    py.allow_threads(|| backend.stop());
+                }
+                return Err(error);
+            }
+        };
+        let pads = session.pad_count();
+        Ok(Self {
+            session: Arc::new(Mutex::new(Some(session))),
+            buffering: None,
+            backend,
+            timeout,
+            pads,
+            port_name,
+        })
+    }
+
+    /// Runs `step` on the open session in slices of [`SLICE`] with the GIL released until it
+    /// gives a value or `deadline` passes (`None` then), raising on Ctrl-C.
+    fn wait_for<T: Send>(
+        &self,
+        py: Python<'_>,
+        deadline: Instant,
+        mut step: impl FnMut(&mut Session, Instant) -> anyhow::Result<Option<T>> + Send,
+    ) -> PyResult<Option<T>> {
+        loop {
+            let slice_end = deadline.min(Instant::now() + SLICE);
+            let session = Arc::clone(&self.session);
+            let result = py.allow_threads(|| {
+                let mut guard = lock(&session);
+                match guard.as_mut() {
+                    Some(session) => step(session, slice_end).map(Some),
+                    None => Ok(None),
+                }
+            });
+            match result {
+                Ok(Some(Some(value))) => return Ok(Some(value)),
+                Ok(Some(None)) => {}
+                Ok(None) => return Err(closed_error()),
+                Err(error) => return Err(anyhow_error(&error, ErrorKind::Other)),
+            }
+            py.check_signals()?;
+            if Instant::now() >= deadline {
+                return Ok(None);
+            }
+        }
+    }
+
+    /// Sends a request and waits (interruptibly) for a successful reply; `what` names it in
+    /// errors, as the CLI does.
+    fn request(
+        &self,
+        py: Python<'_>,
+        command: Command,
+        what: &str,
+        timeout: Duration,
+    ) -> PyResult<ReplyPayload> {
+        let request_id = self.with_session(py, |session| {
+            session.send(command).context(what.to_owned())
+        })?;
+        let deadline = Instant::now() + timeout;
+        let reply = self.wait_for(py, deadline, |session, until| {
+            session.reply(request_id, until)
+        })?;
+        match reply {
+            Some(Ok(payload)) => Ok(payload),
+            Some(Err(code)) => Err(anyhow_error(
+                &anyhow::Error::new(RequestError::Refused(code)).context(what.to_owned()),
+                ErrorKind::Refused,
+            )),
+            None => {
+                let error = self.with_session(py, |session| {
+                    Ok(session.no_reply_error(request_id, timeout))
+                })?;
+                Err(anyhow_error(
+                    &anyhow::Error::new(error).context(what.to_owned()),
+                    ErrorKind::Timeout,
+                ))
+            }
+        }
+    }
+
+    /// Runs `action` on the open session with the GIL released (for short, bounded work).
+    fn with_session<T: Send>(
+        &self,
+        py: Python<'_>,
+        action: impl FnOnce(&mut Session) -> anyhow::Result<T> + Send,
+    ) -> PyResult<T> {
+        let session = Arc::clone(&self.session);
+        py.allow_threads(|| {
+            let mut guard = lock(&session);
+            guard.as_mut().map(action)
+        })
+        .ok_or_else(closed_error)?
+        .map_err(|error| anyhow_error(&error, ErrorKind::Other))
+    }
+
+    fn expect_ack(payload: ReplyPayload, what: &str) -> PyResult<()> {
+        match payload {
+            ReplyPayload::Ack => Ok(()),
+            _ => Err(taxel_error(
+                ErrorKind::Other,
+                format!("{what}: {}", RequestError::UnexpectedReply("an acknowledgement")),
+            )),
+        }
+    }
+
+    fn refresh_info(&self, py: Python<'_>) -> PyResult<()> {
+        if let ReplyPayload::Info(info) = self.request(py, Command::Info, "Info", self.timeout)? {
+            self.with_session(py, |session| {
+                session.set_info(info);
+                Ok(())
+            })?;
+        }
+        Ok(())
+    }
+
+    fn refuse_while_buffering(&self, what: &str) -> PyResult<()> {
+        if self.buffering.is_some() {
+            return Err(taxel_error(
+                ErrorKind::Other,
+                format!("{what} while buffering: take the sets with read_buffer(), or call stop_buffering() first"),
+            ));
+        }
+        Ok(())
+    }
+
+    fn close_now(&mut self, py: Python<'_>) {
+        if let Some(mut buffering) = self.buffering.take() {
+            py.allow_threads(|| buffering.stop());
+        }
+        let session = Arc::clone(&self.session);
+        py.allow_threads(|| {
+            if let Some(mut session) = lock(&session).take() {
+                session.stop_stream();
+            }
+        });
+        if let Some(mut backend) = self.backend.take() {
+            py.allow_threads(|| backend.stop());
+        }
+    }
+}
+
+/// [`Session::start`] on a thread of its own, waited for in slices with the GIL released so
+/// that Ctrl-C interrupts it; an abandoned start ends by itself within its timeout.
+fn start_interruptibly(
+    py: Python<'_>,
+    port: Box<dyn Transport>,
+    timeout: Duration,
+) -> PyResult<Session> {
+    let (sender, receiver) = mpsc::channel();
+    thread::Builder::new()
+        .name("taxel-connect".into())
+        .spawn(move || {
+            let _ = sender.send(Session::start(port, timeout));
+        })
+        .map_err(|error| taxel_error(ErrorKind::Other, format!("starting the connection: {error}")))?;
+    let mut receiver = receiver;
+    loop {
+        // Moved in and out: a receiver may not be shared between threads, only sent.
+        let (received, returned) = py.allow_threads(move || {
+            let received = receiver.recv_timeout(SLICE);
+            (received, receiver)
+        });
+        receiver = returned;
+        match received {
+            Ok(started) => return started.map_err(|error| anyhow_error(&error, ErrorKind::Other)),
+            Err(mpsc::RecvTimeoutError::Timeout) => py.check_signals()?,
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                return Err(taxel_error(ErrorKind::Other, "the connection thread ended without an answer"))
+            }
+        }
+    }
+}
+
+fn closed_error() -> PyErr {
+    taxel_error(ErrorKind::Link, "the device is closed")
+}
+
+fn counters_dict<'py>(py: Python<'py>, counters: &wire::CountersFrame) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    dict.set_item("dropped_sample_sets", counters.dropped_sample_sets)?;
+    dict.set_item("converter_reinits", counters.converter_reinits)?;
+    dict.set_item("i2c_errors", counters.i2c_errors)?;
+    dict.set_item("temperature_sensor_errors", counters.temperature_sensor_errors)?;
+    dict.set_item("frames_dropped_no_host", counters.frames_dropped_no_host)?;
+    dict.set_item("host_frames_rejected", counters.host_frames_rejected)?;
+    Ok(dict)
+}
+
+#[pymethods]
+impl Device {
+    /// Opens a board: the one on ``port``, else the attached board with USB serial number
+    /// ``serial``, else the only attached board. ``timeout`` (seconds) bounds every request and
+    /// every :meth:`read`.
+    #[new]
+    #[pyo3(signature = (port=None, serial=None, timeout=2.0))]
+    fn new(py: Python<'_>, port: Option<String>, serial: Option<String>, timeout: f64) -> PyResult<Self> {
+        let timeout = timeout_from_s(timeout)?;
+        if port.is_some() && serial.is_some() {
+            return Err(PyValueError::new_err(
+                "give port or serial, not both",
+            ));
+        }
+        let opened = py.allow_threads(|| {
+            let path = select_port(port.as_deref(), serial.as_deref(), DEFAULT_VID, DEFAULT_PID)?;
+            let opened = open_serial(&path, PORT_READ_TIMEOUT)?;
+            Ok::<_, taxel::device_link::LinkError>((path, opened.port))
+        });
+        let (path, port) = opened.map_err(crate::errors::link_error)?;
+        Device::connect(py, Box::new(port), path, timeout, None)
+    }
+
+    /// The device's identity: protocol and firmware version, board serial, calibration id and
+    /// source, converter rate, model tier, pad count, streaming.
+    #[getter]
+    fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let info = self.with_session(py, |session| Ok(*session.info()))?;
+        let dict = PyDict::new(py);
+        let version = info.firmware_version;
+        dict.set_item("protocol_version", info.protocol_version)?;
+        dict.set_item(
+            "firmware_version",
+            format!("{}.{}.{}", version.major, version.minor, version.patch),
+        )?;
+        dict.set_item("board_serial", taxel::device_words::board_serial_hex(&info))?;
+        dict.set_item("calibration_id", info.calibration_id)?;
+        dict.set_item(
+            "calibration_source",
+            format!("{:?}", info.calibration_source).to_lowercase(),
+        )?;
+        dict.set_item("rate_sps", info.rate.sps())?;
+        dict.set_item("tier", info.model_tier.name())?;
+        dict.set_item("pad_count", info.pad_count)?;
+        dict.set_item("streaming", info.streaming)?;
+        dict.set_item("port", self.port_name.clone())?;
+        Ok(dict)
+    }
+
+    /// The number of pads of each sample set.
+    #[getter]
+    fn pads(&self) -> usize {
+        self.pads
+    }
+
+    /// The number of taxels of each sample set: 4 per pad.
+    #[getter]
+    fn taxels(&self) -> usize {
+        self.pads * model_core::TAXEL_COUNT
+    }
+
+    /// The next sample set. Waits up to ``timeout`` seconds (default: the device's timeout) and
+    /// raises :class:`taxel.DeviceTimeoutError` if none arrives.
+    #[pyo3(signature = (timeout=None))]
+    fn read(&self, py: Python<'_>, timeout: Option<f64>) -> PyResult<SampleSet> {
+        self.refuse_while_buffering("read()")?;
+        let timeout = match timeout {
+            Some(timeout_s) => timeout_from_s(timeout_s)?,
+            None => self.timeout,
+        };
+        let deadline = Instant::now() + timeout;
+        match self.wait_for(py, deadline, |session, until| session.next_set(until))? {
+            Some(record) => Ok(SampleSet::new(record)),
+            None => Err(taxel_error(
+                ErrorKind::Timeout,
+                format!("no sample set within {} ms", timeout.as_millis()),
+            )),
+        }
+    }
+
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    fn __next__(&self, py: Python<'_>) -> PyResult<SampleSet> {
+        if lock(&self.session).is_none() {
+            return Err(PyStopIteration::new_err(()));
+        }
+        self.read(py, None)
+    }
+
+    /// Starts collecting every sample set in the background, up to ``capacity_sets`` sets
+    /// between two :meth:`read_buffer` calls; sets beyond are counted as overflowed.
+    #[pyo3(signature = (capacity_sets=1_000_000))]
+    fn start_buffering(&mut self, capacity_sets: usize) -> PyResult<()> {
+        self.refuse_while_buffering("start_buffering()")?;
+        if capacity_sets == 0 {
+            return Err(PyValueError::new_err("capacity_sets must be at least 1"));
+        }
+        let buffering = Buffering::start(Arc::clone(&self.session), capacity_sets)
+            .map_err(|error| taxel_error(ErrorKind::Other, format!("starting the buffer thread: {error}")))?;
+        self.buffering = Some(buffering);
+        Ok(())
+    }
+
+    /// The sets collected since the last call, as a :class:`taxel.Buffer`. With ``strict``
+    /// (the default), sets lost meanwhile (the buffer was full, or sequence numbers have gaps)
+    /// raise :class:`taxel.DataLossError`, whose ``buffer`` holds what was collected.
+    #[pyo3(signature = (strict=true))]
+    fn read_buffer(&self, py: Python<'_>, strict: bool) -> PyResult<Buffer> {
+        let Some(buffering) = &self.buffering else {
+            return Err(taxel_error(
+                ErrorKind::Other,
+                "read_buffer() needs start_buffering() first",
+            ));
+        };
+        let collected = py.allow_threads(|| buffering.take());
+        if let Some(error) = &collected.error {
+            return Err(anyhow_error(error, ErrorKind::Link));
+        }
+        let buffer = Buffer::new(py, &collected.sets, self.pads, collected.overflowed_sets);
+        if strict && (buffer.overflowed_sets > 0 || buffer.sequence_gap_sets > 0) {
+            let message = format!(
+                "{} sample set(s) lost: {} arrived while the buffer of {} sets was full (call read_buffer() more often or give a larger capacity_sets), {} missing from the sequence numbers",
+                buffer.overflowed_sets + buffer.sequence_gap_sets,
+                buffer.overflowed_sets,
+                buffering.capacity_sets,
+                buffer.sequence_gap_sets
+            );
+            let error = taxel_error(ErrorKind::DataLoss, message);
+            error.value(py).setattr("buffer", Py::new(py, buffer)?)?;
+            return Err(error);
+        }
+        Ok(buffer)
+    }
+
+    /// Stops collecting in the background (sets not yet read are discarded).
+    fn stop_buffering(&mut self, py: Python<'_>) {
+        if let Some(mut buffering) = self.buffering.take() {
+            py.allow_threads(|| buffering.stop());
+        }
+    }
+
+    /// Whether sets are being collected in the background.
+    #[getter]
+    fn buffering(&self) -> bool {
+        self.buffering.is_some()
+    }
+
+    /// Tares every pad: the unloaded reference of each taxel becomes the mean of the next
+    /// ``sample_sets`` sets (keep the pads unloaded). Returns when the device says it is done.
+    #[pyo3(signature = (sample_sets=64))]
+    fn tare(&self, py: Python<'_>, sample_sets: u16) -> PyResult<()> {
+        if sample_sets == 0 {
+            return Err(PyValueError::new_err("sample_sets must be at least 1"));
+        }
+        let rate_sps = self.with_session(py, |session| Ok(session.info().rate.sps()))?;
+        // A set takes about four conversions; allow twice that.
+        let needed = Duration::from_secs_f64(f64::from(sample_sets) * 8.0 / f64::from(rate_sps.max(1)));
+        let payload = self.request(py, Command::Tare { sample_sets }, "Tare", self.timeout + needed)?;
+        Self::expect_ack(payload, "Tare")
+    }
+
+    /// Sets the converter rate: 100, 200 or 400 conversions per second (a sample set arrives
+    /// at about a quarter of it).
+    fn set_rate(&self, py: Python<'_>, rate_sps: u16) -> PyResult<()> {
+        let rate = SampleRate::from_sps(rate_sps).ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "rate {rate_sps} S/s is not supported; valid rates: 100, 200, 400"
+            ))
+        })?;
+        let payload = self.request(py, Command::SetRate { rate }, "SetRate", self.timeout)?;
+        Self::expect_ack(payload, "SetRate")?;
+        self.refresh_info(py)
+    }
+
+    /// Selects the pressure-model tier by name (see :data:`taxel.TIERS`).
+    fn set_tier(&self, py: Python<'_>, tier: &str) -> PyResult<()> {
+        let tier = taxel::convert::parse_tier(tier).map_err(PyValueError::new_err)?;
+        let payload = self.request(py, Command::SetModelTier { tier }, "SetModelTier", self.timeout)?;
+        Self::expect_ack(payload, "SetModelTier")?;
+        self.refresh_info(py)
+    }
+
+    /// Lets the device choose the tier for a use case: ``"light_touch"``, ``"gripper"``,
+    /// ``"glove"``, or a dict with ``pressure_max_kpa``, ``temperature_min_c``,
+    /// ``temperature_max_c`` and ``error_budget_kpa``. Returns the tier chosen.
+    fn set_use_case(&self, py: Python<'_>, use_case: &Bound<'_, PyAny>) -> PyResult<String> {
+        let use_case = crate::use_case::use_case_from_python(use_case)?;
+        match self.request(py, Command::SetUseCase(use_case), "SetUseCase", self.timeout)? {
+            ReplyPayload::ModelTier(tier) => {
+                self.refresh_info(py)?;
+                Ok(tier.name().to_owned())
+            }
+            _ => Err(taxel_error(
+                ErrorKind::Other,
+                format!("SetUseCase: {}", RequestError::UnexpectedReply("SetUseCase")),
+            )),
+        }
+    }
+
+    /// The calibration pad ``pad`` uses, read from the device.
+    #[pyo3(signature = (pad=0))]
+    fn read_calibration(&self, py: Python<'_>, pad: u8) -> PyResult<Calibration> {
+        let pad_index = self.pad_index(pad)?;
+        let timeout = self.timeout;
+        let calibration = self.with_session(py, move |session| {
+            let link = session.link_mut();
+            let pad_info = taxel::calibration_transfer::pad_info(link, pad_index, timeout)?;
+            taxel::calibration_transfer::pull(link, pad_index, pad_info.calibration_id, timeout)
+                .with_context(|| format!("reading pad {pad}'s calibration"))
+        })?;
+        Ok(Calibration::from_model(calibration))
+    }
+
+    /// Writes a calibration to every pad, or to ``pad`` only, in the device's RAM; with
+    /// ``save`` also to its flash (see :meth:`save_calibration`).
+    #[pyo3(signature = (calibration, pad=None, save=false))]
+    fn write_calibration(
+        &self,
+        py: Python<'_>,
+        calibration: PyRef<'_, Calibration>,
+        pad: Option<u8>,
+        save: bool,
+    ) -> PyResult<()> {
+        let only_pad = pad.map(|pad| self.pad_index(pad)).transpose()?;
+        let model = calibration.model().clone();
+        let timeout = self.timeout;
+        self.with_session(py, move |session| {
+            taxel::calibration_transfer::upload_to_pads(
+                session.link_mut(),
+                &model,
+                only_pad,
+                save,
+                timeout,
+                &mut |_| {},
+            )
+        })?;
+        self.refresh_info(py)
+    }
+
+    /// Saves the calibration in use to the device's flash, which every pad boots with.
+    fn save_calibration(&self, py: Python<'_>) -> PyResult<()> {
+        let payload = self.request(py, Command::SaveCalibration, "SaveCalibration", self.timeout)?;
+        Self::expect_ack(payload, "SaveCalibration")
+    }
+
+    /// Replaces every pad's calibration in RAM by the built-in default (flash untouched).
+    fn restore_defaults(&self, py: Python<'_>) -> PyResult<()> {
+        let payload = self.request(py, Command::RestoreDefaults, "RestoreDefaults", self.timeout)?;
+        Self::expect_ack(payload, "RestoreDefaults")?;
+        self.refresh_info(py)
+    }
+
+    /// The device's health counters since it booted.
+    fn read_counters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        match self.request(py, Command::ReadCounters, "ReadCounters", self.timeout)? {
+            ReplyPayload::Counters(counters) => counters_dict(py, &counters),
+            _ => Err(taxel_error(
+                ErrorKind::Other,
+                format!("ReadCounters: {}", RequestError::UnexpectedReply("ReadCounters")),
+            )),
+        }
+    }
+
+    /// This connection's accounting: sets delivered, frames received, sets missing from the
+    /// sequence numbers, dropped by the device (as of its last counters), lost on the link,
+    /// incomplete sets, stale frames discarded at connection, sets dropped unread.
+    #[getter]
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let (accounting, counters, link) = self.with_session(py, |session| {
+            Ok((
+                session.accounting().clone(),
+                session.counters().clone(),
+                session.link_mut().statistics().clone(),
+            ))
+        })?;
+        let dict = PyDict::new(py);
+        dict.set_item("sets_delivered", counters.sets_delivered)?;
+        dict.set_item("frames_received", accounting.received())?;
+        dict.set_item("sequence_gap_frames", accounting.sequence_gap_sets())?;
+        dict.set_item("device_dropped_frames", accounting.device_dropped())?;
+        dict.set_item("lost_on_link_frames", accounting.lost_on_link())?;
+        dict.set_item("stale_frames", accounting.stale_frames())?;
+        dict.set_item("incomplete_sets", counters.incomplete_sets)?;
+        dict.set_item("sets_dropped_unread", counters.sets_dropped_unread)?;
+        dict.set_item("frames_rejected", link.frames_rejected)?;
+        Ok(dict)
+    }
+
+    /// Stops the stream and closes the port (and stops the simulated device). Idempotent.
+    fn close(&mut self, py: Python<'_>) {
+        self.close_now(py);
+    }
+
+    /// Whether :meth:`close` was called.
+    #[getter]
+    fn closed(&self) -> bool {
+        lock(&self.session).is_none()
+    }
+
+    fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    #[pyo3(signature = (*_exception))]
+    fn __exit__(&mut self, py: Python<'_>, _exception: &Bound<'_, pyo3::types::PyTuple>) -> bool {
+        self.close_now(py);
+        false
+    }
+
+    fn __repr__(&self) -> String {
+        format!("Device(port={:?}, pads={})", self.port_name, self.pads)
+    }
+}
+
+impl Device {
+    fn pad_index(&self, pad: u8) -> PyResult<PadIndex> {
+        if usize::from(pad) >= self.pads {
+            return Err(PyValueError::new_err(format!(
+                "the device reads {} pad{}: there is no pad {pad}",
+                self.pads,
+                if self.pads == 1 { "" } else { "s" }
+            )));
+        }
+        PadIndex::new(pad).ok_or_else(|| PyValueError::new_err(format!("no pad {pad}")))
+    }
+}
+
+impl Drop for Device {
+    fn drop(&mut self) {
+        if let Some(mut buffering) = self.buffering.take() {
+            buffering.stop();
+        }
+        if let Some(mut session) = lock(&self.session).take() {
+            session.stop_stream();
+        }
+        if let Some(mut backend) = self.backend.take() {
+            backend.stop();
+        }
+    }
+}

@@ -1,0 +1,157 @@
+//! `taxel.Simulator`: the simulated device of `taxel sim` (the firmware's acquisition, model,
+//! storage and protocol code against the simulated converter and temperature sensor, playing a
+//! scene) on a thread of this process, reached through an in-memory link instead of a
+//! pseudo-terminal. It is a `taxel.Device`: the same methods, the same shapes.
+
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread;
+use std::time::Duration;
+
+use anyhow::Context;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use sim_device::{SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+
+use crate::device::{timeout_from_s, Backend, Device};
+use crate::errors::{anyhow_error, ErrorKind};
+use crate::memory_link::{memory_link, HostEnd};
+
+/// The read timeout of the in-memory link: one poll waits at most this for bytes.
+const LINK_READ_TIMEOUT: Duration = Duration::from_millis(20);
+
+/// The scene `scene` names: a file when one exists at that path, else a built-in scene (as
+/// `taxel sim --scene` reads it).
+fn load_scene(scene: Option<&str>) -> anyhow::Result<SceneFile> {
+    match scene {
+        Some(path) if Path::new(path).exists() => {
+            let text =
+                std::fs::read_to_string(path).with_context(|| format!("reading scene {path}"))?;
+            SceneFile::parse(&text).with_context(|| format!("scene {path}"))
+        }
+        Some(name) => SceneFile::built_in(name).with_context(|| format!("no scene file {name}")),
+        None => Ok(SceneFile::default_scene()?),
+    }
+}
+
+/// The simulated board for a scene: `pads` pads (each playing a scene of one pad), or as many
+/// as the scene describes (as `taxel sim --pads` chooses).
+fn board_for(scene: &SceneFile, pads: Option<u8>) -> anyhow::Result<sim_device::Topology> {
+    let described = scene.pads.len();
+    let pads = match pads {
+        Some(pads) if described > 1 && usize::from(pads) != described => anyhow::bail!(
+            "the scene describes {described} pads; --pads {pads} would leave pads without one"
+        ),
+        Some(pads) => usize::from(pads),
+        None => described,
+    };
+    Ok(sim_device::pads_topology(pads))
+}
+
+/// The simulated device's thread.
+struct SimulatorRun {
+    stop: Arc<AtomicBool>,
+    handle: Option<thread::JoinHandle<()>>,
+    host: HostEnd,
+}
+
+impl Backend for SimulatorRun {
+    fn stop(&mut self) {
+        self.host.disconnect();
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(handle) = self.handle.take() {
+            let _ = handle.join();
+        }
+    }
+}
+
+/// The simulated device in this process, with the interface of :class:`taxel.Device`.
+///
+/// ``scene``: a built-in scene (``"default"``, ``"gripper"``, ``"glove"``) or a scene TOML
+/// file; default: the demo scene of one pad. ``speed``: simulated seconds per wall-clock second
+/// (``None``: as fast as the computer goes). ``seed``: converter noise (the same seed and scene
+/// give the same samples). ``pads``: pads on the board, each playing a scene of one pad
+/// (default: as many as the scene describes). ``link_buffer_bytes``: what the link towards the
+/// host holds before the device drops frames, as a USB host's buffers would.
+#[pyclass(extends = Device, module = "taxel")]
+pub struct Simulator {
+    scene_name: String,
+}
+
+#[pymethods]
+impl Simulator {
+    #[new]
+    #[pyo3(signature = (scene=None, speed=Some(1.0), seed=0, pads=None, timeout=2.0, link_buffer_bytes=262_144))]
+    fn new(
+        py: Python<'_>,
+        scene: Option<String>,
+        speed: Option<f64>,
+        seed: u64,
+        pads: Option<u8>,
+        timeout: f64,
+        link_buffer_bytes: usize,
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let timeout = timeout_from_s(timeout)?;
+        if let Some(speed) = speed {
+            if !(speed.is_finite() && speed > 0.0) {
+                return Err(PyValueError::new_err(format!(
+                    "speed must be a positive number (got {speed})"
+                )));
+            }
+        }
+        if let Some(pads) = pads {
+            if !(1..=8).contains(&pads) {
+                return Err(PyValueError::new_err(format!(
+                    "pads must be 1 to 8 (got {pads})"
+                )));
+            }
+        }
+        if link_buffer_bytes < 1024 {
+            return Err(PyValueError::new_err(
+                "link_buffer_bytes must be at least 1024",
+            ));
+        }
+        let started = py.allow_threads(|| -> anyhow::Result<(SimulatorRun, HostEnd, String)> {
+            let loaded = load_scene(scene.as_deref())?;
+            let scene_name = loaded.name.clone();
+            let topology = board_for(&loaded, pads)?;
+            let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
+                scene: loaded,
+                seed,
+                speed,
+                topology,
+                bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
+            })?;
+            let (mut device_end, host_end) = memory_link(link_buffer_bytes, LINK_READ_TIMEOUT);
+            let stop = Arc::new(AtomicBool::new(false));
+            let thread_stop = Arc::clone(&stop);
+            let handle = thread::Builder::new()
+                .name("taxel-simulated-device".into())
+                .spawn(move || device.run(&mut device_end, None, &thread_stop))
+                .context("starting the simulated device")?;
+            let run = SimulatorRun {
+                stop,
+                handle: Some(handle),
+                host: host_end.clone(),
+            };
+            Ok((run, host_end, scene_name))
+        });
+        let (run, host_end, scene_name) =
+            started.map_err(|error| anyhow_error(&error, ErrorKind::Other))?;
+        let device = Device::connect(
+            py,
+            Box::new(host_end),
+            "simulated".to_owned(),
+            timeout,
+            Some(Box::new(run)),
+        )?;
+        Ok(PyClassInitializer::from(device).add_subclass(Simulator { scene_name }))
+    }
+
+    /// The scene's name (empty for a scene file without one).
+    #[getter]
+    fn scene(&self) -> String {
+        self.scene_name.clone()
+    }
+}

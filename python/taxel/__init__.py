@@ -1,0 +1,150 @@
+"""Capacitive tactile pads from Python: devices, the simulated device and conversion as numpy
+arrays.
+
+A pad has four taxels (C11, C12, C21, C22); a device reads one to eight pads. Every array over
+the taxels is flat: ``taxels = 4 * pads`` columns, taxel ``4 * pad + k`` being taxel ``k`` of pad
+``pad``, so a one-pad device and the default :class:`Simulator` give ``(4,)`` per sample set
+and ``(N, 4)`` from a buffer, and a device of ``P`` pads ``(4 * P,)`` and ``(N, 4 * P)``;
+``reshape(N, P, 4)`` separates the pads.
+
+- :func:`list_devices`, :class:`Device`: attached boards.
+- :class:`Simulator`: the simulated device (the firmware's own code) in this process, with the
+  interface of :class:`Device`.
+- :func:`convert`: capacitances to pressures with the pressure model, as ``taxel convert``.
+- :class:`Calibration`: calibration files, and fitting one from reference loads.
+- :class:`Flags`: the flag bits of every taxel; the exceptions in :mod:`taxel._errors`.
+"""
+
+from __future__ import annotations
+
+import enum
+import warnings
+from typing import Optional, Tuple
+
+import numpy as np
+
+from . import _taxel
+from ._errors import (
+    CalibrationError,
+    ConvertError,
+    DataLossError,
+    DeviceNotFoundError,
+    DeviceRefusedError,
+    DeviceTimeoutError,
+    LinkError,
+    ProtocolVersionError,
+    TaxelError,
+)
+from ._taxel import Buffer, Calibration, Device, SampleSet, Simulator, list_devices
+
+__all__ = [
+    "Buffer",
+    "Calibration",
+    "CalibrationError",
+    "ConvertError",
+    "DataLossError",
+    "Device",
+    "DeviceNotFoundError",
+    "DeviceRefusedError",
+    "DeviceTimeoutError",
+    "Flags",
+    "LinkError",
+    "ProtocolVersionError",
+    "SampleSet",
+    "Simulator",
+    "TIERS",
+    "TaxelError",
+    "TaxelWarning",
+    "convert",
+    "list_devices",
+]
+
+#: The inversion tiers of the pressure model, by name; ``"monotone-cubic"`` is the default.
+TIERS: Tuple[str, ...] = tuple(_taxel.tier_names())
+
+
+class Flags(enum.IntFlag):
+    """The flags of one taxel, as the device and :func:`convert` set them (the documented
+    names of the protocol and of ``taxel convert``'s flag cells, in upper case)."""
+
+    BELOW_BASELINE = 1 << 0
+    OVER_RANGE = 1 << 1
+    SHORTED = 1 << 2
+    OPEN = 1 << 3
+    SATURATED = 1 << 4
+    TEMPERATURE_MISSING = 1 << 5
+    TEMPERATURE_OUT_OF_RANGE = 1 << 6
+    NOT_TARED = 1 << 7
+    CONVERTER_ERROR = 1 << 8
+    STUCK = 1 << 9
+    INVALID_INPUT = 1 << 10
+    BASELINE_TRACKING_LIMIT = 1 << 11
+    TEMPERATURE_FALLBACK = 1 << 12
+    TEMPERATURE_IMPLAUSIBLE = 1 << 13
+    BASELINE_FAR_FROM_CALIBRATION = 1 << 14
+
+
+class TaxelWarning(UserWarning):
+    """A warning of :func:`convert` (the tare did not finish, a taxel could not be tared), in
+    the words ``taxel convert`` prints."""
+
+
+def convert(
+    capacitance_pf: "np.typing.ArrayLike",
+    temp_c: "np.typing.ArrayLike",
+    calibration: Optional[Calibration] = None,
+    tier: Optional[str] = None,
+    tare_rows: int = 1,
+    time_s: "Optional[np.typing.ArrayLike]" = None,
+) -> Tuple[np.ndarray, np.ndarray]:
+    """Converts capacitances to pressures with the pressure model, as ``taxel convert`` does.
+
+    ``capacitance_pf``: shape ``(N, taxels)`` with ``taxels = 4 * pads`` (NaN: no reading);
+    ``temp_c``: shape ``(N,)`` (every pad) or ``(N, pads)``, °C (NaN: no temperature);
+    ``calibration``: default the built-in one; ``tier``: one of :data:`TIERS`, default
+    ``"monotone-cubic"``; ``tare_rows``: each pad's baseline is the mean of its first this many
+    readable rows (which are themselves flagged ``NOT_TARED``); ``time_s``: shape ``(N,)``,
+    seconds, as a recording's ``time_s`` column (used by the temperature plausibility rule;
+    without it that rule ignores the time between rows).
+
+    Returns ``(pressure_kpa, flags)``: float64 and uint16 arrays of shape ``(N, taxels)``;
+    a pressure is NaN where the model gives none, and the flags say why. Each pad has a model of
+    its own. Problems with the tare are reported as :class:`TaxelWarning`. Bad shapes or values
+    raise :class:`ConvertError`.
+    """
+    capacitance = np.ascontiguousarray(capacitance_pf, dtype=np.float64)
+    if capacitance.ndim != 2:
+        raise ConvertError(
+            f"capacitance_pf must have shape (N, taxels), with 4 taxels per pad; got shape {capacitance.shape}"
+        )
+    rows, taxels = capacitance.shape
+    if rows == 0:
+        raise ConvertError("capacitance_pf has no rows: nothing to convert")
+    if taxels == 0 or taxels % 4 != 0:
+        raise ConvertError(
+            f"capacitance_pf has {taxels} columns: it needs 4 per pad (C11, C12, C21, C22)"
+        )
+    pads = taxels // 4
+    temperature = np.asarray(temp_c, dtype=np.float64)
+    if temperature.shape == (rows,):
+        temperature = np.repeat(temperature[:, None], pads, axis=1)
+    elif temperature.shape != (rows, pads):
+        raise ConvertError(
+            f"temp_c has shape {temperature.shape}; it must be ({rows},) or ({rows}, {pads})"
+        )
+    temperature = np.ascontiguousarray(temperature)
+    times = None
+    if time_s is not None:
+        times = np.ascontiguousarray(time_s, dtype=np.float64)
+        if times.shape != (rows,):
+            raise ConvertError(f"time_s has shape {times.shape}; it must be ({rows},)")
+    if isinstance(tare_rows, bool) or not isinstance(tare_rows, (int, np.integer)):
+        raise ConvertError(f"tare_rows must be an integer (got {tare_rows!r})")
+    if not 1 <= int(tare_rows) <= 65535:
+        raise ConvertError(f"tare_rows must be 1 to 65535 (got {tare_rows})")
+    pressure_kpa, flags, messages = _taxel.convert_arrays(
+        capacitance, temperature, times, calibration, tier, int(tare_rows)
+    )
+    for message in messages:
+        warnings.warn(message, TaxelWarning, stacklevel=2)
+    return pressure_kpa, flags

@@ -1,0 +1,231 @@
+"""Type stubs of the native module ``taxel._taxel`` (re-exported by ``taxel``)."""
+
+from types import TracebackType
+import os
+from typing import Any, Dict, Iterator, List, Optional, Tuple, Type, Union
+
+import numpy as np
+import numpy.typing as npt
+
+def list_devices() -> List[Dict[str, Any]]:
+    """The boards attached by USB with the pad's VID:PID, sorted by port: one dict per board
+    with ``port``, ``serial_number``, ``manufacturer``, ``product``, ``vid`` and ``pid``."""
+
+def flag_bits() -> List[Tuple[str, int]]:
+    """The documented flag names and their bits, in bit order (the source of ``taxel.Flags``)."""
+
+def tier_names() -> List[str]:
+    """The inversion tiers' names, in id order."""
+
+def convert_arrays(
+    capacitance_pf: npt.NDArray[np.float64],
+    temp_c: npt.NDArray[np.float64],
+    time_s: Optional[npt.NDArray[np.float64]],
+    calibration: Optional["Calibration"],
+    tier: Optional[str],
+    tare_rows: int,
+) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint16], List[str]]:
+    """The native half of :func:`taxel.convert` (contiguous float64 arrays, checked shapes)."""
+
+class SampleSet:
+    """One sample set of every pad. Arrays over the taxels have shape ``(taxels,)`` with
+    ``taxels = 4 * pads`` (taxel ``4 * pad + k`` is taxel ``k`` of pad ``pad``); arrays over the
+    pads have shape ``(pads,)``."""
+
+    @property
+    def sequence(self) -> int:
+        """The set's sequence number (one more per set acquired; wraps at 2**32)."""
+    @property
+    def device_time_us(self) -> int:
+        """The device clock at the conversion, µs since the device booted."""
+    @property
+    def device_time_s(self) -> float:
+        """The device clock at the conversion, seconds since the device booted."""
+    @property
+    def host_time_s(self) -> float:
+        """The host clock when the set arrived, seconds since the Unix epoch."""
+    @property
+    def pads(self) -> int:
+        """The number of pads."""
+    @property
+    def temperature_c(self) -> npt.NDArray[np.float64]:
+        """Each pad's temperature, °C, ``(pads,)``; NaN where there is none."""
+    @property
+    def temperature_source(self) -> List[str]:
+        """Each pad's temperature source: ``tmp117``, ``mcu_internal``, ``last_known`` or ``none``."""
+    @property
+    def pressure_kpa(self) -> npt.NDArray[np.float64]:
+        """Pressure per taxel, kPa, ``(taxels,)``; NaN where the model gives none."""
+    @property
+    def capacitance_pf(self) -> npt.NDArray[np.float64]:
+        """Capacitance per taxel, pF, ``(taxels,)``; NaN for a missing pad frame."""
+    @property
+    def flags(self) -> npt.NDArray[np.uint16]:
+        """Flags per taxel (bits of :class:`taxel.Flags`), ``(taxels,)``."""
+    @property
+    def force_n(self) -> npt.NDArray[np.float64]:
+        """Each pad's total normal force, N, ``(pads,)``; NaN where there is none."""
+    @property
+    def missing_pads(self) -> List[int]:
+        """Pads whose frame of this set never arrived."""
+    @property
+    def sets_missing_before(self) -> int:
+        """Sample sets missing just before this one in the sequence numbers (0 normally)."""
+
+class Buffer:
+    """Sample sets collected in the background: ``(N,)``, ``(N, pads)`` and ``(N, taxels)``
+    arrays, and the counts of sets lost since the previous :meth:`Device.read_buffer`."""
+
+    sequence: npt.NDArray[np.int64]
+    """Sequence numbers, ``(N,)``."""
+    device_time_us: npt.NDArray[np.int64]
+    """Device clock at each set, µs since boot, ``(N,)``."""
+    host_time_s: npt.NDArray[np.float64]
+    """Host clock when each set arrived, seconds since the Unix epoch, ``(N,)``."""
+    temperature_c: npt.NDArray[np.float64]
+    """Temperature per pad, °C, ``(N, pads)``."""
+    pressure_kpa: npt.NDArray[np.float64]
+    """Pressure per taxel, kPa, ``(N, taxels)``."""
+    capacitance_pf: npt.NDArray[np.float64]
+    """Capacitance per taxel, pF, ``(N, taxels)``."""
+    flags: npt.NDArray[np.uint16]
+    """Flags per taxel, ``(N, taxels)``."""
+    force_n: npt.NDArray[np.float64]
+    """Total normal force per pad, N, ``(N, pads)``."""
+    sets_missing_before: npt.NDArray[np.int64]
+    """Sets missing just before each one in the sequence numbers, ``(N,)``."""
+    pads: int
+    """The number of pads."""
+    overflowed_sets: int
+    """Sets that arrived while the buffer was full and were discarded."""
+    sequence_gap_sets: int
+    """Sets missing from the sequence numbers among these (sum of ``sets_missing_before``)."""
+    @property
+    def lost_sets(self) -> int:
+        """``overflowed_sets + sequence_gap_sets``."""
+    def __len__(self) -> int: ...
+
+class Calibration:
+    """A calibration: per taxel the curve of dC/C0 against pressure, parasitic and unloaded
+    capacitances; the temperature law; the fault thresholds."""
+
+    @staticmethod
+    def default() -> "Calibration":
+        """The built-in default calibration (the article's curve)."""
+    @staticmethod
+    def load(path: Union[str, "os.PathLike[str]"]) -> "Calibration":
+        """Reads a calibration file (raises :class:`taxel.CalibrationError`)."""
+    @staticmethod
+    def from_json(text: str) -> "Calibration":
+        """Reads a calibration from the file's JSON text."""
+    def save(self, path: Union[str, "os.PathLike[str]"]) -> None:
+        """Writes the calibration file (under a temporary name, renamed when complete)."""
+    def to_json(self) -> str:
+        """The calibration file's JSON text."""
+    @staticmethod
+    def fit(
+        pressure_kpa: npt.NDArray[np.float64],
+        capacitance_pf: npt.NDArray[np.float64],
+        temp_c: Optional[npt.NDArray[np.float64]] = None,
+        id: int = 1,
+        parasitic_pf: float = 0.0,
+        budget_kpa: float = 0.5,
+    ) -> "Calibration":
+        """Fits a calibration from reference loads: ``pressure_kpa`` (N,), ``capacitance_pf``
+        (N, 4), ``temp_c`` (N,) or None; as ``taxel calibrate``."""
+    @property
+    def id(self) -> int:
+        """The calibration id."""
+    @property
+    def fit_report(self) -> Optional[str]:
+        """The report of :meth:`fit`, as ``taxel calibrate`` prints it."""
+    @property
+    def leave_one_out(self) -> List[Dict[str, Any]]:
+        """The cross-validation of :meth:`fit`, one dict per taxel and tier."""
+    def __eq__(self, other: object) -> bool: ...
+
+class Device:
+    """A board, with its sample sets and commands; a context manager and an iterator of
+    :class:`SampleSet`."""
+
+    def __init__(
+        self, port: Optional[str] = None, serial: Optional[str] = None, timeout: float = 2.0
+    ) -> None:
+        """Opens the board on ``port``, or with USB serial number ``serial``, or the only one."""
+    @property
+    def info(self) -> Dict[str, Any]:
+        """Protocol and firmware version, board serial, calibration id and source, rate, tier,
+        pad count, streaming, port."""
+    @property
+    def pads(self) -> int:
+        """The number of pads of each sample set."""
+    @property
+    def taxels(self) -> int:
+        """The number of taxels of each sample set (4 per pad)."""
+    def read(self, timeout: Optional[float] = None) -> SampleSet:
+        """The next sample set (raises :class:`taxel.DeviceTimeoutError` if none in time)."""
+    def __iter__(self) -> Iterator[SampleSet]: ...
+    def __next__(self) -> SampleSet: ...
+    def start_buffering(self, capacity_sets: int = 1_000_000) -> None:
+        """Starts collecting every sample set in the background."""
+    def read_buffer(self, strict: bool = True) -> Buffer:
+        """The sets collected since the last call; with ``strict``, lost sets raise
+        :class:`taxel.DataLossError` (its ``buffer`` holds what was collected)."""
+    def stop_buffering(self) -> None:
+        """Stops collecting in the background."""
+    @property
+    def buffering(self) -> bool:
+        """Whether sets are being collected in the background."""
+    def tare(self, sample_sets: int = 64) -> None:
+        """Tares every pad on the mean of the next ``sample_sets`` sets."""
+    def set_rate(self, rate_sps: int) -> None:
+        """Sets the converter rate: 100, 200 or 400 conversions per second."""
+    def set_tier(self, tier: str) -> None:
+        """Selects the pressure-model tier (see :data:`taxel.TIERS`)."""
+    def set_use_case(self, use_case: Union[str, Dict[str, float]]) -> str:
+        """Lets the device choose the tier for a use case; returns the tier chosen."""
+    def read_calibration(self, pad: int = 0) -> Calibration:
+        """The calibration pad ``pad`` uses."""
+    def write_calibration(
+        self, calibration: Calibration, pad: Optional[int] = None, save: bool = False
+    ) -> None:
+        """Writes a calibration to every pad (or ``pad``), and to flash with ``save``."""
+    def save_calibration(self) -> None:
+        """Saves the calibration in use to the device's flash."""
+    def restore_defaults(self) -> None:
+        """Replaces every pad's calibration in RAM by the built-in default."""
+    def read_counters(self) -> Dict[str, int]:
+        """The device's health counters since it booted."""
+    @property
+    def stats(self) -> Dict[str, int]:
+        """This connection's accounting of sets, gaps and drops."""
+    def close(self) -> None:
+        """Stops the stream and closes the port. Idempotent."""
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` was called."""
+    def __enter__(self) -> "Device": ...
+    def __exit__(
+        self,
+        exception_type: Optional[Type[BaseException]],
+        exception: Optional[BaseException],
+        traceback: Optional[TracebackType],
+    ) -> bool: ...
+
+class Simulator(Device):
+    """The simulated device in this process, with the interface of :class:`Device`."""
+
+    def __init__(
+        self,
+        scene: Optional[str] = None,
+        speed: Optional[float] = 1.0,
+        seed: int = 0,
+        pads: Optional[int] = None,
+        timeout: float = 2.0,
+        link_buffer_bytes: int = 262_144,
+    ) -> None:
+        """Starts the simulated device playing ``scene`` at ``speed`` times real time (None: as
+        fast as possible)."""
+    @property
+    def scene(self) -> str:
+        """The scene's name."""
