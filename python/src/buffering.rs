@@ -9,7 +9,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use numpy::ndarray::Array2;
-use numpy::{PyUntypedArrayMethods, IntoPyArray, PyArray1, PyArray2, ToPyArray};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyUntypedArrayMethods, ToPyArray};
 use pyo3::prelude::*;
 
 use crate::sample_set::SetRecord;
@@ -191,7 +191,10 @@ fn matrix<T: Copy + numpy::Element>(
     for set in sets {
         let row = values(set);
         flat.extend(row.iter().copied().take(columns));
-        flat.extend(std::iter::repeat_n(missing, columns.saturating_sub(row.len())));
+        flat.extend(std::iter::repeat_n(
+            missing,
+            columns.saturating_sub(row.len()),
+        ));
     }
     match Array2::from_shape_vec((sets.len(), columns), flat) {
         Ok(array) => array.into_pyarray(py).unbind(),

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use model_core::{Calibration as ModelCalibration, TAXEL_COUNT, TAXEL_NAMES};
-use numpy::{PyUntypedArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -49,10 +49,7 @@ impl Calibration {
     }
 }
 
-fn column_of<'a>(
-    values: &'a PyReadonlyArray1<'_, f64>,
-    name: &str,
-) -> PyResult<&'a [f64]> {
+fn column_of<'a>(values: &'a PyReadonlyArray1<'_, f64>, name: &str) -> PyResult<&'a [f64]> {
     values
         .as_slice()
         .map_err(|_| PyValueError::new_err(format!("{name} must be a contiguous array")))
@@ -220,8 +217,14 @@ impl Calibration {
                 dict.set_item("tier", entry.result.tier.name())?;
                 dict.set_item("fit_max_kpa", entry.result.fit_max_kpa)?;
                 dict.set_item("leave_one_out_kpa", entry.result.leave_one_out_kpa.clone())?;
-                dict.set_item("leave_one_out_max_kpa", entry.result.leave_one_out_max_kpa())?;
-                dict.set_item("leave_one_out_rms_kpa", entry.result.leave_one_out_rms_kpa())?;
+                dict.set_item(
+                    "leave_one_out_max_kpa",
+                    entry.result.leave_one_out_max_kpa(),
+                )?;
+                dict.set_item(
+                    "leave_one_out_rms_kpa",
+                    entry.result.leave_one_out_rms_kpa(),
+                )?;
                 Ok(dict)
             })
             .collect()

@@ -2,42 +2,48 @@
 //! model of `model-core`, exactly as `taxel convert` runs it on a CSV file: one model per pad,
 //! its tier set, and a tare on the mean of the first `tare_rows` readable rows.
 
-use model_core::{
-    PadModel, SampleInput, TareStatus, TaxelReading, Tier, TAXEL_COUNT, TAXEL_NAMES,
-};
-use numpy::{PyUntypedArrayMethods, PyArray2, PyReadonlyArray1, PyReadonlyArray2, ToPyArray};
+use model_core::{PadModel, SampleInput, TareStatus, TaxelReading, Tier, TAXEL_COUNT, TAXEL_NAMES};
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 use crate::calibration::Calibration;
 use crate::errors::{taxel_error, ErrorKind};
 
-/// What one pad's run produces: pressures and flags in place, and the tare's warnings.
-fn run_pad(
-    model: &mut PadModel,
-    pad: usize,
+/// The input columns, checked: `capacitance_pf` (rows × pads × 4), `temperature_c`
+/// (rows × pads), `time_s` (rows) when given.
+struct Inputs<'a> {
     pads: usize,
-    capacitance_pf: &[f64],
-    temperature_c: &[f64],
-    time_s: Option<&[f64]>,
-    pressure_kpa: &mut [f64],
-    flags: &mut [u16],
-) {
+    capacitance_pf: &'a [f64],
+    temperature_c: &'a [f64],
+    time_s: Option<&'a [f64]>,
+}
+
+/// The output columns: pressures and flags (rows × pads × 4).
+struct Outputs {
+    pressure_kpa: Vec<f64>,
+    flags: Vec<u16>,
+}
+
+/// Runs pad `pad`'s model over every row, writing its columns of the outputs.
+fn run_pad(model: &mut PadModel, pad: usize, inputs: &Inputs<'_>, outputs: &mut Outputs) {
+    let pads = inputs.pads;
     let taxels = pads * TAXEL_COUNT;
-    let rows = temperature_c.len() / pads.max(1);
+    let rows = inputs.temperature_c.len() / pads.max(1);
     for row in 0..rows {
         let first = row * taxels + pad * TAXEL_COUNT;
         let readings: [TaxelReading; TAXEL_COUNT] = std::array::from_fn(|taxel| {
-            let value = capacitance_pf[first + taxel];
+            let value = inputs.capacitance_pf[first + taxel];
             if value.is_nan() {
                 TaxelReading::Unavailable
             } else {
                 TaxelReading::CapacitancePf(value as f32)
             }
         });
-        let temperature = temperature_c[row * pads + pad];
+        let temperature = inputs.temperature_c[row * pads + pad];
         let temperature = (!temperature.is_nan()).then_some(temperature as f32);
         let mut input = SampleInput::new(readings, temperature);
-        if let Some(time_s) = time_s {
+        if let Some(time_s) = inputs.time_s {
             let time_s = time_s[row];
             // As `taxel convert` reads a time cell: a non-negative time in µs for the
             // temperature plausibility rule.
@@ -47,8 +53,8 @@ fn run_pad(
         }
         let output = model.process(&input);
         for (taxel, result) in output.taxels.iter().enumerate() {
-            pressure_kpa[first + taxel] = result.pressure_kpa().map_or(f64::NAN, f64::from);
-            flags[first + taxel] = result.flags().bits();
+            outputs.pressure_kpa[first + taxel] = result.pressure_kpa().map_or(f64::NAN, f64::from);
+            outputs.flags[first + taxel] = result.flags().bits();
         }
     }
 }
@@ -97,7 +103,11 @@ pub fn convert_arrays<'py>(
     calibration: Option<PyRef<'py, Calibration>>,
     tier: Option<&str>,
     tare_rows: u16,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<u16>>, Vec<String>)> {
+) -> PyResult<(
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray2<u16>>,
+    Vec<String>,
+)> {
     let [rows, taxels] = [capacitance_pf.shape()[0], capacitance_pf.shape()[1]];
     if taxels == 0 || taxels % TAXEL_COUNT != 0 {
         return Err(taxel_error(
@@ -109,11 +119,17 @@ pub fn convert_arrays<'py>(
     if temp_c.shape() != [rows, pads] {
         return Err(taxel_error(
             ErrorKind::Convert,
-            format!("temp_c has shape {:?}; it must be ({rows},) or ({rows}, {pads})", temp_c.shape()),
+            format!(
+                "temp_c has shape {:?}; it must be ({rows},) or ({rows}, {pads})",
+                temp_c.shape()
+            ),
         ));
     }
     if tare_rows == 0 {
-        return Err(taxel_error(ErrorKind::Convert, "tare_rows must be at least 1"));
+        return Err(taxel_error(
+            ErrorKind::Convert,
+            "tare_rows must be at least 1",
+        ));
     }
     let tier = match tier {
         Some(name) => taxel::convert::parse_tier(name)
@@ -123,8 +139,15 @@ pub fn convert_arrays<'py>(
     let model_calibration = calibration
         .map(|calibration| calibration.model().clone())
         .unwrap_or_default();
-    let contiguous = |name: &str| taxel_error(ErrorKind::Convert, format!("{name} must be a contiguous array"));
-    let capacitances = capacitance_pf.as_slice().map_err(|_| contiguous("capacitance_pf"))?;
+    let contiguous = |name: &str| {
+        taxel_error(
+            ErrorKind::Convert,
+            format!("{name} must be a contiguous array"),
+        )
+    };
+    let capacitances = capacitance_pf
+        .as_slice()
+        .map_err(|_| contiguous("capacitance_pf"))?;
     let temperatures = temp_c.as_slice().map_err(|_| contiguous("temp_c"))?;
     let times = match &time_s {
         Some(times) => {
@@ -160,30 +183,34 @@ pub fn convert_arrays<'py>(
         model.start_tare(tare_rows);
         models.push(model);
     }
-    let (pressure_kpa, flags, warnings) = py.allow_threads(|| {
-        let mut pressure_kpa = vec![f64::NAN; rows * taxels];
-        let mut flags = vec![0u16; rows * taxels];
+    let inputs = Inputs {
+        pads,
+        capacitance_pf: capacitances,
+        temperature_c: temperatures,
+        time_s: times,
+    };
+    let (outputs, warnings) = py.allow_threads(|| {
+        let mut outputs = Outputs {
+            pressure_kpa: vec![f64::NAN; rows * taxels],
+            flags: vec![0u16; rows * taxels],
+        };
         let mut warnings = Vec::new();
         for (pad, model) in models.iter_mut().enumerate() {
-            run_pad(
-                model,
-                pad,
-                pads,
-                capacitances,
-                temperatures,
-                times,
-                &mut pressure_kpa,
-                &mut flags,
-            );
+            run_pad(model, pad, &inputs, &mut outputs);
             warnings.extend(tare_warnings(model, pad, pads));
         }
-        (pressure_kpa, flags, warnings)
+        (outputs, warnings)
     });
-    let pressure_kpa = numpy::ndarray::ArrayView2::from_shape((rows, taxels), &pressure_kpa)
+    let Outputs {
+        pressure_kpa,
+        flags,
+    } = outputs;
+    // The vectors become the arrays' memory (no copy).
+    let pressure_kpa = Array2::from_shape_vec((rows, taxels), pressure_kpa)
         .map_err(|error| taxel_error(ErrorKind::Convert, error.to_string()))?
-        .to_pyarray(py);
-    let flags = numpy::ndarray::ArrayView2::from_shape((rows, taxels), &flags)
+        .into_pyarray(py);
+    let flags = Array2::from_shape_vec((rows, taxels), flags)
         .map_err(|error| taxel_error(ErrorKind::Convert, error.to_string()))?
-        .to_pyarray(py);
+        .into_pyarray(py);
     Ok((pressure_kpa, flags, warnings))
 }

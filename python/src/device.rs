@@ -124,9 +124,8 @@ impl Device {
         what: &str,
         timeout: Duration,
     ) -> PyResult<ReplyPayload> {
-        let request_id = self.with_session(py, |session| {
-            session.send(command).context(what.to_owned())
-        })?;
+        let request_id =
+            self.with_session(py, |session| session.send(command).context(what.to_owned()))?;
         let deadline = Instant::now() + timeout;
         let reply = self.wait_for(py, deadline, |session, until| {
             session.reply(request_id, until)
@@ -169,7 +168,10 @@ impl Device {
             ReplyPayload::Ack => Ok(()),
             _ => Err(taxel_error(
                 ErrorKind::Other,
-                format!("{what}: {}", RequestError::UnexpectedReply("an acknowledgement")),
+                format!(
+                    "{what}: {}",
+                    RequestError::UnexpectedReply("an acknowledgement")
+                ),
             )),
         }
     }
@@ -223,7 +225,12 @@ fn start_interruptibly(
         .spawn(move || {
             let _ = sender.send(Session::start(port, timeout));
         })
-        .map_err(|error| taxel_error(ErrorKind::Other, format!("starting the connection: {error}")))?;
+        .map_err(|error| {
+            taxel_error(
+                ErrorKind::Other,
+                format!("starting the connection: {error}"),
+            )
+        })?;
     let mut receiver = receiver;
     loop {
         // Moved in and out: a receiver may not be shared between threads, only sent.
@@ -236,7 +243,10 @@ fn start_interruptibly(
             Ok(started) => return started.map_err(|error| anyhow_error(&error, ErrorKind::Other)),
             Err(mpsc::RecvTimeoutError::Timeout) => py.check_signals()?,
             Err(mpsc::RecvTimeoutError::Disconnected) => {
-                return Err(taxel_error(ErrorKind::Other, "the connection thread ended without an answer"))
+                return Err(taxel_error(
+                    ErrorKind::Other,
+                    "the connection thread ended without an answer",
+                ))
             }
         }
     }
@@ -246,12 +256,18 @@ fn closed_error() -> PyErr {
     taxel_error(ErrorKind::Link, "the device is closed")
 }
 
-fn counters_dict<'py>(py: Python<'py>, counters: &wire::CountersFrame) -> PyResult<Bound<'py, PyDict>> {
+fn counters_dict<'py>(
+    py: Python<'py>,
+    counters: &wire::CountersFrame,
+) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
     dict.set_item("dropped_sample_sets", counters.dropped_sample_sets)?;
     dict.set_item("converter_reinits", counters.converter_reinits)?;
     dict.set_item("i2c_errors", counters.i2c_errors)?;
-    dict.set_item("temperature_sensor_errors", counters.temperature_sensor_errors)?;
+    dict.set_item(
+        "temperature_sensor_errors",
+        counters.temperature_sensor_errors,
+    )?;
     dict.set_item("frames_dropped_no_host", counters.frames_dropped_no_host)?;
     dict.set_item("host_frames_rejected", counters.host_frames_rejected)?;
     Ok(dict)
@@ -264,12 +280,15 @@ impl Device {
     /// every :meth:`read`.
     #[new]
     #[pyo3(signature = (port=None, serial=None, timeout=2.0))]
-    fn new(py: Python<'_>, port: Option<String>, serial: Option<String>, timeout: f64) -> PyResult<Self> {
+    fn new(
+        py: Python<'_>,
+        port: Option<String>,
+        serial: Option<String>,
+        timeout: f64,
+    ) -> PyResult<Self> {
         let timeout = timeout_from_s(timeout)?;
         if port.is_some() && serial.is_some() {
-            return Err(PyValueError::new_err(
-                "give port or serial, not both",
-            ));
+            return Err(PyValueError::new_err("give port or serial, not both"));
         }
         let opened = py.allow_threads(|| {
             let path = select_port(port.as_deref(), serial.as_deref(), DEFAULT_VID, DEFAULT_PID)?;
@@ -356,8 +375,13 @@ impl Device {
         if capacity_sets == 0 {
             return Err(PyValueError::new_err("capacity_sets must be at least 1"));
         }
-        let buffering = Buffering::start(Arc::clone(&self.session), capacity_sets)
-            .map_err(|error| taxel_error(ErrorKind::Other, format!("starting the buffer thread: {error}")))?;
+        let buffering =
+            Buffering::start(Arc::clone(&self.session), capacity_sets).map_err(|error| {
+                taxel_error(
+                    ErrorKind::Other,
+                    format!("starting the buffer thread: {error}"),
+                )
+            })?;
         self.buffering = Some(buffering);
         Ok(())
     }
@@ -415,8 +439,14 @@ impl Device {
         }
         let rate_sps = self.with_session(py, |session| Ok(session.info().rate.sps()))?;
         // A set takes about four conversions; allow twice that.
-        let needed = Duration::from_secs_f64(f64::from(sample_sets) * 8.0 / f64::from(rate_sps.max(1)));
-        let payload = self.request(py, Command::Tare { sample_sets }, "Tare", self.timeout + needed)?;
+        let needed =
+            Duration::from_secs_f64(f64::from(sample_sets) * 8.0 / f64::from(rate_sps.max(1)));
+        let payload = self.request(
+            py,
+            Command::Tare { sample_sets },
+            "Tare",
+            self.timeout + needed,
+        )?;
         Self::expect_ack(payload, "Tare")
     }
 
@@ -436,7 +466,12 @@ impl Device {
     /// Selects the pressure-model tier by name (see :data:`taxel.TIERS`).
     fn set_tier(&self, py: Python<'_>, tier: &str) -> PyResult<()> {
         let tier = taxel::convert::parse_tier(tier).map_err(PyValueError::new_err)?;
-        let payload = self.request(py, Command::SetModelTier { tier }, "SetModelTier", self.timeout)?;
+        let payload = self.request(
+            py,
+            Command::SetModelTier { tier },
+            "SetModelTier",
+            self.timeout,
+        )?;
         Self::expect_ack(payload, "SetModelTier")?;
         self.refresh_info(py)
     }
@@ -446,14 +481,22 @@ impl Device {
     /// ``temperature_max_c`` and ``error_budget_kpa``. Returns the tier chosen.
     fn set_use_case(&self, py: Python<'_>, use_case: &Bound<'_, PyAny>) -> PyResult<String> {
         let use_case = crate::use_case::use_case_from_python(use_case)?;
-        match self.request(py, Command::SetUseCase(use_case), "SetUseCase", self.timeout)? {
+        match self.request(
+            py,
+            Command::SetUseCase(use_case),
+            "SetUseCase",
+            self.timeout,
+        )? {
             ReplyPayload::ModelTier(tier) => {
                 self.refresh_info(py)?;
                 Ok(tier.name().to_owned())
             }
             _ => Err(taxel_error(
                 ErrorKind::Other,
-                format!("SetUseCase: {}", RequestError::UnexpectedReply("SetUseCase")),
+                format!(
+                    "SetUseCase: {}",
+                    RequestError::UnexpectedReply("SetUseCase")
+                ),
             )),
         }
     }
@@ -500,13 +543,23 @@ impl Device {
 
     /// Saves the calibration in use to the device's flash, which every pad boots with.
     fn save_calibration(&self, py: Python<'_>) -> PyResult<()> {
-        let payload = self.request(py, Command::SaveCalibration, "SaveCalibration", self.timeout)?;
+        let payload = self.request(
+            py,
+            Command::SaveCalibration,
+            "SaveCalibration",
+            self.timeout,
+        )?;
         Self::expect_ack(payload, "SaveCalibration")
     }
 
     /// Replaces every pad's calibration in RAM by the built-in default (flash untouched).
     fn restore_defaults(&self, py: Python<'_>) -> PyResult<()> {
-        let payload = self.request(py, Command::RestoreDefaults, "RestoreDefaults", self.timeout)?;
+        let payload = self.request(
+            py,
+            Command::RestoreDefaults,
+            "RestoreDefaults",
+            self.timeout,
+        )?;
         Self::expect_ack(payload, "RestoreDefaults")?;
         self.refresh_info(py)
     }
@@ -517,7 +570,10 @@ impl Device {
             ReplyPayload::Counters(counters) => counters_dict(py, &counters),
             _ => Err(taxel_error(
                 ErrorKind::Other,
-                format!("ReadCounters: {}", RequestError::UnexpectedReply("ReadCounters")),
+                format!(
+                    "ReadCounters: {}",
+                    RequestError::UnexpectedReply("ReadCounters")
+                ),
             )),
         }
     }
