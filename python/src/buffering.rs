@@ -159,6 +159,7 @@ pub struct Buffer {
 
 #[pymethods]
 impl Buffer {
+    /// The number of sample sets.
     fn __len__(&self, py: Python<'_>) -> usize {
         self.sequence.bind(py).len()
     }
@@ -169,6 +170,7 @@ impl Buffer {
         self.overflowed_sets + self.sequence_gap_sets
     }
 
+    /// A short description.
     fn __repr__(&self, py: Python<'_>) -> String {
         format!(
             "Buffer(sets={}, pads={}, overflowed_sets={}, sequence_gap_sets={})",

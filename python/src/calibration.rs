@@ -230,12 +230,14 @@ impl Calibration {
             .collect()
     }
 
+    /// Whether both hold the same calibration.
     fn __eq__(&self, other: &Bound<'_, PyAny>) -> bool {
         other
             .downcast::<Calibration>()
             .is_ok_and(|other| other.get().model == self.model)
     }
 
+    /// A short description.
     fn __repr__(&self) -> String {
         format!("Calibration(id={})", self.model.id())
     }

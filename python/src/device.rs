@@ -356,10 +356,12 @@ impl Device {
         }
     }
 
+    /// The device itself: iterating reads sample sets until it is closed.
     fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
         slf
     }
 
+    /// The next sample set (:meth:`read`); stops when the device is closed.
     fn __next__(&self, py: Python<'_>) -> PyResult<SampleSet> {
         if lock(&self.session).is_none() {
             return Err(PyStopIteration::new_err(()));
@@ -614,16 +616,19 @@ impl Device {
         lock(&self.session).is_none()
     }
 
+    /// The device, for ``with``.
     fn __enter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
         slf
     }
 
+    /// Closes the device at the end of ``with``; exceptions propagate.
     #[pyo3(signature = (*_exception))]
     fn __exit__(&mut self, py: Python<'_>, _exception: &Bound<'_, pyo3::types::PyTuple>) -> bool {
         self.close_now(py);
         false
     }
 
+    /// A short description.
     fn __repr__(&self) -> String {
         format!("Device(port={:?}, pads={})", self.port_name, self.pads)
     }

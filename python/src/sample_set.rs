@@ -190,6 +190,7 @@ impl SampleSet {
         self.record.sets_missing_before
     }
 
+    /// A short description.
     fn __repr__(&self) -> String {
         format!(
             "SampleSet(sequence={}, device_time_s={:.6}, pads={}, pressure_kpa={:?})",
