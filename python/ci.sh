@@ -22,6 +22,11 @@ else
   trap 'rm -rf "$(dirname "$venv")"' EXIT
 fi
 
+echo "== python: rustfmt and clippy of the extension crate (its own workspace)"
+cargo fmt --manifest-path "$python_dir/Cargo.toml" -- --check || fail "cargo fmt (run: cargo fmt --manifest-path python/Cargo.toml)"
+PYO3_PYTHON="$python" cargo clippy --locked --manifest-path "$python_dir/Cargo.toml" --all-targets -- -D warnings \
+  || fail "cargo clippy on python/"
+
 echo "== python: virtual environment in $venv"
 "$python" -m venv "$venv" || fail "creating the virtual environment with $python"
 "$venv/bin/python" -m pip install --quiet --upgrade pip || fail "upgrading pip"

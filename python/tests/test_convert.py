@@ -167,3 +167,52 @@ def test_an_unfinished_tare_warns_in_the_cli_words(recording):
         pressure, flags = taxel.convert(capacitance[:5], temperature[:5], tare_rows=10)
     assert np.all(np.isnan(pressure))
     assert np.all(flags & taxel.Flags.NOT_TARED)
+
+
+def test_several_pads_equal_the_cli(taxel_cli, tmp_path):
+    """A recording of two pads in `taxel record`'s pad-prefixed layout, converted pad by pad by
+    the command line, gives what `taxel.convert` gives for the (N, 8) array."""
+    with taxel.Simulator(scene="gripper", speed=50.0, seed=4) as sim:
+        sim.start_buffering()
+        time.sleep(1.0)
+        buffer = sim.read_buffer(strict=False)
+    capacitance = buffer.capacitance_pf
+    temperature = buffer.temperature_c
+    time_s = (buffer.device_time_us - buffer.device_time_us[0]) / 1e6
+    names = ["c11_pf", "c12_pf", "c21_pf", "c22_pf"]
+    source = tmp_path / "pads.csv"
+    with source.open("w", newline="") as file:
+        writer = csv.writer(file)
+        header = ["seq"]
+        for pad in range(2):
+            header += [f"pad{pad}_time_s", f"pad{pad}_temp_c"] + [f"pad{pad}_{n}" for n in names]
+        writer.writerow(header)
+        for row in range(len(time_s)):
+            cells = [str(int(buffer.sequence[row]))]
+            for pad in range(2):
+                cells += [repr(float(time_s[row])), cell(temperature[row, pad])]
+                cells += [cell(value) for value in capacitance[row, 4 * pad : 4 * pad + 4]]
+            writer.writerow(cells)
+    output = tmp_path / "converted.csv"
+    result = subprocess.run(
+        [taxel_cli, "convert", str(source), "-o", str(output), "--no-device-state",
+         "--tare-rows", "4"],
+        capture_output=True,
+        text=True,
+    )
+    assert result.returncode == 0, result.stderr
+    with output.open(newline="") as file:
+        rows = list(csv.DictReader(file))
+    columns = [f"pad{pad}_p{k}_kpa" for pad in range(2) for k in ("11", "12", "21", "22")]
+    expected = np.array(
+        [[np.float32(row[c]) if row[c] else np.nan for c in columns] for row in rows],
+        dtype=np.float64,
+    )
+    flag_columns = [c.replace("_p", "_flags").replace("_kpa", "") for c in columns]
+    expected_flags = np.array(
+        [[flag_bits(row[c]) for c in flag_columns] for row in rows], dtype=np.uint16
+    )
+    pressure, flags = taxel.convert(capacitance, temperature, time_s=time_s, tare_rows=4)
+    np.testing.assert_array_equal(pressure, expected)
+    np.testing.assert_array_equal(flags, expected_flags)
+    assert np.any(pressure > 1.0)
