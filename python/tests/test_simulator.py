@@ -140,7 +140,8 @@ def test_a_sequence_gap_is_reported():
         sets = [sim.read() for _ in range(200)]
         gaps = [s.sets_missing_before for s in sets]
         assert max(gaps) > 0
-        assert sim.stats["sequence_gap_frames"] == sum(gaps)
+        # Sets already received but not yet read may add gaps of their own.
+        assert sim.stats["sequence_gap_frames"] >= sum(gaps)
         counters = sim.read_counters()
         assert counters["dropped_sample_sets"] >= sum(gaps)
         assert sim.stats["lost_on_link_frames"] == 0, "the device counted every drop"
