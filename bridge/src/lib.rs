@@ -1,0 +1,19 @@
+//! `taxel bridge`: the pads of one or more devices published into Zenoh in the form ROS 2's
+//! rmw_zenoh uses, so ROS 2 nodes (and plain Zenoh subscribers) receive them. The design, the
+//! message types and the names are in docs/BRIDGE.md.
+//!
+//! - [`device_reader`]: one thread per device, stamping frames with the mapped device time and
+//!   queueing them without ever blocking;
+//! - [`pad_messages`], [`health`]: frames and device state as ROS 2 messages;
+//! - [`names`]: rmw_zenoh's key expressions, liveliness tokens and attachment;
+//! - [`publisher`]: the Zenoh session and the publishing loop;
+//! - [`command`]: the command line and the run.
+#![deny(missing_docs)]
+#![deny(clippy::print_stdout, clippy::print_stderr)]
+
+pub mod command;
+pub mod device_reader;
+pub mod health;
+pub mod names;
+pub mod pad_messages;
+pub mod publisher;

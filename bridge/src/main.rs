@@ -1,0 +1,19 @@
+//! `taxel-bridge` (also `taxel bridge`): see `taxel-bridge --help`.
+
+use std::process::ExitCode;
+
+use clap::Parser;
+use taxel::console::error_message;
+use taxel::noteln;
+use taxel_bridge::command::{run, BridgeArgs};
+
+fn main() -> ExitCode {
+    let args = BridgeArgs::parse();
+    match run(&args) {
+        Ok(code) => code,
+        Err(error) => {
+            noteln!("error: {}", error_message(&error));
+            ExitCode::FAILURE
+        }
+    }
+}

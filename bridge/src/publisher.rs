@@ -1,0 +1,354 @@
+//! The Zenoh side: one session, the node's and every publisher's liveliness token, one Zenoh
+//! publisher per topic (declared when the topic's first message comes), and the loop that takes
+//! the readers' frames off the queue and puts them, with each device's health on the
+//! diagnostics topic once a second.
+//!
+//! Publishers wait when the network is congested (`CongestionControl::Block`, as rmw_zenoh's
+//! reliable keep-all publishers do) rather than drop silently: Zenoh does not tell a publisher
+//! what it dropped, so the one place frames are dropped is the readers' bounded queue in front
+//! of this loop, where each drop is counted and reported in the device's health. The readers
+//! never wait for this loop, so a slow subscriber never slows the devices. (Zenoh closes a link
+//! that stays blocked longer than its `wait_before_close`, so one stuck subscriber cannot hold
+//! the loop for ever.) Messages are not `express`: Zenoh's automatic batching sends at once when
+//! the link is idle and packs a burst into few writes.
+
+use std::collections::HashMap;
+use std::hash::{DefaultHasher, Hash, Hasher};
+use std::io::Write;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use model_core::PadGeometry;
+use taxel_ros2::types::{
+    DIAGNOSTIC_ARRAY_MESSAGE, HEADER_MESSAGE, POINT_CLOUD2_MESSAGE, WRENCH_STAMPED_MESSAGE,
+};
+use taxel_ros2::{DiagnosticArray, Header, MessageType, RosMessage, Time};
+use zenoh::liveliness::LivelinessToken;
+use zenoh::pubsub::Publisher;
+use zenoh::qos::CongestionControl;
+use zenoh::{Session, Wait};
+
+use crate::device_reader::{lock, DeviceHealth, Outgoing};
+use crate::health::device_status;
+use crate::names::{attachment, data_key_expression, GraphNode};
+use crate::pad_messages::{pad_wrench, pressure_cloud, PadTopics};
+
+/// How the bridge names things.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Naming {
+    /// `ROS_DOMAIN_ID`: the first chunk of every key expression.
+    pub domain_id: u32,
+    /// The namespace of the pad topics (`/taxel`).
+    pub namespace: String,
+    /// The start of every pad's frame id (`taxel_`).
+    pub frame_prefix: String,
+    /// The ROS 2 node name the publishers belong to.
+    pub node_name: String,
+    /// The diagnostics topic (`/diagnostics`, where ROS 2's diagnostic aggregator listens).
+    pub diagnostics_topic: String,
+}
+
+impl Default for Naming {
+    fn default() -> Self {
+        Self {
+            domain_id: 0,
+            namespace: "/taxel".to_owned(),
+            frame_prefix: "taxel_".to_owned(),
+            node_name: "taxel_bridge".to_owned(),
+            diagnostics_topic: "/diagnostics".to_owned(),
+        }
+    }
+}
+
+/// One topic's Zenoh publisher and liveliness token.
+struct TopicPublisher {
+    publisher: Publisher<'static>,
+    _token: LivelinessToken,
+    gid: [u8; 16],
+    sequence: i64,
+}
+
+impl TopicPublisher {
+    fn put(&mut self, sequence: Option<i64>, stamp_ns: u64, cdr: Vec<u8>) -> zenoh::Result<()> {
+        self.sequence = sequence.unwrap_or(self.sequence + 1);
+        let stamp = i64::try_from(stamp_ns).unwrap_or(i64::MAX);
+        self.publisher
+            .put(cdr)
+            .attachment(attachment(self.sequence, stamp, &self.gid).to_vec())
+            .wait()
+    }
+}
+
+/// The pad topics of one pad.
+struct PadPublishers {
+    topics: PadTopics,
+    pressure: TopicPublisher,
+    wrench: TopicPublisher,
+    contact_started: TopicPublisher,
+    contact_ended: TopicPublisher,
+}
+
+/// What the publishing loop did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PublishCounts {
+    /// Sample frames published (each as a pressure cloud and a wrench).
+    pub samples: u64,
+    /// Contact events published.
+    pub contacts: u64,
+    /// Diagnostic arrays published.
+    pub diagnostics: u64,
+}
+
+/// The session with the node's token, and the publishers declared so far.
+pub struct RosPublisher {
+    session: Session,
+    naming: Naming,
+    node: GraphNode,
+    _node_token: LivelinessToken,
+    next_entity_id: u32,
+    pads: HashMap<(usize, u8), PadPublishers>,
+    diagnostics: Option<TopicPublisher>,
+    geometry: PadGeometry,
+}
+
+fn zenoh_error(error: zenoh::Error) -> anyhow::Error {
+    anyhow::anyhow!("zenoh: {error}")
+}
+
+impl RosPublisher {
+    /// Declares the node on `session`.
+    pub fn new(session: Session, naming: Naming) -> anyhow::Result<Self> {
+        let node = GraphNode {
+            domain_id: naming.domain_id,
+            session_id: session.zid().to_string(),
+            namespace: "/".to_owned(),
+            node_name: naming.node_name.clone(),
+        };
+        let node_token = session
+            .liveliness()
+            .declare_token(node.node_token())
+            .wait()
+            .map_err(zenoh_error)?;
+        Ok(Self {
+            session,
+            naming,
+            node,
+            _node_token: node_token,
+            next_entity_id: 1,
+            pads: HashMap::new(),
+            diagnostics: None,
+            geometry: PadGeometry::ARTICLE,
+        })
+    }
+
+    fn declare(
+        &mut self,
+        topic: &str,
+        message_type: &MessageType,
+    ) -> anyhow::Result<TopicPublisher> {
+        let entity_id = self.next_entity_id;
+        self.next_entity_id += 1;
+        let token = self
+            .session
+            .liveliness()
+            .declare_token(self.node.publisher_token(entity_id, topic, message_type))
+            .wait()
+            .map_err(zenoh_error)?;
+        let publisher = self
+            .session
+            .declare_publisher(data_key_expression(
+                self.naming.domain_id,
+                topic,
+                message_type,
+            ))
+            .congestion_control(CongestionControl::Block)
+            .wait()
+            .map_err(zenoh_error)?;
+        let mut hasher = DefaultHasher::new();
+        (&self.node.session_id, entity_id).hash(&mut hasher);
+        let low = hasher.finish();
+        (entity_id, &self.node.session_id).hash(&mut hasher);
+        let high = hasher.finish();
+        let mut gid = [0u8; 16];
+        gid[..8].copy_from_slice(&low.to_le_bytes());
+        gid[8..].copy_from_slice(&high.to_le_bytes());
+        Ok(TopicPublisher {
+            publisher,
+            _token: token,
+            gid,
+            sequence: 0,
+        })
+    }
+
+    fn pad(&mut self, device: usize, pad: u8) -> anyhow::Result<&mut PadPublishers> {
+        if !self.pads.contains_key(&(device, pad)) {
+            let topics = PadTopics::new(
+                &self.naming.namespace,
+                &self.naming.frame_prefix,
+                device,
+                pad,
+            );
+            let publishers = PadPublishers {
+                pressure: self.declare(&topics.pressure, &POINT_CLOUD2_MESSAGE)?,
+                wrench: self.declare(&topics.wrench, &WRENCH_STAMPED_MESSAGE)?,
+                contact_started: self.declare(&topics.contact_started, &HEADER_MESSAGE)?,
+                contact_ended: self.declare(&topics.contact_ended, &HEADER_MESSAGE)?,
+                topics,
+            };
+            self.pads.insert((device, pad), publishers);
+        }
+        self.pads
+            .get_mut(&(device, pad))
+            .ok_or_else(|| anyhow::anyhow!("pad publishers missing"))
+    }
+
+    /// Publishes one frame from a reader.
+    pub fn publish(&mut self, outgoing: &Outgoing) -> anyhow::Result<()> {
+        match outgoing {
+            Outgoing::Sample {
+                device,
+                sample,
+                stamp_ns,
+                ..
+            } => {
+                let geometry = self.geometry;
+                let publishers = self.pad(*device, sample.pad.get())?;
+                let header = Header {
+                    stamp: Time::from_unix_ns(*stamp_ns),
+                    frame_id: publishers.topics.frame_id.clone(),
+                };
+                let sequence = Some(i64::from(sample.sequence));
+                let cloud = pressure_cloud(sample, header.clone(), &geometry).to_cdr();
+                publishers
+                    .pressure
+                    .put(sequence, *stamp_ns, cloud)
+                    .map_err(zenoh_error)?;
+                let wrench = pad_wrench(sample, header).to_cdr();
+                publishers
+                    .wrench
+                    .put(sequence, *stamp_ns, wrench)
+                    .map_err(zenoh_error)
+            }
+            Outgoing::Contact {
+                device,
+                pad,
+                started,
+                stamp_ns,
+            } => {
+                let publishers = self.pad(*device, *pad)?;
+                let header = Header {
+                    stamp: Time::from_unix_ns(*stamp_ns),
+                    frame_id: publishers.topics.frame_id.clone(),
+                };
+                let publisher = if *started {
+                    &mut publishers.contact_started
+                } else {
+                    &mut publishers.contact_ended
+                };
+                publisher
+                    .put(None, *stamp_ns, header.to_cdr())
+                    .map_err(zenoh_error)
+            }
+        }
+    }
+
+    /// Publishes every device's health as one diagnostic array stamped `stamp_ns`.
+    pub fn publish_health(
+        &mut self,
+        healths: &[DeviceHealth],
+        stamp_ns: u64,
+    ) -> anyhow::Result<()> {
+        if self.diagnostics.is_none() {
+            let topic = self.naming.diagnostics_topic.clone();
+            self.diagnostics = Some(self.declare(&topic, &DIAGNOSTIC_ARRAY_MESSAGE)?);
+        }
+        let array = DiagnosticArray {
+            header: Header {
+                stamp: Time::from_unix_ns(stamp_ns),
+                frame_id: String::new(),
+            },
+            status: healths
+                .iter()
+                .enumerate()
+                .map(|(device, health)| device_status(device, health))
+                .collect(),
+        };
+        match self.diagnostics.as_mut() {
+            Some(publisher) => publisher
+                .put(None, stamp_ns, array.to_cdr())
+                .map_err(zenoh_error),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Where `--timing-log` writes one line per published sample frame: device, pad, sequence,
+/// arrival and publication (ns since the Unix epoch), for the latency table.
+pub type TimingLog = Box<dyn Write + Send>;
+
+fn unix_now_ns() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::SystemTime::UNIX_EPOCH)
+        .map_or(0, |since| {
+            u64::try_from(since.as_nanos()).unwrap_or(u64::MAX)
+        })
+}
+
+/// Publishes what the readers send until every reader is gone or `stop` is set, and the
+/// devices' health every `health_period`.
+pub fn publish_loop(
+    publisher: &mut RosPublisher,
+    receiver: &Receiver<Outgoing>,
+    healths: &[Arc<Mutex<DeviceHealth>>],
+    stop: &AtomicBool,
+    health_period: Duration,
+    mut timing_log: Option<TimingLog>,
+) -> anyhow::Result<PublishCounts> {
+    let mut counts = PublishCounts::default();
+    let mut last_health = Instant::now();
+    while !stop.load(Ordering::Relaxed) {
+        match receiver.recv_timeout(Duration::from_millis(50)) {
+            Ok(outgoing) => {
+                publisher.publish(&outgoing)?;
+                match &outgoing {
+                    Outgoing::Sample {
+                        device,
+                        sample,
+                        arrival_ns,
+                        ..
+                    } => {
+                        counts.samples += 1;
+                        if let Some(log) = timing_log.as_mut() {
+                            writeln!(
+                                log,
+                                "{device},{},{},{arrival_ns},{}",
+                                sample.pad.get(),
+                                sample.sequence,
+                                unix_now_ns()
+                            )?;
+                        }
+                    }
+                    Outgoing::Contact { .. } => counts.contacts += 1,
+                }
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => break,
+        }
+        if last_health.elapsed() >= health_period {
+            let snapshot: Vec<DeviceHealth> =
+                healths.iter().map(|health| lock(health).clone()).collect();
+            publisher.publish_health(&snapshot, unix_now_ns())?;
+            counts.diagnostics += 1;
+            last_health = Instant::now();
+        }
+    }
+    let snapshot: Vec<DeviceHealth> = healths.iter().map(|health| lock(health).clone()).collect();
+    publisher.publish_health(&snapshot, unix_now_ns())?;
+    counts.diagnostics += 1;
+    if let Some(log) = timing_log.as_mut() {
+        log.flush()?;
+    }
+    Ok(counts)
+}

@@ -1,0 +1,240 @@
+"""An independent subscriber to `taxel-bridge --sim N`: Python's eclipse-zenoh receives what the
+bridge publishes, rosbags decodes the CDR payloads of the standard ROS 2 types, and every message
+is checked against the simulated scene (bridge/tests/python/plateau.toml), the sequence numbers,
+the stamps and the type hashes rosbags computes. Nothing of the bridge's own code is used.
+
+Run by bridge/tests/python_subscriber.rs; prints one line per check and a closing
+"N passed, M failed" line, and exits non-zero on any failure. With --report FILE it also writes
+the latency of every pad message (bridge arrival of the frame to reception here), for
+PERFORMANCE.md.
+"""
+
+import argparse
+import json
+import struct
+import subprocess
+import sys
+import threading
+import time
+import tomllib
+
+import zenoh
+from rosbags.typesys import Stores, get_typestore
+
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+# Per pad of the article: 25 mm² per taxel, centres at (±2.75, ±2.75) mm in C11, C12, C21, C22
+# order (model-core's PadGeometry::ARTICLE, restated here).
+TAXEL_AREA_M2 = 25e-6
+TAXEL_CENTRES_M = [(-2.75e-3, 2.75e-3), (2.75e-3, 2.75e-3), (-2.75e-3, -2.75e-3), (2.75e-3, -2.75e-3)]
+PRESSURE_TOLERANCE_KPA = 0.5
+FORCE_TOLERANCE_N = 0.05
+CENTRE_TOLERANCE_M = 0.2e-3
+STEADY_FROM_S = 3.0
+
+
+class Checks:
+    def __init__(self):
+        self.passed = 0
+        self.failed = 0
+
+    def check(self, condition, message):
+        if condition:
+            self.passed += 1
+            print(f"ok: {message}")
+        else:
+            self.failed += 1
+            print(f"FAILED: {message}")
+
+
+def ros_type_of(dds_name):
+    """`sensor_msgs::msg::dds_::PointCloud2_` -> `sensor_msgs/msg/PointCloud2`."""
+    package, kind, _, name = dds_name.split("::")
+    return f"{package}/{kind}/{name[:-1]}"
+
+
+def parse_key(key):
+    """`<domain>/<topic…>/<dds type>/<hash>` -> (domain, topic, ros type, hash)."""
+    chunks = key.split("/")
+    return chunks[0], "/" + "/".join(chunks[1:-2]), ros_type_of(chunks[-2]), chunks[-1]
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--bridge", required=True, help="the taxel-bridge binary")
+    parser.add_argument("--scene", required=True)
+    parser.add_argument("--devices", type=int, default=2)
+    parser.add_argument("--seconds", type=float, default=8.0)
+    parser.add_argument("--port", type=int, default=17447)
+    parser.add_argument("--report", help="write latencies and counts here (JSON)")
+    parser.add_argument("--timing-log", help="passed to the bridge (for --report)")
+    args = parser.parse_args()
+
+    with open(args.scene, "rb") as scene_file:
+        scene = tomllib.load(scene_file)
+    plateaus = [pad["keyframe"][-1]["pressure_kpa"] for pad in scene["pad"]]
+
+    received = []
+    tokens = []
+    lock = threading.Lock()
+
+    def on_data(sample):
+        now_ns = time.time_ns()
+        attachment = sample.attachment.to_bytes() if sample.attachment is not None else b""
+        with lock:
+            received.append((str(sample.key_expr), sample.payload.to_bytes(), attachment, now_ns))
+
+    def on_token(sample):
+        with lock:
+            tokens.append((str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+
+    config = zenoh.Config()
+    config.insert_json5("listen/endpoints", json.dumps([f"tcp/127.0.0.1:{args.port}"]))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    session = zenoh.open(config)
+    data_subscriber = session.declare_subscriber("0/**", on_data)
+    token_subscriber = session.liveliness().declare_subscriber("@ros2_lv/0/**", on_token, history=True)
+
+    command = [
+        args.bridge, "--sim", str(args.devices), "--sim-scene", args.scene,
+        "--connect", f"tcp/127.0.0.1:{args.port}", "--no-multicast-scouting",
+        "--duration", str(args.seconds),
+    ]
+    if args.timing_log:
+        command += ["--timing-log", args.timing_log]
+    started = time.monotonic()
+    bridge = subprocess.run(command, capture_output=True, text=True, timeout=args.seconds + 60)
+    elapsed = time.monotonic() - started
+    time.sleep(0.5)
+    data_subscriber.undeclare()
+    token_subscriber.undeclare()
+    session.close()
+    print(bridge.stderr, end="")
+
+    checks = Checks()
+    checks.check(bridge.returncode == 0, f"the bridge ran {elapsed:.1f} s and exited 0 ({bridge.returncode})")
+
+    by_topic = {}
+    for key, payload, attachment, now_ns in received:
+        by_topic.setdefault(key, []).append((payload, attachment, now_ns))
+
+    # Type hashes in the key expressions equal rosbags' RIHS01 of the named types.
+    types_seen = {}
+    for key in by_topic:
+        _, topic, ros_type, type_hash = parse_key(key)
+        types_seen[ros_type] = type_hash
+    for ros_type, type_hash in sorted(types_seen.items()):
+        checks.check(type_hash == TYPESTORE.hash_rihs01(ros_type), f"{ros_type}: key hash {type_hash} equals rosbags'")
+    expected_types = {"sensor_msgs/msg/PointCloud2", "geometry_msgs/msg/WrenchStamped",
+                      "std_msgs/msg/Header", "diagnostic_msgs/msg/DiagnosticArray"}
+    checks.check(set(types_seen) == expected_types, f"the four message types are published ({sorted(types_seen)})")
+
+    # Liveliness: the node and a publisher token per topic, in rmw_zenoh's format.
+    put_tokens = [key for key, alive in tokens if alive]
+    node_tokens = [key for key in put_tokens if "/NN/%/%/taxel_bridge" in key]
+    checks.check(len(node_tokens) == 1, f"one node token ({node_tokens})")
+    for key in by_topic:
+        _, topic, ros_type, type_hash = parse_key(key)
+        mangled = topic.replace("/", "%")
+        dds_type = key.split("/")[-2]
+        wanted = f"/MP/%/%/taxel_bridge/{mangled}/{dds_type}/{type_hash}/"
+        checks.check(any(wanted in token for token in put_tokens), f"publisher token for {topic}")
+
+    latencies_ms = []
+    for device in range(args.devices):
+        for pad, plateau in enumerate(plateaus):
+            base = f"0/taxel/device{device}/pad{pad}"
+            pressure_key = next((key for key in by_topic if key.startswith(base + "/pressure/")), None)
+            wrench_key = next((key for key in by_topic if key.startswith(base + "/wrench/")), None)
+            checks.check(pressure_key is not None and wrench_key is not None, f"{base}: pressure and wrench published")
+            if pressure_key is None or wrench_key is None:
+                continue
+            sequences = []
+            stamps_ok = True
+            steady = 0
+            steady_bad = []
+            sequence_times = []
+            for payload, attachment, now_ns in by_topic[pressure_key]:
+                sequence, stamp_ns, gid_length = struct.unpack_from("<qqB", attachment)
+                cloud = TYPESTORE.deserialize_cdr(payload, "sensor_msgs/msg/PointCloud2")
+                header_ns = cloud.header.stamp.sec * 1_000_000_000 + cloud.header.stamp.nanosec
+                stamps_ok &= header_ns == stamp_ns and stamp_ns <= now_ns and gid_length == 16
+                stamps_ok &= cloud.header.frame_id == f"taxel_device{device}_pad{pad}"
+                sequences.append(sequence)
+                sequence_times.append((sequence, stamp_ns))
+                latencies_ms.append((device, pad, sequence, now_ns))
+                points = [struct.unpack_from("<ffffI", bytes(cloud.data), 20 * index) for index in range(cloud.width)]
+                names = [field.name for field in cloud.fields]
+                if names != ["x", "y", "z", "pressure", "flags"] or cloud.width != 4:
+                    steady_bad.append(f"layout {names} width {cloud.width}")
+                    continue
+                for index, (x, y, _, _, _) in enumerate(points):
+                    if abs(x - TAXEL_CENTRES_M[index][0]) > 1e-7 or abs(y - TAXEL_CENTRES_M[index][1]) > 1e-7:
+                        steady_bad.append(f"taxel {index} at ({x}, {y})")
+                sequences_per_second = 100.0
+                if sequence / sequences_per_second >= STEADY_FROM_S:
+                    steady += 1
+                    for index, (_, _, _, pressure_pa, flags) in enumerate(points):
+                        if abs(pressure_pa / 1000.0 - plateau[index]) > PRESSURE_TOLERANCE_KPA or flags != 0:
+                            steady_bad.append(f"seq {sequence} taxel {index}: {pressure_pa / 1000.0:.2f} kPa flags {flags}")
+            checks.check(stamps_ok, f"{base}/pressure: header stamp = attachment timestamp <= reception, 16-byte gid, frame id")
+            gaps = [b - a for a, b in zip(sequences, sequences[1:]) if b - a != 1]
+            checks.check(not gaps and len(sequences) > 100, f"{base}/pressure: {len(sequences)} messages, sequences {sequences[0] if sequences else None}.. with no gap {gaps[:5]}")
+            checks.check(steady >= 100 and not steady_bad, f"{base}/pressure: {steady} steady messages equal the plateau {plateau} kPa within {PRESSURE_TOLERANCE_KPA} ({steady_bad[:3]})")
+            # The sets come at 100 per second of device time: sequence over stamp.
+            (first_sequence, first_ns), (last_sequence, last_ns) = sequence_times[0], sequence_times[-1]
+            rate = (last_sequence - first_sequence) / ((last_ns - first_ns) / 1e9)
+            checks.check(abs(rate - 100.0) < 2.0, f"{base}/pressure: {rate:.2f} sets per second of stamp time")
+
+            expected_force = sum(plateau) * 1000.0 * TAXEL_AREA_M2
+            expected_x = sum(p * c[0] for p, c in zip(plateau, TAXEL_CENTRES_M)) / sum(plateau)
+            expected_y = sum(p * c[1] for p, c in zip(plateau, TAXEL_CENTRES_M)) / sum(plateau)
+            wrench_sequences = []
+            wrench_bad = []
+            for payload, attachment, _ in by_topic[wrench_key]:
+                sequence, _, _ = struct.unpack_from("<qqB", attachment)
+                wrench_sequences.append(sequence)
+                if sequence / 100.0 < STEADY_FROM_S:
+                    continue
+                message = TYPESTORE.deserialize_cdr(payload, "geometry_msgs/msg/WrenchStamped")
+                force = -message.wrench.force.z
+                x = message.wrench.torque.y / force
+                y = -message.wrench.torque.x / force
+                if abs(force - expected_force) > FORCE_TOLERANCE_N or abs(x - expected_x) > CENTRE_TOLERANCE_M or abs(y - expected_y) > CENTRE_TOLERANCE_M:
+                    wrench_bad.append(f"seq {sequence}: {force:.3f} N at ({x * 1e3:.2f}, {y * 1e3:.2f}) mm")
+            checks.check(wrench_sequences == sequences, f"{base}/wrench: the same sequence numbers as the pressures")
+            checks.check(not wrench_bad, f"{base}/wrench: {expected_force:.3f} N within {FORCE_TOLERANCE_N} N at ({expected_x * 1e3:.2f}, {expected_y * 1e3:.2f}) mm within {CENTRE_TOLERANCE_M * 1e3} mm ({wrench_bad[:3]})")
+
+            started_key = next((key for key in by_topic if key.startswith(base + "/contact_started/")), None)
+            events = by_topic.get(started_key, [])
+            if events:
+                header = TYPESTORE.deserialize_cdr(events[0][0], "std_msgs/msg/Header")
+                event_ns = header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
+                # The press starts at 1.5 s of scene time: contact comes between then and the plateau.
+                first_ns_at_zero = first_ns - first_sequence * 10_000_000
+                event_s = (event_ns - first_ns_at_zero) / 1e9
+                checks.check(len(events) == 1 and 1.4 <= event_s <= 2.7, f"{base}: one contact_started, at {event_s:.2f} s of scene time")
+            else:
+                checks.check(False, f"{base}: a contact_started event")
+
+    diagnostics_key = next((key for key in by_topic if key.startswith("0/diagnostics/")), None)
+    checks.check(diagnostics_key is not None, "diagnostics published")
+    if diagnostics_key is not None:
+        arrays = [TYPESTORE.deserialize_cdr(payload, "diagnostic_msgs/msg/DiagnosticArray") for payload, _, _ in by_topic[diagnostics_key]]
+        last = arrays[-2] if len(arrays) > 1 else arrays[-1]
+        names = [status.name for status in last.status]
+        checks.check(names == [f"taxel_bridge: device{device}" for device in range(args.devices)], f"one status per device ({names})")
+        for status in last.status:
+            values = {pair.key: pair.value for pair in status.values}
+            checks.check(values.get("frames dropped by the bridge (queue full)") == "0", f"{status.name}: nothing dropped by the bridge ({status.message})")
+            checks.check("calibration source" in values and "pad0 temperature source" in values, f"{status.name}: calibration and temperature source reported")
+
+    if args.report:
+        with open(args.report, "w") as report:
+            json.dump({"received": [[d, p, s, n] for d, p, s, n in latencies_ms], "seconds": args.seconds}, report)
+
+    print(f"{checks.passed} passed, {checks.failed} failed")
+    return 1 if checks.failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
