@@ -85,6 +85,10 @@ pub struct BridgeArgs {
     /// Write one line per published sample frame (device,pad,sequence,arrival_ns,published_ns).
     #[arg(long, value_name = "FILE")]
     pub timing_log: Option<PathBuf>,
+    /// Also write every published message to this MCAP file (ROS 2 schemas; Foxglove and
+    /// `ros2 bag` open it).
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
     /// How long to wait for each reply from a device, ms.
     #[arg(long, value_name = "MS", default_value_t = 2000)]
     pub timeout_ms: u64,
@@ -199,7 +203,13 @@ fn bridge_ports(
         naming.domain_id,
         session.zid()
     );
-    let mut publisher = RosPublisher::new(session, naming)?;
+    let recorder = match &args.mcap {
+        Some(path) => Some(taxel_ros2::McapRecorder::new(std::io::BufWriter::new(
+            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
+        ))?),
+        None => None,
+    };
+    let mut publisher = RosPublisher::new(session, naming, recorder)?;
     let timing_log: Option<TimingLog> = match &args.timing_log {
         Some(path) => Some(Box::new(std::io::BufWriter::new(
             std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
@@ -255,6 +265,7 @@ fn bridge_ports(
         stop.store(true, Ordering::Relaxed);
         counts
     })?;
+    publisher.finish()?;
     for (device, health) in healths.iter().enumerate() {
         let health = lock(health);
         noteln!(

@@ -13,18 +13,20 @@
 //! the link is idle and packs a burst into few writes.
 
 use std::collections::HashMap;
+use std::fs::File;
 use std::hash::{DefaultHasher, Hash, Hasher};
-use std::io::Write;
+use std::io::{BufWriter, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use model_core::PadGeometry;
+use taxel_ros2::mcap_file::TopicId;
 use taxel_ros2::types::{
     DIAGNOSTIC_ARRAY_MESSAGE, HEADER_MESSAGE, POINT_CLOUD2_MESSAGE, WRENCH_STAMPED_MESSAGE,
 };
-use taxel_ros2::{DiagnosticArray, Header, MessageType, RosMessage, Time};
+use taxel_ros2::{DiagnosticArray, Header, McapRecorder, MessageType, RosMessage, Time};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
@@ -62,22 +64,41 @@ impl Default for Naming {
     }
 }
 
-/// One topic's Zenoh publisher and liveliness token.
+/// The MCAP file `--mcap` writes the published messages to.
+pub type Recorder = McapRecorder<BufWriter<File>>;
+
+/// One topic's Zenoh publisher and liveliness token (and its channel in the MCAP file).
 struct TopicPublisher {
     publisher: Publisher<'static>,
     _token: LivelinessToken,
     gid: [u8; 16],
     sequence: i64,
+    recorded_as: Option<TopicId>,
 }
 
 impl TopicPublisher {
-    fn put(&mut self, sequence: Option<i64>, stamp_ns: u64, cdr: Vec<u8>) -> zenoh::Result<()> {
+    /// Puts one message: the publication's `sequence` (the next of this topic's own when
+    /// `None`), stamped `stamp_ns`, received at `log_ns` (for the MCAP file).
+    fn put(
+        &mut self,
+        recorder: &mut Option<Recorder>,
+        sequence: Option<i64>,
+        stamp_ns: u64,
+        log_ns: u64,
+        cdr: Vec<u8>,
+    ) -> anyhow::Result<()> {
         self.sequence = sequence.unwrap_or(self.sequence + 1);
         let stamp = i64::try_from(stamp_ns).unwrap_or(i64::MAX);
+        if let (Some(recorder), Some(topic)) = (recorder.as_mut(), self.recorded_as) {
+            // MCAP's sequence is 32 bits; the device's sequence numbers are too.
+            let sequence = u32::try_from(self.sequence & i64::from(u32::MAX)).unwrap_or(0);
+            recorder.write_cdr(topic, sequence, log_ns, stamp_ns, &cdr)?;
+        }
         self.publisher
             .put(cdr)
             .attachment(attachment(self.sequence, stamp, &self.gid).to_vec())
             .wait()
+            .map_err(zenoh_error)
     }
 }
 
@@ -111,6 +132,7 @@ pub struct RosPublisher {
     pads: HashMap<(usize, u8), PadPublishers>,
     diagnostics: Option<TopicPublisher>,
     geometry: PadGeometry,
+    recorder: Option<Recorder>,
 }
 
 fn zenoh_error(error: zenoh::Error) -> anyhow::Error {
@@ -118,8 +140,13 @@ fn zenoh_error(error: zenoh::Error) -> anyhow::Error {
 }
 
 impl RosPublisher {
-    /// Declares the node on `session`.
-    pub fn new(session: Session, naming: Naming) -> anyhow::Result<Self> {
+    /// Declares the node on `session`; with a `recorder`, every published message is also
+    /// written to it.
+    pub fn new(
+        session: Session,
+        naming: Naming,
+        recorder: Option<Recorder>,
+    ) -> anyhow::Result<Self> {
         let node = GraphNode {
             domain_id: naming.domain_id,
             session_id: session.zid().to_string(),
@@ -140,13 +167,14 @@ impl RosPublisher {
             pads: HashMap::new(),
             diagnostics: None,
             geometry: PadGeometry::ARTICLE,
+            recorder,
         })
     }
 
     fn declare(
         &mut self,
         topic: &str,
-        message_type: &MessageType,
+        message_type: &'static MessageType,
     ) -> anyhow::Result<TopicPublisher> {
         let entity_id = self.next_entity_id;
         self.next_entity_id += 1;
@@ -174,11 +202,16 @@ impl RosPublisher {
         let mut gid = [0u8; 16];
         gid[..8].copy_from_slice(&low.to_le_bytes());
         gid[8..].copy_from_slice(&high.to_le_bytes());
+        let recorded_as = match self.recorder.as_mut() {
+            Some(recorder) => Some(recorder.add_topic(topic, message_type)?),
+            None => None,
+        };
         Ok(TopicPublisher {
             publisher,
             _token: token,
             gid,
             sequence: 0,
+            recorded_as,
         })
     }
 
@@ -206,38 +239,44 @@ impl RosPublisher {
 
     /// Publishes one frame from a reader.
     pub fn publish(&mut self, outgoing: &Outgoing) -> anyhow::Result<()> {
+        let (device, pad) = match outgoing {
+            Outgoing::Sample { device, sample, .. } => (*device, sample.pad.get()),
+            Outgoing::Contact { device, pad, .. } => (*device, *pad),
+        };
+        self.pad(device, pad)?;
+        let Self {
+            pads,
+            recorder,
+            geometry,
+            ..
+        } = self;
+        let publishers = pads
+            .get_mut(&(device, pad))
+            .ok_or_else(|| anyhow::anyhow!("pad publishers missing"))?;
         match outgoing {
             Outgoing::Sample {
-                device,
                 sample,
                 stamp_ns,
+                arrival_ns,
                 ..
             } => {
-                let geometry = self.geometry;
-                let publishers = self.pad(*device, sample.pad.get())?;
                 let header = Header {
                     stamp: Time::from_unix_ns(*stamp_ns),
                     frame_id: publishers.topics.frame_id.clone(),
                 };
                 let sequence = Some(i64::from(sample.sequence));
-                let cloud = pressure_cloud(sample, header.clone(), &geometry).to_cdr();
+                let cloud = pressure_cloud(sample, header.clone(), geometry).to_cdr();
                 publishers
                     .pressure
-                    .put(sequence, *stamp_ns, cloud)
-                    .map_err(zenoh_error)?;
+                    .put(recorder, sequence, *stamp_ns, *arrival_ns, cloud)?;
                 let wrench = pad_wrench(sample, header).to_cdr();
                 publishers
                     .wrench
-                    .put(sequence, *stamp_ns, wrench)
-                    .map_err(zenoh_error)
+                    .put(recorder, sequence, *stamp_ns, *arrival_ns, wrench)
             }
             Outgoing::Contact {
-                device,
-                pad,
-                started,
-                stamp_ns,
+                started, stamp_ns, ..
             } => {
-                let publishers = self.pad(*device, *pad)?;
                 let header = Header {
                     stamp: Time::from_unix_ns(*stamp_ns),
                     frame_id: publishers.topics.frame_id.clone(),
@@ -247,9 +286,7 @@ impl RosPublisher {
                 } else {
                     &mut publishers.contact_ended
                 };
-                publisher
-                    .put(None, *stamp_ns, header.to_cdr())
-                    .map_err(zenoh_error)
+                publisher.put(recorder, None, *stamp_ns, unix_now_ns(), header.to_cdr())
             }
         }
     }
@@ -276,11 +313,19 @@ impl RosPublisher {
                 .collect(),
         };
         match self.diagnostics.as_mut() {
-            Some(publisher) => publisher
-                .put(None, stamp_ns, array.to_cdr())
-                .map_err(zenoh_error),
+            Some(publisher) => {
+                publisher.put(&mut self.recorder, None, stamp_ns, stamp_ns, array.to_cdr())
+            }
             None => Ok(()),
         }
+    }
+
+    /// Completes the MCAP file, if there is one.
+    pub fn finish(self) -> anyhow::Result<()> {
+        if let Some(recorder) = self.recorder {
+            recorder.finish()?.flush()?;
+        }
+        Ok(())
     }
 }
 

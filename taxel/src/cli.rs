@@ -1,8 +1,10 @@
 //! The command line: one subcommand per job, each with its own arguments and `run` function.
 
+use std::ffi::OsString;
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use anyhow::Context;
+use clap::{Args, Parser, Subcommand};
 
 use crate::{calibrate, calibration_transfer, convert, list, plot, record, sim, view};
 
@@ -53,6 +55,45 @@ pub enum Commands {
     /// Live terminal view of the pad (heat map, flags, temperature, rates).
     #[command(long_about = view::LONG_ABOUT)]
     View(view::ViewArgs),
+    /// Publish the pads into Zenoh, ROS 2 compatible (runs the taxel-bridge program; see
+    /// `taxel bridge --help`).
+    #[command(disable_help_flag = true)]
+    Bridge(BridgeForward),
+}
+
+/// `taxel bridge ARGS…`: ARGS go to the `taxel-bridge` program unchanged. The bridge is its own
+/// program so that this tool does not carry the Zenoh dependency.
+#[derive(Debug, Clone, Args)]
+pub struct BridgeForward {
+    /// The arguments of `taxel-bridge`.
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, num_args = 0..)]
+    pub args: Vec<OsString>,
+}
+
+/// The name of the bridge program.
+const BRIDGE_PROGRAM: &str = "taxel-bridge";
+
+/// Runs `taxel-bridge` with `forward`'s arguments: the one beside this program if there is one
+/// (as `cargo build` and `cargo install` place them), else the first on the PATH.
+fn run_bridge(forward: &BridgeForward) -> anyhow::Result<ExitCode> {
+    let beside = std::env::current_exe()
+        .ok()
+        .and_then(|exe| exe.parent().map(|dir| dir.join(BRIDGE_PROGRAM)))
+        .filter(|path| path.is_file());
+    let program = beside.map_or_else(|| OsString::from(BRIDGE_PROGRAM), OsString::from);
+    let status = std::process::Command::new(&program)
+        .args(&forward.args)
+        .status()
+        .with_context(|| {
+            format!(
+                "running {}: build it with `cargo build --release -p taxel-bridge` (or install it on the PATH)",
+                program.to_string_lossy()
+            )
+        })?;
+    Ok(match status.code() {
+        Some(code) => ExitCode::from(u8::try_from(code).unwrap_or(1)),
+        None => ExitCode::FAILURE,
+    })
 }
 
 /// Runs a parsed command line; the exit code is the command's (errors are the caller's to
@@ -68,6 +109,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<ExitCode> {
         Commands::List(args) => list::run(args),
         Commands::Record(args) => record::run(args),
         Commands::View(args) => view::run(args),
+        Commands::Bridge(forward) => run_bridge(forward),
     }
 }
 
@@ -79,5 +121,14 @@ mod tests {
     #[test]
     fn command_line_definition_is_consistent() {
         Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn bridge_arguments_are_passed_on_unchanged() {
+        let cli = Cli::try_parse_from(["taxel", "bridge", "--sim", "2", "--help"]).unwrap();
+        let Commands::Bridge(forward) = cli.command else {
+            panic!("not the bridge");
+        };
+        assert_eq!(forward.args, ["--sim", "2", "--help"]);
     }
 }

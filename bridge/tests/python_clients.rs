@@ -1,0 +1,85 @@
+//! The bridge checked by clients we did not write: Python's eclipse-zenoh subscribing and
+//! rosbags decoding (bridge/tests/python/subscribe_bridge.py), and the Python MCAP readers
+//! (bridge/tests/python/read_mcap.py), each against `taxel-bridge --sim 2` playing
+//! bridge/tests/python/plateau.toml.
+//!
+//! The Python interpreter is `$TAXEL_PYTHON`, a virtual environment with the packages of
+//! bridge/tests/python/requirements.txt (`.ci/run` makes it). Without it the tests say so and
+//! pass, except under CI (`CI=true`), where they fail.
+
+// Test helpers may unwrap and panic: a failure is the test failing.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn python() -> Option<String> {
+    match std::env::var("TAXEL_PYTHON") {
+        Ok(python) if !python.is_empty() => Some(python),
+        _ => {
+            assert!(
+                std::env::var("CI").as_deref() != Ok("true"),
+                "CI needs TAXEL_PYTHON: the Python clients' tests would not run"
+            );
+            eprintln!("TAXEL_PYTHON is not set: the Python clients' test is skipped");
+            None
+        }
+    }
+}
+
+fn script(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/python")
+        .join(name)
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn run_script(python: &str, name: &str, extra: &[String]) {
+    let output = Command::new(python)
+        .arg(script(name))
+        .arg("--bridge")
+        .arg(env!("CARGO_BIN_EXE_taxel-bridge"))
+        .arg("--scene")
+        .arg(script("plateau.toml"))
+        .args(extra)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let failures: Vec<&str> = stdout
+        .lines()
+        .filter(|line| line.starts_with("FAILED") || line.contains(" passed, "))
+        .collect();
+    assert!(
+        output.status.success(),
+        "{name} failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    eprintln!("{name}: {}", failures.join("; "));
+}
+
+#[test]
+fn a_python_zenoh_subscriber_decodes_what_the_scene_says() {
+    let Some(python) = python() else {
+        return;
+    };
+    run_script(
+        &python,
+        "subscribe_bridge.py",
+        &["--port".to_owned(), free_port().to_string()],
+    );
+}
+
+#[test]
+fn the_python_mcap_readers_decode_every_message() {
+    let Some(python) = python() else {
+        return;
+    };
+    run_script(&python, "read_mcap.py", &[]);
+}
