@@ -348,3 +348,92 @@ pub fn lock(health: &Mutex<DeviceHealth>) -> std::sync::MutexGuard<'_, DeviceHea
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::mpsc::sync_channel;
+    use wire::{PadSummary, TaxelSample, TemperatureSource};
+
+    fn frame(sequence: u32, timestamp_us: u64) -> SampleFrame {
+        SampleFrame {
+            pad: PadIndex::default(),
+            sequence,
+            timestamp_us,
+            temperature_c: None,
+            temperature_source: TemperatureSource::None,
+            taxels: [TaxelSample {
+                pressure_kpa: Some(0.0),
+                capacitance_pf: 4.5,
+                flags: 0,
+            }; 4],
+            summary: PadSummary::default(),
+        }
+    }
+
+    #[test]
+    fn frames_wait_for_the_clock_and_are_never_stamped_after_their_arrival() {
+        let clock = BridgeClock::new();
+        let (sender, receiver) = sync_channel(10_000);
+        let mut stamper = Stamper::new(0, &clock, sender);
+        let mut health = DeviceHealth::default();
+        // The device clock runs 7 s ahead; frames arrive 0.1 to 2.1 ms after they are taken
+        // (the smallest latency below the mapper's assumed bound).
+        for step in 0..300_u64 {
+            let true_us = 1_000_000 + step * 10_000;
+            let arrival_us = true_us + 100 + (step * 7919) % 2_000;
+            assert!(stamper.sample(
+                frame(step as u32, true_us + 7_000_000),
+                arrival_us,
+                &mut health
+            ));
+            if step == 10 {
+                assert!(
+                    receiver.try_recv().is_err(),
+                    "no estimate yet: the frames wait"
+                );
+            }
+        }
+        let out: Vec<Outgoing> = receiver.try_iter().collect();
+        assert_eq!(out.len(), 300 - stamper.waiting.len());
+        assert!(out.len() > 100);
+        for (index, outgoing) in out.iter().enumerate() {
+            let Outgoing::Sample {
+                sample,
+                stamp_ns,
+                arrival_ns,
+                ..
+            } = outgoing
+            else {
+                panic!("not a sample");
+            };
+            assert_eq!(sample.sequence, index as u32);
+            assert!(stamp_ns <= arrival_ns);
+            let true_ns = clock.unix_ns(1_000_000 + u64::from(sample.sequence) * 10_000);
+            // Early by at most the mapper's latency bound and fit error, never late.
+            let early_ns = true_ns as i64 - *stamp_ns as i64;
+            assert!((0..3_000_000).contains(&early_ns), "{index}: {early_ns} ns");
+        }
+        assert_eq!(health.queue_dropped, 0);
+    }
+
+    #[test]
+    fn a_full_queue_drops_and_counts_without_waiting() {
+        let clock = BridgeClock::new();
+        let (sender, receiver) = sync_channel(5);
+        let mut stamper = Stamper::new(0, &clock, sender);
+        let mut health = DeviceHealth::default();
+        for step in 0..300_u64 {
+            let true_us = step * 10_000;
+            assert!(stamper.sample(frame(step as u32, true_us), true_us + 500, &mut health));
+        }
+        assert_eq!(receiver.try_iter().count(), 5);
+        assert_eq!(health.queued, 5);
+        assert_eq!(
+            health.queue_dropped + health.queued + stamper.waiting.len() as u64,
+            300
+        );
+        drop(receiver);
+        assert!(!stamper.sample(frame(300, 3_000_000), 3_000_500, &mut health));
+    }
+}
