@@ -96,7 +96,7 @@ def main():
 
     command = [
         args.bridge, "--sim", str(args.devices), "--sim-scene", args.scene,
-        "--connect", f"tcp/127.0.0.1:{args.port}", "--no-multicast-scouting",
+        "--connect", f"tcp/127.0.0.1:{args.port}", "--listen", "tcp/127.0.0.1:0", "--no-multicast-scouting",
         "--duration", str(args.seconds),
     ]
     if args.timing_log:
