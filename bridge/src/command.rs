@@ -18,7 +18,8 @@ use taxel::sim::SimulatorThread;
 use zenoh::Wait;
 
 use crate::device_reader::{lock, read_device, BridgeClock, DeviceHealth, ReaderState};
-use crate::publisher::{publish_loop, Naming, RosPublisher, TimingLog};
+use crate::plain::PlainPublisher;
+use crate::publisher::{publish_loop, FramePublisher, Naming, RosPublisher, TimingLog};
 
 /// Long help of `taxel bridge`.
 pub const LONG_ABOUT: &str = "Publish the pads of one or more devices into Zenoh, in the form \
@@ -31,6 +32,16 @@ on /diagnostics (diagnostic_msgs/msg/DiagnosticArray). Stamps are the device tim
 host clock; the attachment's sequence number is the device's. See docs/BRIDGE.md.\n\n\
 Examples:\n  taxel bridge --sim 2\n  taxel bridge /dev/ttyACM0 --connect tcp/localhost:7447\n  \
 taxel bridge --serial 0123ABCD --domain-id 3";
+
+/// What the bridge publishes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Mode {
+    /// rmw_zenoh's form: standard ROS 2 messages in CDR, type-hashed key expressions, liveliness
+    /// tokens.
+    Ros2,
+    /// Fixed little-endian records on `<namespace>/device<d>/pad<p>/sample` (docs/BRIDGE.md).
+    Plain,
+}
 
 /// Arguments of `taxel bridge`.
 #[derive(Debug, Clone, Parser)]
@@ -48,6 +59,9 @@ pub struct BridgeArgs {
     /// Pads on each simulated device (default: as many as the scene describes).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=8), requires = "sim")]
     pub sim_pads: Option<u8>,
+    /// What to publish: ROS 2 messages as rmw_zenoh does (the default), or plain records.
+    #[arg(long, value_enum, default_value_t = Mode::Ros2)]
+    pub mode: Mode,
     /// ROS_DOMAIN_ID: the first chunk of every key expression (default: $ROS_DOMAIN_ID, else 0).
     #[arg(long, value_name = "ID", env = "ROS_DOMAIN_ID", default_value_t = 0)]
     pub domain_id: u32,
@@ -203,13 +217,22 @@ fn bridge_ports(
         naming.domain_id,
         session.zid()
     );
+    anyhow::ensure!(
+        args.mcap.is_none() || args.mode == Mode::Ros2,
+        "--mcap records the ROS 2 messages: it needs --mode ros2"
+    );
     let recorder = match &args.mcap {
         Some(path) => Some(taxel_ros2::McapRecorder::new(std::io::BufWriter::new(
             std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
         ))?),
         None => None,
     };
-    let mut publisher = RosPublisher::new(session, naming, recorder)?;
+    let mut ros = None;
+    let mut plain = None;
+    let publisher: &mut dyn FramePublisher = match args.mode {
+        Mode::Ros2 => ros.insert(RosPublisher::new(session, naming, recorder)?),
+        Mode::Plain => plain.insert(PlainPublisher::new(session, &args.namespace)),
+    };
     let timing_log: Option<TimingLog> = match &args.timing_log {
         Some(path) => Some(Box::new(std::io::BufWriter::new(
             std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
@@ -255,7 +278,7 @@ fn bridge_ports(
             });
         }
         let counts = publish_loop(
-            &mut publisher,
+            publisher,
             &receiver,
             &healths,
             stop,
@@ -265,7 +288,9 @@ fn bridge_ports(
         stop.store(true, Ordering::Relaxed);
         counts
     })?;
-    publisher.finish()?;
+    if let Some(ros) = ros {
+        ros.finish()?;
+    }
     for (device, health) in healths.iter().enumerate() {
         let health = lock(health);
         noteln!(

@@ -6,7 +6,8 @@
 //!   queueing them without ever blocking;
 //! - [`pad_messages`], [`health`]: frames and device state as ROS 2 messages;
 //! - [`names`]: rmw_zenoh's key expressions, liveliness tokens and attachment;
-//! - [`publisher`]: the Zenoh session and the publishing loop;
+//! - [`publisher`]: the Zenoh session and the publishing loop in the ROS 2 form;
+//! - [`plain`]: the plain mode, for Zenoh users without ROS;
 //! - [`command`]: the command line and the run.
 #![deny(missing_docs)]
 #![deny(clippy::print_stdout, clippy::print_stderr)]
@@ -16,4 +17,5 @@ pub mod device_reader;
 pub mod health;
 pub mod names;
 pub mod pad_messages;
+pub mod plain;
 pub mod publisher;

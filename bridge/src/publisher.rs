@@ -122,6 +122,15 @@ pub struct PublishCounts {
     pub diagnostics: u64,
 }
 
+/// Where the publishing loop puts frames and health: the ROS 2 form ([`RosPublisher`]) or the
+/// plain one ([`crate::plain::PlainPublisher`]).
+pub trait FramePublisher {
+    /// Publishes one frame from a reader.
+    fn publish(&mut self, outgoing: &Outgoing) -> anyhow::Result<()>;
+    /// Publishes every device's health, stamped `stamp_ns` (ns since the Unix epoch).
+    fn publish_health(&mut self, healths: &[DeviceHealth], stamp_ns: u64) -> anyhow::Result<()>;
+}
+
 /// The session with the node's token, and the publishers declared so far.
 pub struct RosPublisher {
     session: Session,
@@ -237,8 +246,17 @@ impl RosPublisher {
             .ok_or_else(|| anyhow::anyhow!("pad publishers missing"))
     }
 
-    /// Publishes one frame from a reader.
-    pub fn publish(&mut self, outgoing: &Outgoing) -> anyhow::Result<()> {
+    /// Completes the MCAP file, if there is one.
+    pub fn finish(self) -> anyhow::Result<()> {
+        if let Some(recorder) = self.recorder {
+            recorder.finish()?.flush()?;
+        }
+        Ok(())
+    }
+}
+
+impl FramePublisher for RosPublisher {
+    fn publish(&mut self, outgoing: &Outgoing) -> anyhow::Result<()> {
         let (device, pad) = match outgoing {
             Outgoing::Sample { device, sample, .. } => (*device, sample.pad.get()),
             Outgoing::Contact { device, pad, .. } => (*device, *pad),
@@ -291,12 +309,8 @@ impl RosPublisher {
         }
     }
 
-    /// Publishes every device's health as one diagnostic array stamped `stamp_ns`.
-    pub fn publish_health(
-        &mut self,
-        healths: &[DeviceHealth],
-        stamp_ns: u64,
-    ) -> anyhow::Result<()> {
+    /// Every device's health as one diagnostic array.
+    fn publish_health(&mut self, healths: &[DeviceHealth], stamp_ns: u64) -> anyhow::Result<()> {
         if self.diagnostics.is_none() {
             let topic = self.naming.diagnostics_topic.clone();
             self.diagnostics = Some(self.declare(&topic, &DIAGNOSTIC_ARRAY_MESSAGE)?);
@@ -319,21 +333,13 @@ impl RosPublisher {
             None => Ok(()),
         }
     }
-
-    /// Completes the MCAP file, if there is one.
-    pub fn finish(self) -> anyhow::Result<()> {
-        if let Some(recorder) = self.recorder {
-            recorder.finish()?.flush()?;
-        }
-        Ok(())
-    }
 }
 
 /// Where `--timing-log` writes one line per published sample frame: device, pad, sequence,
 /// arrival and publication (ns since the Unix epoch), for the latency table.
 pub type TimingLog = Box<dyn Write + Send>;
 
-fn unix_now_ns() -> u64 {
+pub(crate) fn unix_now_ns() -> u64 {
     std::time::SystemTime::now()
         .duration_since(std::time::SystemTime::UNIX_EPOCH)
         .map_or(0, |since| {
@@ -344,7 +350,7 @@ fn unix_now_ns() -> u64 {
 /// Publishes what the readers send until every reader is gone or `stop` is set, and the
 /// devices' health every `health_period`.
 pub fn publish_loop(
-    publisher: &mut RosPublisher,
+    publisher: &mut dyn FramePublisher,
     receiver: &Receiver<Outgoing>,
     healths: &[Arc<Mutex<DeviceHealth>>],
     stop: &AtomicBool,

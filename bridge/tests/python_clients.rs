@@ -1,6 +1,7 @@
 //! The bridge checked by clients we did not write: Python's eclipse-zenoh subscribing and
 //! rosbags decoding (bridge/tests/python/subscribe_bridge.py), and the Python MCAP readers
-//! (bridge/tests/python/read_mcap.py), each against `taxel-bridge --sim 2` playing
+//! (bridge/tests/python/read_mcap.py), and a plain-mode subscriber with nothing but `struct`
+//! (bridge/tests/python/subscribe_plain.py), each against `taxel-bridge --sim` playing
 //! bridge/tests/python/plateau.toml.
 //!
 //! The Python interpreter is `$TAXEL_PYTHON`, a virtual environment with the packages of
@@ -82,4 +83,16 @@ fn the_python_mcap_readers_decode_every_message() {
         return;
     };
     run_script(&python, "read_mcap.py", &[]);
+}
+
+#[test]
+fn a_plain_zenoh_subscriber_reads_the_documented_records() {
+    let Some(python) = python() else {
+        return;
+    };
+    run_script(
+        &python,
+        "subscribe_plain.py",
+        &["--port".to_owned(), free_port().to_string()],
+    );
 }
