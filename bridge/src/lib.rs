@@ -4,7 +4,8 @@
 //!
 //! - [`device_reader`]: one thread per device, stamping frames with the mapped device time and
 //!   queueing them without ever blocking;
-//! - [`pad_messages`], [`health`]: frames and device state as ROS 2 messages;
+//! - [`health`]: a device's state as a ROS 2 diagnostic status (a pad's frames become messages
+//!   in `taxel_ros2::pad_messages`);
 //! - [`names`]: rmw_zenoh's key expressions, liveliness tokens and attachment;
 //! - [`publisher`]: the Zenoh session and the publishing loop in the ROS 2 form;
 //! - [`plain`]: the plain mode, for Zenoh users without ROS;
@@ -16,6 +17,5 @@ pub mod command;
 pub mod device_reader;
 pub mod health;
 pub mod names;
-pub mod pad_messages;
 pub mod plain;
 pub mod publisher;

@@ -23,6 +23,7 @@ use std::time::{Duration, Instant};
 
 use model_core::PadGeometry;
 use taxel_ros2::mcap_file::TopicId;
+use taxel_ros2::pad_messages::{pad_wrench, pressure_cloud, PadTopics};
 use taxel_ros2::types::{
     DIAGNOSTIC_ARRAY_MESSAGE, HEADER_MESSAGE, POINT_CLOUD2_MESSAGE, WRENCH_STAMPED_MESSAGE,
 };
@@ -35,7 +36,6 @@ use zenoh::{Session, Wait};
 use crate::device_reader::{lock, DeviceHealth, Outgoing};
 use crate::health::device_status;
 use crate::names::{attachment, data_key_expression, GraphNode};
-use crate::pad_messages::{pad_wrench, pressure_cloud, PadTopics};
 
 /// How the bridge names things.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -3,7 +3,8 @@
 //! hashes ([`type_hash`]), their message definitions, and an MCAP writer that stores them so
 //! Foxglove and the ROS 2 bag tools open the file ([`mcap_file`]).
 //!
-//! Light on purpose: no middleware here, so `taxel record --format mcap` can use the same
+//! [`pad_messages`] turns a pad's sample frame into those messages. Light on purpose: no
+//! middleware here, so `taxel record --format mcap` can use the same
 //! messages without the Zenoh dependency of the bridge. Which message carries what, and why
 //! these types, is in docs/BRIDGE.md.
 #![deny(missing_docs)]
@@ -11,6 +12,7 @@
 pub mod cdr;
 pub mod mcap_file;
 pub mod messages;
+pub mod pad_messages;
 pub mod type_hash;
 pub mod types;
 

@@ -1,5 +1,6 @@
-//! One sample frame of a pad as the bridge's ROS 2 messages, and the topics and frame id of
-//! each pad (docs/BRIDGE.md says why these types).
+//! One sample frame of a pad as ROS 2 messages, as the bridge publishes them and an MCAP
+//! recording stores them, and the topics and frame id of each pad (docs/BRIDGE.md says why
+//! these types).
 //!
 //! - pressures: `sensor_msgs/msg/PointCloud2`, one point per taxel (C11, C12, C21, C22) at the
 //!   electrode's centre in the pad's frame (m, z = 0), with `pressure` (Pa, NaN when the taxel
@@ -8,8 +9,10 @@
 //!   the pad frame's origin: the normal force `F` pushes along −z at the centre of pressure
 //!   `(x, y)`, so force = (0, 0, −F) N and torque = (x, y, 0) × force = (−yF, xF, 0) N·m.
 
+use crate::messages::{
+    Header, PointCloud2, PointField, PointFieldType, Vector3, Wrench, WrenchStamped,
+};
 use model_core::PadGeometry;
-use taxel_ros2::{Header, PointCloud2, PointField, PointFieldType, Vector3, Wrench, WrenchStamped};
 use wire::SampleFrame;
 
 /// Bytes per point: x, y, z, pressure (float32) and flags (uint32).
