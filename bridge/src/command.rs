@@ -308,3 +308,18 @@ fn bridge_ports(
     );
     Ok(ExitCode::SUCCESS)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn command_line_definition_is_consistent() {
+        BridgeArgs::command().debug_assert();
+        let args = BridgeArgs::try_parse_from(["taxel-bridge", "--sim", "2"]).unwrap();
+        assert_eq!(args.sim, Some(2));
+        assert_eq!(args.mode, Mode::Ros2);
+        assert!(BridgeArgs::try_parse_from(["taxel-bridge", "/dev/x", "--sim", "2"]).is_err());
+    }
+}
