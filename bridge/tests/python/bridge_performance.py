@@ -13,6 +13,7 @@ estimate (docs/BRIDGE.md, Timestamps).
 """
 
 import argparse
+import importlib.metadata
 import json
 import os
 import platform
@@ -43,6 +44,7 @@ def main():
     parser.add_argument("--output", default=os.path.join(os.path.dirname(__file__), "..", "..", "PERFORMANCE.md"))
     args = parser.parse_args()
 
+    load_before = os.getloadavg()[0]
     received = {}
     lock = threading.Lock()
 
@@ -122,12 +124,12 @@ Two simulated devices of four pads each (`taxel sim --scene bridge/tests/python/
 separate processes), bridged by `taxel-bridge` (release build) to a Python eclipse-zenoh
 subscriber of every pressure topic, on loopback TCP, for {args.seconds:.0f} s. Host: {platform.machine()},
 {os.cpu_count()} cores shared with the simulators and the subscriber, Python {platform.python_version()},
-eclipse-zenoh {zenoh.__version__ if hasattr(zenoh, '__version__') else ''}.
+eclipse-zenoh {importlib.metadata.version("eclipse-zenoh")}; load average {load_before:.1f} when it started.
 
 | measure | value |
 |---|---|
 | pads | {pads} |
-| sample sets per second per pad (device time) | {rate:.1f} |
+| sample sets per second per pad (host arrivals) | {rate:.1f} |
 | frames taken from the devices | {len(published)} |
 | sequence gaps in what the devices sent | {gaps} |
 | frames lost between the bridge and the subscriber | {len(lost)} |
