@@ -186,17 +186,15 @@ impl<'a> Stamper<'a> {
         self.release(health)
     }
 
-    /// Takes a contact event of `pad` at device time `device_us`, arrived at `arrival_us`.
+    /// Takes a contact event of `pad` at device time `device_us`. Events do not feed the clock
+    /// mapping: it is made of the sample frames, which leave the device as they are taken.
     pub fn contact(
         &mut self,
         pad: u8,
         started: bool,
         device_us: u64,
-        arrival_us: u64,
         health: &mut DeviceHealth,
     ) -> bool {
-        // Events do not feed the mapper: only sample frames leave the device promptly.
-        let _ = arrival_us;
         self.hold(Waiting::Contact(pad, started, device_us), health);
         self.release(health)
     }
@@ -296,13 +294,7 @@ pub fn read_device<P: Read + Write>(
             Ok(Some(DeviceFrame::Event(event))) => match event.event {
                 DeviceEvent::ContactStarted { pad } | DeviceEvent::ContactEnded { pad } => {
                     let started = matches!(event.event, DeviceEvent::ContactStarted { .. });
-                    stamper.contact(
-                        pad.get(),
-                        started,
-                        event.timestamp_us,
-                        clock.now_us(),
-                        &mut local,
-                    )
+                    stamper.contact(pad.get(), started, event.timestamp_us, &mut local)
                 }
                 _ => true,
             },
