@@ -2,7 +2,8 @@
 //! rosbags decoding (bridge/tests/python/subscribe_bridge.py), and the Python MCAP readers
 //! (bridge/tests/python/read_mcap.py), and a plain-mode subscriber with nothing but `struct`
 //! (bridge/tests/python/subscribe_plain.py), each against `taxel-bridge --sim` playing
-//! bridge/tests/python/plateau.toml.
+//! bridge/tests/python/plateau.toml; and the Python MCAP readers again on what
+//! `taxel record --format mcap` wrote of a simulated device playing the same scene.
 //!
 //! The Python interpreter is `$TAXEL_PYTHON`, a virtual environment with the packages of
 //! bridge/tests/python/requirements.txt (`.ci/run` makes it). Without it the tests say so and
@@ -83,6 +84,55 @@ fn the_python_mcap_readers_decode_every_message() {
         return;
     };
     run_script(&python, "read_mcap.py", &[]);
+}
+
+#[test]
+fn the_python_mcap_readers_decode_a_taxel_record_mcap_file() {
+    let Some(python) = python() else {
+        return;
+    };
+    let directory = tempfile::tempdir().unwrap();
+    let scene_text = std::fs::read_to_string(script("plateau.toml")).unwrap();
+    let scene = sim_device::SceneFile::parse(&scene_text).unwrap();
+    let simulator = taxel::sim::SimulatorThread::start(
+        sim_device::SimulatedDeviceConfig {
+            topology: sim_device::pads_topology(scene.pads.len()),
+            scene,
+            seed: 3,
+            speed: Some(2.0),
+            bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
+        },
+        Some(60.0),
+    )
+    .unwrap();
+    let recording = directory.path().join("rec.mcap");
+    let port = simulator.path().display().to_string();
+    let recording_arg = recording.display().to_string();
+    let cli = <taxel::cli::Cli as clap::Parser>::try_parse_from([
+        "taxel",
+        "record",
+        port.as_str(),
+        "--format",
+        "mcap",
+        "--samples",
+        "700",
+        "-o",
+        recording_arg.as_str(),
+    ])
+    .unwrap();
+    let result = taxel::cli::run(&cli);
+    simulator.stop();
+    assert!(result.is_ok(), "{result:?}");
+    run_script(
+        &python,
+        "read_mcap.py",
+        &[
+            "--file".to_owned(),
+            recording_arg,
+            "--devices".to_owned(),
+            "1".to_owned(),
+        ],
+    );
 }
 
 #[test]

@@ -26,6 +26,7 @@ pub mod frame_receiver;
 pub mod host_timeline;
 pub mod layout;
 pub mod list;
+pub mod mcap_record;
 pub mod multi_record;
 pub mod output_file;
 pub mod pad_set;

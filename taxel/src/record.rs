@@ -30,7 +30,8 @@ pub use crate::stream_accounting::sequence_gap;
 
 /// The long help of the subcommand.
 pub const LONG_ABOUT: &str = "Record the device's samples to a CSV file, a raw byte log and \
-the device's state.\n\n\
+the device's state (or, with --format mcap, to an MCAP file of the ROS 2 messages `taxel bridge` \
+publishes: see docs/BRIDGE.md).\n\n\
 The CSV has the columns seq,time_s,temp_c,temp_source,c11_pf..c22_pf,p11_kpa..p22_kpa,\
 flags11..flags22,marker (RFC 4180, '.' decimal separator; empty pressure = faulted taxel; flags = \
 documented names joined by '|'). The raw log (FILE.raw) holds every byte received, for `taxel \
@@ -96,6 +97,19 @@ pub struct RecordArgs {
     /// How long to wait for each reply from the device, ms.
     #[arg(long, value_name = "MS", default_value_t = 2000)]
     pub timeout_ms: u64,
+    /// What to write: CSV with a raw log and the device's state, or MCAP of the ROS 2 messages
+    /// `taxel bridge` publishes (one device; no raw log).
+    #[arg(long, value_enum, default_value_t = RecordFormat::Csv)]
+    pub format: RecordFormat,
+}
+
+/// The file format of `taxel record`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RecordFormat {
+    /// RFC 4180 CSV, a raw byte log and the device state (re-processed by `taxel convert`).
+    Csv,
+    /// MCAP of ROS 2 messages (Foxglove, `ros2 bag`; see docs/BRIDGE.md for the topics).
+    Mcap,
 }
 
 /// Why a recording ended.
@@ -229,6 +243,7 @@ fn record_until_stopped<P: Read + Write, S: SampleSink + ?Sized>(
             }
             Ok(Some(DeviceFrame::Event(event))) => {
                 status(&event_words(&event));
+                sink.device_event(&event)?;
                 if let Err(error) = baselines.on_event(link, &event, baseline_timeout) {
                     status(&format!(
                         "warning: the device's new baselines could not be read ({}); `convert` will not reproduce the pressures after this point",
@@ -321,6 +336,15 @@ pub fn stop_stream<P: Read + Write>(
     }
 }
 
+/// Why a recording ended, for the closing line.
+pub fn stop_words(stop_reason: &StopReason) -> String {
+    match stop_reason {
+        StopReason::Interrupted => "stopped by Ctrl-C".to_owned(),
+        StopReason::SampleLimit => "sample limit reached".to_owned(),
+        StopReason::Disconnected(message) => format!("device disconnected: {message}"),
+    }
+}
+
 /// Runs `taxel record`: one device as a single recording, several onto one host timeline.
 pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
     let ports = args.board.select_ports()?;
@@ -328,9 +352,13 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
     let handler_stop = Arc::clone(&stop);
     ctrlc::set_handler(move || handler_stop.store(true, Ordering::Relaxed))
         .context("installing the Ctrl-C handler")?;
-    match ports.as_slice() {
-        [port_path] => run_single(args, port_path, &stop),
-        _ => crate::multi_record::run(args, &ports, &stop),
+    match (ports.as_slice(), args.format) {
+        ([port_path], RecordFormat::Csv) => run_single(args, port_path, &stop),
+        ([port_path], RecordFormat::Mcap) => crate::mcap_record::run(args, port_path, &stop),
+        (_, RecordFormat::Csv) => crate::multi_record::run(args, &ports, &stop),
+        (_, RecordFormat::Mcap) => anyhow::bail!(
+            "--format mcap records one device; `taxel bridge PORT PORT... --mcap FILE` writes several"
+        ),
     }
 }
 
@@ -414,11 +442,7 @@ fn run_single(args: &RecordArgs, port_path: &str, stop: &AtomicBool) -> anyhow::
             "warning: {beyond} sample frames named a pad the device does not have (protocol violation); set aside"
         );
     }
-    let reason = match &stop_reason {
-        StopReason::Interrupted => "stopped by Ctrl-C".to_owned(),
-        StopReason::SampleLimit => "sample limit reached".to_owned(),
-        StopReason::Disconnected(message) => format!("device disconnected: {message}"),
-    };
+    let reason = stop_words(&stop_reason);
     noteln!(
         "{reason}; wrote {} ({} rows), {} and {}: {}; {} bytes, {} undecodable frames",
         files.csv.display(),

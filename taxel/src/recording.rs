@@ -120,6 +120,12 @@ pub trait SampleSink {
     fn baselines_changed(&mut self, pad: PadIndex, change: BaselineChange) {
         let _ = (pad, change);
     }
+    /// A device event arrived (between sample frames, in order). Sinks that record only
+    /// samples ignore it.
+    fn device_event(&mut self, event: &wire::EventFrame) -> anyhow::Result<()> {
+        let _ = event;
+        Ok(())
+    }
 }
 
 impl<W: Write> SampleSink for csv::Writer<W> {
