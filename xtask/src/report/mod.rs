@@ -369,5 +369,6 @@ pub fn markdown(data: &ReportData) -> String {
     firmware(out, data);
     several_pads(out, data);
     simulator(out, data);
+    measured_elsewhere(out);
     text
 }
