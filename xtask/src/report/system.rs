@@ -220,8 +220,7 @@ pub(super) fn simulator(out: &mut String, data: &ReportData) {
 /// says the command that regenerates it. The report does not run them: they need a Python
 /// virtual environment with packages from PyPI.
 pub(super) fn measured_elsewhere(out: &mut String) {
-    let _ = writeln!(out, "## Measured by their own programs
-");
+    let _ = writeln!(out, "## Measured by their own programs\n");
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     for (what, path) in [
         (
