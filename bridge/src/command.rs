@@ -10,11 +10,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::Parser;
-use sim_device::{SceneFile, SimulatedDeviceConfig};
+use sim_device::SimulatedDeviceConfig;
 use taxel::device_link::open_serial;
 use taxel::multi_record::MultiBoardArgs;
 use taxel::noteln;
-use taxel::sim::SimulatorThread;
+use taxel::output_file::PendingRename;
+use taxel::sim::{load_scene, SimulatorThread};
 use zenoh::Wait;
 
 use crate::device_reader::{lock, read_device, BridgeClock, DeviceHealth, ReaderState};
@@ -106,19 +107,6 @@ pub struct BridgeArgs {
     /// How long to wait for each reply from a device, ms.
     #[arg(long, value_name = "MS", default_value_t = 2000)]
     pub timeout_ms: u64,
-}
-
-fn load_scene(scene: Option<&std::path::Path>) -> anyhow::Result<SceneFile> {
-    match scene {
-        Some(path) if path.exists() => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading scene {}", path.display()))?;
-            SceneFile::parse(&text).with_context(|| format!("scene {}", path.display()))
-        }
-        Some(name) => SceneFile::built_in(&name.to_string_lossy())
-            .with_context(|| format!("no scene file {}", name.display())),
-        None => Ok(SceneFile::default_scene()?),
-    }
 }
 
 fn zenoh_config(args: &BridgeArgs) -> anyhow::Result<zenoh::Config> {
@@ -221,10 +209,18 @@ fn bridge_ports(
         args.mcap.is_none() || args.mode == Mode::Ros2,
         "--mcap records the ROS 2 messages: it needs --mode ros2"
     );
+    // The MCAP file is written under a temporary name and renamed once complete.
+    let mut mcap_file = None;
     let recorder = match &args.mcap {
-        Some(path) => Some(taxel_ros2::McapRecorder::new(std::io::BufWriter::new(
-            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
-        ))?),
+        Some(path) => {
+            let pending = PendingRename::beside(path)?;
+            let file = std::fs::File::create(pending.path())
+                .with_context(|| format!("creating {}", pending.path().display()))?;
+            mcap_file = Some(pending);
+            Some(taxel_ros2::McapRecorder::new(std::io::BufWriter::new(
+                file,
+            ))?)
+        }
         None => None,
     };
     let mut ros = None;
@@ -289,7 +285,9 @@ fn bridge_ports(
         counts
     })?;
     if let Some(ros) = ros {
-        ros.finish()?;
+        if let (Some(file), Some(pending)) = (ros.finish()?, mcap_file) {
+            pending.commit_file(file)?;
+        }
     }
     for (device, health) in healths.iter().enumerate() {
         let health = lock(health);

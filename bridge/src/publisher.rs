@@ -246,12 +246,19 @@ impl RosPublisher {
             .ok_or_else(|| anyhow::anyhow!("pad publishers missing"))
     }
 
-    /// Completes the MCAP file, if there is one.
-    pub fn finish(self) -> anyhow::Result<()> {
-        if let Some(recorder) = self.recorder {
-            recorder.finish()?.flush()?;
+    /// Completes the MCAP file, if there is one, and gives back its file (flushed) for the
+    /// caller to put in place.
+    pub fn finish(self) -> anyhow::Result<Option<File>> {
+        match self.recorder {
+            Some(recorder) => {
+                let file = recorder
+                    .finish()?
+                    .into_inner()
+                    .map_err(|error| error.into_error())?;
+                Ok(Some(file))
+            }
+            None => Ok(None),
         }
-        Ok(())
     }
 }
 

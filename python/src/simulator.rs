@@ -12,7 +12,9 @@ use std::time::Duration;
 use anyhow::Context;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use sim_device::{SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+use sim_device::{SimulatedDevice, SimulatedDeviceConfig};
+
+use taxel::sim::{board_for, load_scene};
 
 use crate::device::{timeout_from_s, Backend, Device};
 use crate::errors::{anyhow_error, ErrorKind};
@@ -20,34 +22,6 @@ use crate::memory_link::{memory_link, HostEnd};
 
 /// The read timeout of the in-memory link: one poll waits at most this for bytes.
 const LINK_READ_TIMEOUT: Duration = Duration::from_millis(20);
-
-/// The scene `scene` names: a file when one exists at that path, else a built-in scene (as
-/// `taxel sim --scene` reads it).
-fn load_scene(scene: Option<&str>) -> anyhow::Result<SceneFile> {
-    match scene {
-        Some(path) if Path::new(path).exists() => {
-            let text =
-                std::fs::read_to_string(path).with_context(|| format!("reading scene {path}"))?;
-            SceneFile::parse(&text).with_context(|| format!("scene {path}"))
-        }
-        Some(name) => SceneFile::built_in(name).with_context(|| format!("no scene file {name}")),
-        None => Ok(SceneFile::default_scene()?),
-    }
-}
-
-/// The simulated board for a scene: `pads` pads (each playing a scene of one pad), or as many
-/// as the scene describes (as `taxel sim --pads` chooses).
-fn board_for(scene: &SceneFile, pads: Option<u8>) -> anyhow::Result<sim_device::Topology> {
-    let described = scene.pads.len();
-    let pads = match pads {
-        Some(pads) if described > 1 && usize::from(pads) != described => anyhow::bail!(
-            "the scene describes {described} pads; --pads {pads} would leave pads without one"
-        ),
-        Some(pads) => usize::from(pads),
-        None => described,
-    };
-    Ok(sim_device::pads_topology(pads))
-}
 
 /// The simulated device's thread.
 struct SimulatorRun {
@@ -113,7 +87,7 @@ impl Simulator {
             ));
         }
         let started = py.allow_threads(|| -> anyhow::Result<(SimulatorRun, HostEnd, String)> {
-            let loaded = load_scene(scene.as_deref())?;
+            let loaded = load_scene(scene.as_deref().map(Path::new))?;
             let scene_name = loaded.name.clone();
             let topology = board_for(&loaded, pads)?;
             let mut device = SimulatedDevice::new(SimulatedDeviceConfig {

@@ -92,7 +92,7 @@ pub struct DemoArgs {
 }
 
 /// The scene `--scene` names: a file when one exists at that path, else a built-in scene.
-fn load_scene(path: Option<&Path>) -> anyhow::Result<SceneFile> {
+pub fn load_scene(path: Option<&Path>) -> anyhow::Result<SceneFile> {
     match path {
         Some(path) if path.exists() => {
             let text = std::fs::read_to_string(path)
@@ -107,7 +107,7 @@ fn load_scene(path: Option<&Path>) -> anyhow::Result<SceneFile> {
 
 /// The simulated board for a scene: `pads` pads (each playing a scene of one pad), or as many as
 /// the scene describes.
-fn board_for(scene: &SceneFile, pads: Option<u8>) -> anyhow::Result<sim_device::Topology> {
+pub fn board_for(scene: &SceneFile, pads: Option<u8>) -> anyhow::Result<sim_device::Topology> {
     let described = scene.pads.len();
     let pads = match pads {
         Some(pads) if described > 1 && usize::from(pads) != described => anyhow::bail!(

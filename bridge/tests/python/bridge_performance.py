@@ -144,8 +144,11 @@ Each frame is published twice (pressure cloud and wrench); the subscriber counts
 messages. The latency includes the bridge's stamping, CDR encoding and Zenoh, the loopback
 network and the Python subscriber's callback.
 """
-    with open(args.output, "w") as output:
+    # Written under a temporary name and renamed, so a failed run never leaves half a file.
+    temporary = args.output + ".tmp"
+    with open(temporary, "w") as output:
         output.write(text)
+    os.replace(temporary, args.output)
     print(text)
     return 0
 
