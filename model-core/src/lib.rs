@@ -3,7 +3,9 @@
 //! a reading can be wrong, and several inversion tiers with measured speed and error.
 //!
 //! `no_std`, no allocation, no HAL: the same code runs in the firmware, in the desktop simulator
-//! and in the host tools.
+//! and in the host tools. A host converting a recording can call [`PadModel::process_all`]
+//! instead of [`PadModel::process`] set by set: the same outputs bit for bit, with the tier's
+//! inverses of many sets computed together, which a superscalar core runs faster.
 //!
 //! ```
 //! use model_core::{Calibration, PadModel, SampleInput, TaxelReading};
@@ -56,7 +58,7 @@ pub use calibration::{
 pub use contact::{ContactConfig, ContactConfigError, ContactDetector, ContactEvent};
 pub use flags::TaxelFlags;
 pub use inverse::{InverseCurve, TaxelInverses, Tier};
-pub use pad::{PadModel, PadOutput, SampleInput, TareStatus, TierUnavailable};
+pub use pad::{PadModel, PadOutput, SampleInput, TareStatus, TierUnavailable, BATCH_SAMPLE_SETS};
 pub use pad_force::{pad_force, pad_force_from_pressures, PadForce, PadForceFlags};
 pub use pad_geometry::{GeometryError, PadGeometry, TaxelGeometry};
 pub use reading::{ReadingValue, SplitCapacitance, TaxelReading};

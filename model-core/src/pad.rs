@@ -2,7 +2,7 @@
 //! the chosen tier. One call per converter cycle turns four readings into four pressures.
 
 use crate::baseline::{Baseline, BaselineError, BaselineRecord, BaselineTracking, TareAccumulator};
-use crate::calibration::{Calibration, TAXEL_COUNT};
+use crate::calibration::{Calibration, TaxelCalibration, TAXEL_COUNT};
 use crate::conditioning::NOMINAL_SENSOR_PF;
 use crate::flags::TaxelFlags;
 use crate::inverse::{ActiveInverse, TaxelInverses, Tier};
@@ -16,6 +16,10 @@ use crate::use_case::{select_tier_for_taxels, SelectionError, TaxelEvidence, Tie
 /// of static load at the tare on the article's curve, or the article's 5.7 % loss after 5000
 /// cycles).
 pub const TARE_FAR_FROM_CALIBRATION_RELATIVE: f32 = 0.05;
+
+/// Most sample sets [`PadModel::process_all`] holds at once: enough independent inverses to
+/// keep a host core busy, little enough for its stack.
+pub const BATCH_SAMPLE_SETS: usize = 64;
 
 /// One converter cycle's input.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -343,6 +347,105 @@ impl PadModel {
 
     /// Converts one converter cycle.
     pub fn process(&mut self, sample: &SampleInput) -> PadOutput {
+        self.process_with(sample, |_, model, calibration, relative_change| {
+            model
+                .inverse()
+                .pressure_kpa(calibration.curve(), relative_change)
+        })
+    }
+
+    /// [`PadModel::process`] of every sample set in turn, handing each output to `each` in
+    /// order: the same outputs bit for bit (tested), faster when a host converts a recording,
+    /// because the tier's inverses of up to [`BATCH_SAMPLE_SETS`] sets run together per taxel
+    /// (nothing the sets change depends on them).
+    pub fn process_all<I>(&mut self, samples: I, mut each: impl FnMut(&PadOutput))
+    where
+        I: IntoIterator<Item = SampleInput>,
+    {
+        let mut samples = samples.into_iter();
+        let unset = PadOutput {
+            taxels: [TaxelOutput::fault(TaxelFlags::empty(), None); TAXEL_COUNT],
+            temperature: TemperatureUsed {
+                temperature_c: 0.0,
+                permittivity_ratio: 1.0,
+                flags: TaxelFlags::empty(),
+            },
+        };
+        let mut outputs = [(unset, 0u8); BATCH_SAMPLE_SETS];
+        loop {
+            let mut count = 0;
+            for (slot, sample) in outputs.iter_mut().zip(samples.by_ref()) {
+                // The pressures of in-range taxels are left to `invert_batch`.
+                let mut needs_inverse = 0u8;
+                let output = self.process_with(&sample, |taxel, _, _, _| {
+                    needs_inverse |= 1 << taxel;
+                    0.0
+                });
+                *slot = (output, needs_inverse);
+                count += 1;
+            }
+            let outputs = outputs.get_mut(..count).unwrap_or_default();
+            if outputs.is_empty() {
+                return;
+            }
+            self.invert_batch(outputs);
+            for (output, _) in outputs.iter() {
+                each(output);
+            }
+        }
+    }
+
+    /// Fills in the pressures [`PadModel::process_all`] left to the inverse, taxel by taxel
+    /// across the sets.
+    fn invert_batch(&self, outputs: &mut [(PadOutput, u8)]) {
+        for (taxel, (model, calibration)) in self
+            .taxels
+            .iter()
+            .zip(self.calibration.taxels())
+            .enumerate()
+        {
+            let needs = |needs_inverse: u8| needs_inverse & (1 << taxel) != 0;
+            let mut values = [0.0f32; BATCH_SAMPLE_SETS];
+            let mut count = 0;
+            for (output, needs_inverse) in outputs.iter() {
+                if let (true, Some(slot), Some(value)) = (
+                    needs(*needs_inverse),
+                    values.get_mut(count),
+                    output
+                        .taxels
+                        .get(taxel)
+                        .and_then(TaxelOutput::relative_change),
+                ) {
+                    *slot = value;
+                    count += 1;
+                }
+            }
+            let values = values.get_mut(..count).unwrap_or_default();
+            model.inverse().pressures_kpa(calibration.curve(), values);
+            let mut pressures_kpa = values.iter();
+            for (output, needs_inverse) in outputs.iter_mut() {
+                if !needs(*needs_inverse) {
+                    continue;
+                }
+                if let (Some(slot), Some(pressure_kpa)) =
+                    (output.taxels.get_mut(taxel), pressures_kpa.next())
+                {
+                    *slot = slot.with_pressure_kpa(*pressure_kpa);
+                }
+            }
+        }
+    }
+
+    /// A sample set's outputs and state changes, the pressure of an in-range taxel (`0 < dC/C0
+    /// <= top`) given by `in_range(taxel, model, calibration, dC/C0)`: the tier's inverse, or a
+    /// placeholder when a batch of inverses fills the pressures in afterwards (nothing here
+    /// depends on them).
+    #[inline(always)]
+    fn process_with(
+        &mut self,
+        sample: &SampleInput,
+        mut in_range: impl FnMut(usize, &TaxelModel, &TaxelCalibration, f32) -> f32,
+    ) -> PadOutput {
         let tare_temperature_c = self
             .baselines
             .iter()
@@ -371,18 +474,25 @@ impl PadModel {
             .zip(&self.baseline_flags)
             .zip(tare_capacitances.iter_mut());
         for (
-            ((((((slot, reading), reading_flags), model), calibration), baseline), baseline_flags),
-            tare,
-        ) in per_taxel
+            taxel,
+            (
+                (
+                    (((((slot, reading), reading_flags), model), calibration), baseline),
+                    baseline_flags,
+                ),
+                tare,
+            ),
+        ) in per_taxel.enumerate()
         {
             let value = reading.value();
             let output = model
-                .convert(
+                .convert_with(
                     calibration,
                     value,
                     baseline.as_ref(),
                     inverse_permittivity_ratio,
                     &thresholds,
+                    |relative_change| in_range(taxel, model, calibration, relative_change),
                 )
                 .with_flags(*reading_flags | temperature.flags | *baseline_flags);
             if let ReadingValue::Capacitance(capacitance) = value {

@@ -59,6 +59,12 @@ impl TaxelOutput {
         self.flags
     }
 
+    /// The same output with the pressure an inverse gave (a batch of inverses fills them in).
+    pub(crate) fn with_pressure_kpa(mut self, pressure_kpa: f32) -> Self {
+        self.pressure_kpa = pressure_kpa;
+        self
+    }
+
     /// Adds flags (e.g. the sample's temperature flags, the acquisition's converter flags).
     pub fn with_flags(mut self, flags: TaxelFlags) -> Self {
         self.flags |= flags;
@@ -114,6 +120,32 @@ impl TaxelModel {
         inverse_permittivity_ratio: f32,
         thresholds: &FaultThresholds,
     ) -> TaxelOutput {
+        self.convert_with(
+            calibration,
+            reading,
+            baseline,
+            inverse_permittivity_ratio,
+            thresholds,
+            |relative_change| {
+                self.inverse
+                    .pressure_kpa(calibration.curve(), relative_change)
+            },
+        )
+    }
+
+    /// [`TaxelModel::convert`] with the pressure of an in-range reading (`0 < dC/C0 <= top`)
+    /// given by `in_range` (the tier's inverse, or a placeholder when a batch of inverses
+    /// fills it in later).
+    #[inline(always)]
+    pub(crate) fn convert_with(
+        &self,
+        calibration: &TaxelCalibration,
+        reading: ReadingValue,
+        baseline: Option<&Baseline>,
+        inverse_permittivity_ratio: f32,
+        thresholds: &FaultThresholds,
+        in_range: impl FnOnce(f32) -> f32,
+    ) -> TaxelOutput {
         let capacitance = match reading {
             ReadingValue::Capacitance(capacitance) => capacitance,
             ReadingValue::Saturated => return TaxelOutput::fault(TaxelFlags::SATURATED, None),
@@ -134,8 +166,7 @@ impl TaxelModel {
             return TaxelOutput::fault(TaxelFlags::NOT_TARED, Some(total_pf));
         };
         let relative_change = baseline.relative_change(capacitance, inverse_permittivity_ratio);
-        let curve = calibration.curve();
-        let top = curve.top();
+        let top = calibration.curve().top();
         let (pressure_kpa, flags) = if !relative_change.is_finite() {
             (0.0, TaxelFlags::INVALID_INPUT)
         } else if relative_change < -thresholds.shorted_below_relative {
@@ -147,10 +178,7 @@ impl TaxelModel {
         } else if relative_change > top.relative_change {
             (top.pressure_kpa, TaxelFlags::OVER_RANGE)
         } else {
-            (
-                self.inverse.pressure_kpa(curve, relative_change),
-                TaxelFlags::empty(),
-            )
+            (in_range(relative_change), TaxelFlags::empty())
         };
         TaxelOutput {
             pressure_kpa,

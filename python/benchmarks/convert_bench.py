@@ -84,17 +84,20 @@ def numpy_convert(capacitance_pf, curve):
     return pressure
 
 
-def best_of(runs, function):
-    """The shortest wall-clock and CPU times (this thread's: both implementations run on the
-    calling thread) of `runs` calls, and the last result."""
-    best_wall_s = best_cpu_s = float("inf")
-    result = None
+def best_of(runs, functions):
+    """Per function, the shortest wall-clock and CPU times (this thread's: every implementation
+    runs on the calling thread) of `runs` calls, and its last result. The calls take turns, so
+    that a machine whose speed drifts (a shared virtual machine) slows them all alike."""
+    best = {name: [float("inf"), float("inf")] for name in functions}
+    results = {}
     for _ in range(runs):
-        wall_started, cpu_started = time.perf_counter(), time.thread_time()
-        result = function()
-        best_cpu_s = min(best_cpu_s, time.thread_time() - cpu_started)
-        best_wall_s = min(best_wall_s, time.perf_counter() - wall_started)
-    return (best_wall_s, best_cpu_s), result
+        for name, function in functions.items():
+            wall_started, cpu_started = time.perf_counter(), time.thread_time()
+            results[name] = function()
+            cpu_s = time.thread_time() - cpu_started
+            wall_s = time.perf_counter() - wall_started
+            best[name] = [min(best[name][0], wall_s), min(best[name][1], cpu_s)]
+    return {name: (tuple(best[name]), results[name]) for name in functions}
 
 
 def convert_figures(runs):
@@ -109,15 +112,18 @@ def convert_figures(runs):
     capacitance_pf = (parasitic_pf + 4.5 * (1.0 + change)).astype(np.float32).astype(np.float64)
     temperature_c = np.full(ROWS, 25.0)
     taxel.convert(capacitance_pf[:1000], temperature_c[:1000])
-    taxel_s, (taxel_kpa, _) = best_of(runs, lambda: taxel.convert(capacitance_pf, temperature_c))
-    numpy_s, numpy_kpa = best_of(runs, lambda: numpy_convert(capacitance_pf, curve))
+    timed = best_of(runs, {
+        "default": lambda: taxel.convert(capacitance_pf, temperature_c),
+        "numpy": lambda: numpy_convert(capacitance_pf, curve),
+        "table": lambda: taxel.convert(capacitance_pf, temperature_c, tier="table"),
+        "polynomial": lambda: taxel.convert(capacitance_pf, temperature_c, tier="polynomial"),
+    })
+    taxel_s, (taxel_kpa, _) = timed["default"]
+    numpy_s, numpy_kpa = timed["numpy"]
     # Row 0 is the tare row (no pressure from the model; 0 from numpy).
     both = np.isfinite(taxel_kpa[1:]) & np.isfinite(numpy_kpa[1:])
     difference_kpa = float(np.max(np.abs(taxel_kpa[1:][both] - numpy_kpa[1:][both])))
-    faster_tiers = {
-        tier: best_of(runs, lambda tier=tier: taxel.convert(capacitance_pf, temperature_c, tier=tier))[0]
-        for tier in ("table", "polynomial")
-    }
+    faster_tiers = {tier: timed[tier][0] for tier in ("table", "polynomial")}
     return taxel_s, numpy_s, difference_kpa, float(np.mean(both)), faster_tiers
 
 
@@ -143,7 +149,7 @@ def iterator_figures(seconds):
 
 def main():
     parser = argparse.ArgumentParser(description="The Python package's performance table")
-    parser.add_argument("--runs", type=int, default=5, help="timed runs of each conversion")
+    parser.add_argument("--runs", type=int, default=15, help="timed runs of each conversion")
     parser.add_argument("--seconds", type=float, default=3.0, help="iterator measurement, s")
     arguments = parser.parse_args()
     if hasattr(os, "sched_setaffinity"):

@@ -25,13 +25,27 @@ struct Outputs {
     flags: Vec<u16>,
 }
 
-/// Runs pad `pad`'s model over every row, writing its columns of the outputs.
+/// Runs pad `pad`'s model over every row, writing its columns of the outputs. The model's batch
+/// path gives exactly what `PadModel::process` gives row by row (model-core tests it), which is
+/// what `taxel convert` runs. With several pads, a row where the pad's four capacitances and its
+/// temperature are all NaN is its frame missing from that set, as `taxel convert` reads a pad
+/// whose cells are all empty: the model skips it and its outputs stay NaN with no flags.
 fn run_pad(model: &mut PadModel, pad: usize, inputs: &Inputs<'_>, outputs: &mut Outputs) {
     let pads = inputs.pads;
     let taxels = pads * TAXEL_COUNT;
     let rows = inputs.temperature_c.len() / pads.max(1);
-    for row in 0..rows {
-        let first = row * taxels + pad * TAXEL_COUNT;
+    let first_cell = |row: usize| row * taxels + pad * TAXEL_COUNT;
+    let present_rows = || {
+        (0..rows).filter(move |&row| {
+            pads == 1
+                || !(inputs.temperature_c[row * pads + pad].is_nan()
+                    && inputs.capacitance_pf[first_cell(row)..first_cell(row) + TAXEL_COUNT]
+                        .iter()
+                        .all(|value| value.is_nan()))
+        })
+    };
+    let samples = present_rows().map(|row| {
+        let first = first_cell(row);
         let readings: [TaxelReading; TAXEL_COUNT] = std::array::from_fn(|taxel| {
             let value = inputs.capacitance_pf[first + taxel];
             if value.is_nan() {
@@ -42,21 +56,25 @@ fn run_pad(model: &mut PadModel, pad: usize, inputs: &Inputs<'_>, outputs: &mut 
         });
         let temperature = inputs.temperature_c[row * pads + pad];
         let temperature = (!temperature.is_nan()).then_some(temperature as f32);
-        let mut input = SampleInput::new(readings, temperature);
-        if let Some(time_s) = inputs.time_s {
-            let time_s = time_s[row];
+        let input = SampleInput::new(readings, temperature);
+        match inputs.time_s.map(|time_s| time_s[row]) {
             // As `taxel convert` reads a time cell: a non-negative time in µs for the
             // temperature plausibility rule.
-            if time_s >= 0.0 {
-                input = input.at_time_us((time_s * 1.0e6) as u64);
-            }
+            Some(time_s) if time_s >= 0.0 => input.at_time_us((time_s * 1.0e6) as u64),
+            _ => input,
         }
-        let output = model.process(&input);
+    });
+    let mut output_rows = present_rows();
+    model.process_all(samples, |output| {
+        let Some(row) = output_rows.next() else {
+            return;
+        };
+        let first = first_cell(row);
         for (taxel, result) in output.taxels.iter().enumerate() {
             outputs.pressure_kpa[first + taxel] = result.pressure_kpa().map_or(f64::NAN, f64::from);
             outputs.flags[first + taxel] = result.flags().bits();
         }
-    }
+    });
 }
 
 /// The tare's problems, in `taxel convert`'s words.

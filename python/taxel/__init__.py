@@ -109,8 +109,11 @@ def convert(
 
     Returns ``(pressure_kpa, flags)``: float64 and uint16 arrays of shape ``(N, taxels)``;
     a pressure is NaN where the model gives none, and the flags say why. Each pad has a model of
-    its own. Problems with the tare are reported as :class:`TaxelWarning`. Bad shapes or values
-    raise :class:`ConvertError`.
+    its own. With several pads, a row where a pad's four capacitances and its temperature are
+    all NaN is that pad's frame missing from the set (as a buffer holds it, and as ``taxel
+    convert`` reads a pad whose cells are all empty): its model skips the row, which gets NaN
+    pressures and no flags. Problems with the tare are reported as :class:`TaxelWarning`. Bad
+    shapes or values raise :class:`ConvertError`.
     """
     capacitance = np.ascontiguousarray(capacitance_pf, dtype=np.float64)
     if capacitance.ndim != 2:

@@ -169,16 +169,10 @@ def test_an_unfinished_tare_warns_in_the_cli_words(recording):
     assert np.all(flags & taxel.Flags.NOT_TARED)
 
 
-def test_several_pads_equal_the_cli(taxel_cli, tmp_path):
-    """A recording of two pads in `taxel record`'s pad-prefixed layout, converted pad by pad by
-    the command line, gives what `taxel.convert` gives for the (N, 8) array."""
-    with taxel.Simulator(scene="gripper", speed=50.0, seed=4) as sim:
-        sim.start_buffering()
-        time.sleep(1.0)
-        buffer = sim.read_buffer(strict=False)
-    capacitance = buffer.capacitance_pf
-    temperature = buffer.temperature_c
-    time_s = (buffer.device_time_us - buffer.device_time_us[0]) / 1e6
+def two_pad_cli_convert(taxel_cli, tmp_path, buffer, capacitance, temperature, time_s, missing):
+    """Writes a two-pad recording in `taxel record`'s pad-prefixed layout (a pad's cells all
+    empty in the rows of `missing`: its frame is missing from that set), converts it with
+    `taxel convert --tare-rows 4` and returns its pressures and flags as (N, 8) arrays."""
     names = ["c11_pf", "c12_pf", "c21_pf", "c22_pf"]
     source = tmp_path / "pads.csv"
     with source.open("w", newline="") as file:
@@ -190,6 +184,9 @@ def test_several_pads_equal_the_cli(taxel_cli, tmp_path):
         for row in range(len(time_s)):
             cells = [str(int(buffer.sequence[row]))]
             for pad in range(2):
+                if (row, pad) in missing:
+                    cells += [""] * 6
+                    continue
                 cells += [repr(float(time_s[row])), cell(temperature[row, pad])]
                 cells += [cell(value) for value in capacitance[row, 4 * pad : 4 * pad + 4]]
             writer.writerow(cells)
@@ -201,6 +198,8 @@ def test_several_pads_equal_the_cli(taxel_cli, tmp_path):
         text=True,
     )
     assert result.returncode == 0, result.stderr
+    if missing:
+        assert f"{len(missing)} pad frames were missing" in result.stderr, result.stderr
     with output.open(newline="") as file:
         rows = list(csv.DictReader(file))
     columns = [f"pad{pad}_p{k}_kpa" for pad in range(2) for k in ("11", "12", "21", "22")]
@@ -212,7 +211,50 @@ def test_several_pads_equal_the_cli(taxel_cli, tmp_path):
     expected_flags = np.array(
         [[flag_bits(row[c]) for c in flag_columns] for row in rows], dtype=np.uint16
     )
+    return expected, expected_flags
+
+
+@pytest.fixture(scope="module")
+def gripper_recording():
+    with taxel.Simulator(scene="gripper", speed=50.0, seed=4) as sim:
+        sim.start_buffering()
+        time.sleep(1.0)
+        buffer = sim.read_buffer(strict=False)
+    time_s = (buffer.device_time_us - buffer.device_time_us[0]) / 1e6
+    return buffer, buffer.capacitance_pf.copy(), buffer.temperature_c.copy(), time_s
+
+
+def test_several_pads_equal_the_cli(taxel_cli, tmp_path, gripper_recording):
+    """A recording of two pads in `taxel record`'s pad-prefixed layout, converted pad by pad by
+    the command line, gives what `taxel.convert` gives for the (N, 8) array."""
+    buffer, capacitance, temperature, time_s = gripper_recording
+    expected, expected_flags = two_pad_cli_convert(
+        taxel_cli, tmp_path, buffer, capacitance, temperature, time_s, set()
+    )
     pressure, flags = taxel.convert(capacitance, temperature, time_s=time_s, tare_rows=4)
     np.testing.assert_array_equal(pressure, expected)
     np.testing.assert_array_equal(flags, expected_flags)
     assert np.any(pressure > 1.0)
+
+
+def test_missing_pad_frames_equal_the_cli(taxel_cli, tmp_path, gripper_recording):
+    """Frames missing from sample sets (NaN capacitances and temperature for that pad, as a
+    buffer holds them; empty cells in the CSV file): skipped by the pad's model in both, during
+    the tare and after it, with NaN pressures and no flags in their rows."""
+    buffer, capacitance, temperature, time_s = gripper_recording
+    missing = {(1, 1), (2, 0), (40, 1), (41, 1), (len(time_s) - 1, 0)}
+    capacitance, temperature = capacitance.copy(), temperature.copy()
+    for row, pad in missing:
+        capacitance[row, 4 * pad : 4 * pad + 4] = np.nan
+        temperature[row, pad] = np.nan
+    expected, expected_flags = two_pad_cli_convert(
+        taxel_cli, tmp_path, buffer, capacitance, temperature, time_s, missing
+    )
+    pressure, flags = taxel.convert(capacitance, temperature, time_s=time_s, tare_rows=4)
+    np.testing.assert_array_equal(pressure, expected)
+    np.testing.assert_array_equal(flags, expected_flags)
+    for row, pad in missing:
+        assert np.all(np.isnan(pressure[row, 4 * pad : 4 * pad + 4]))
+        assert np.all(flags[row, 4 * pad : 4 * pad + 4] == 0)
+    # The other pad of those sets is converted.
+    assert not np.all(np.isnan(pressure[40, 0:4]))

@@ -125,6 +125,30 @@ impl ActiveInverse {
             Active::Polynomial(polynomial) => polynomial.pressure_kpa(relative_change),
         }
     }
+
+    /// [`ActiveInverse::pressure_kpa`] of every value, in place, with the tier chosen once: bit
+    /// for bit the same pressures (tested), faster where many readings are converted at once (a
+    /// recording on the host); the monotone cubic tier then overlaps the values' work.
+    pub fn pressures_kpa(&self, curve: &CalibrationCurve, values: &mut [f32]) {
+        fn each(values: &mut [f32], inverse: impl Fn(f32) -> f32) {
+            for value in values.iter_mut() {
+                *value = inverse(*value);
+            }
+        }
+        match &self.0 {
+            Active::Linear(inverse) => each(values, |value| inverse.pressure_kpa(value)),
+            Active::PiecewiseLinear(slopes) => {
+                each(values, |value| slopes.pressure_kpa(curve, value))
+            }
+            Active::MonotoneCubic(knots) => knots.pressures_kpa(curve, values),
+            Active::Saturating(inverse) => each(values, |value| inverse.pressure_kpa(value)),
+            Active::SaturatingMicromath(inverse) => {
+                each(values, |value| inverse.pressure_kpa(value))
+            }
+            Active::Table(table) => each(values, |value| table.pressure_kpa(value)),
+            Active::Polynomial(polynomial) => each(values, |value| polynomial.pressure_kpa(value)),
+        }
+    }
 }
 
 /// The table tier of a curve: its cubic's inverse solved at every grid node.

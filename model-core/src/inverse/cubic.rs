@@ -41,6 +41,11 @@
 //!    resolution), within [`MAX_BRACKETED_ITERATIONS`] iterations whatever the calibration. A
 //!    Newton step that meets the bound of stage 1 ends it earlier.
 //!
+//! A host converting many readings at once (a recording) calls the batch form,
+//! [`super::ActiveInverse::pressures_kpa`]: the same arithmetic on eight values at a time, step
+//! by step, which gives the same bits (tested) and lets a superscalar core with vector
+//! instructions overlap the values' division chains.
+//!
 //! The result is the root of the f32 cubic to within the bound above, plus what the f32
 //! evaluation of `f` near the root cannot resolve: a few ulps of `y` times the local slope of the
 //! inverse `1 / f'`. Where `f'` is tiny (nearly equal neighbouring calibration points) that is
@@ -80,6 +85,7 @@ pub(crate) struct CubicKnots {
 }
 
 /// One interval's cubic in the unit coordinate, with what turns its root into a pressure.
+#[derive(Clone, Copy)]
 struct UnitInterval {
     /// `f(t)`, `t` in `0 ..= 1`.
     cubic: CubicSegment,
@@ -182,6 +188,30 @@ impl CubicKnots {
         interval.pressure_kpa(t, top_pressure_kpa)
     }
 
+    /// Pressures for many relative changes, in place: bit for bit what
+    /// [`CubicKnots::pressure_kpa`] gives for each, arranged for a host converting a recording.
+    /// A value's work is one long chain of dependent divisions; here the intervals' cubics are
+    /// formed once (by the same arithmetic) and [`BATCH_LANES`] values go through each step
+    /// together, so that a superscalar core overlaps their chains. The interval is counted
+    /// without a branch and both fast-path steps are always taken, the result chosen afterwards
+    /// by the same test; the rare value neither step settles goes through
+    /// [`CubicKnots::pressure_kpa`] itself.
+    pub(crate) fn pressures_kpa(&self, curve: &CalibrationCurve, values: &mut [f32]) {
+        let Some(formed) = FormedIntervals::new(self, curve) else {
+            values.fill(0.0);
+            return;
+        };
+        let mut lanes = values.chunks_exact_mut(BATCH_LANES);
+        for lane_values in &mut lanes {
+            if let Ok(lane_values) = <&mut [f32; BATCH_LANES]>::try_from(lane_values) {
+                formed.lanes_pressure_kpa(self, curve, lane_values);
+            }
+        }
+        for value in lanes.into_remainder() {
+            *value = self.pressure_kpa(curve, *value);
+        }
+    }
+
     /// Pressure for a relative change solved to the bracket's resolution, without the fast
     /// path's early acceptance (for the table tier's nodes).
     pub(crate) fn solved_pressure_kpa(
@@ -202,6 +232,204 @@ impl CubicKnots {
             _ => 0.0,
         }
     }
+}
+
+/// Values converted together by [`CubicKnots::pressures_kpa`].
+const BATCH_LANES: usize = 8;
+
+/// Every interval's cubic and error bound of a curve, formed once for
+/// [`CubicKnots::pressures_kpa`].
+struct FormedIntervals {
+    /// The inner points' dC/C0 (every point but the first and the last), then +inf.
+    inner_starts: [f32; MAX_CURVE_POINTS],
+    /// The last interval's index.
+    last_index: usize,
+    /// Per interval, as [`CubicKnots::interval`] forms it.
+    intervals: [UnitInterval; MAX_CURVE_POINTS - 1],
+    /// Per interval, the fast path's error bound.
+    bounds_kpa: [f32; MAX_CURVE_POINTS - 1],
+    /// The top of the curve, kPa.
+    top_pressure_kpa: f32,
+}
+
+impl FormedIntervals {
+    /// `None` for a curve without an interval (a valid curve has one).
+    fn new(knots: &CubicKnots, curve: &CalibrationCurve) -> Option<Self> {
+        let points = curve.points();
+        let last_index = points.len().checked_sub(2)?;
+        let first = knots.interval(points, 0)?;
+        let mut formed = Self {
+            inner_starts: [f32::INFINITY; MAX_CURVE_POINTS],
+            last_index,
+            intervals: [first; MAX_CURVE_POINTS - 1],
+            bounds_kpa: knots.error_bounds_kpa,
+            top_pressure_kpa: curve.top().pressure_kpa,
+        };
+        for (start, point) in formed
+            .inner_starts
+            .iter_mut()
+            .zip(points.get(1..=last_index).unwrap_or(&[]))
+        {
+            *start = point.relative_change;
+        }
+        for (index, slot) in formed.intervals.iter_mut().enumerate() {
+            if let Some(interval) = knots.interval(points, index) {
+                *slot = interval;
+            }
+        }
+        Some(formed)
+    }
+
+    /// [`CubicKnots::pressures_kpa`] of one group of lanes, step by step across the lanes.
+    #[inline(always)]
+    fn lanes_pressure_kpa(
+        &self,
+        knots: &CubicKnots,
+        curve: &CalibrationCurve,
+        values: &mut [f32; BATCH_LANES],
+    ) {
+        const _: () = assert!(FAST_NEWTON_STEPS == 2, "the lanes take exactly two steps");
+        const _: () = assert!(MAX_CURVE_POINTS == 16, "the search halves 16 starts");
+        let mut indices = [0usize; BATCH_LANES];
+        for (index, value) in indices.iter_mut().zip(&*values) {
+            // For strictly increasing points the count of inner points at or below a value is
+            // the index the scan of `interval_index` stops at (NaN counts none, as it scans
+            // none); the padding counts only for +inf, which the scan puts in the last
+            // interval. The starts are sorted, so the count is found by halving (15 at most,
+            // more than the 14 inner points of the longest curve).
+            let mut count = 0;
+            for step in [8, 4, 2, 1] {
+                if self
+                    .inner_starts
+                    .get(count + step - 1)
+                    .is_some_and(|start| *value >= *start)
+                {
+                    count += step;
+                }
+            }
+            *index = count.min(self.last_index);
+        }
+        let mut lanes = Lanes::default();
+        for (lane, index) in indices.iter().enumerate() {
+            if let Some(interval) = self.intervals.get(*index) {
+                lanes.set(lane, interval);
+            }
+        }
+        let t0 = lanes.chord_starts(values);
+        let first_steps = lanes.newton_steps(values, &t0);
+        let t1 = clamped_steps(&t0, &first_steps);
+        let second_steps = lanes.newton_steps(values, &t1);
+        for ((((value, index), first), second), t1) in values
+            .iter_mut()
+            .zip(&indices)
+            .zip(&first_steps)
+            .zip(&second_steps)
+            .zip(&t1)
+        {
+            let (Some(interval), Some(&bound)) =
+                (self.intervals.get(*index), self.bounds_kpa.get(*index))
+            else {
+                *value = 0.0;
+                continue;
+            };
+            *value = if bound * first * first <= ACCEPTED_ERROR_KPA {
+                interval.pressure_kpa(*t1, self.top_pressure_kpa)
+            } else if bound * second * second <= ACCEPTED_ERROR_KPA {
+                interval.pressure_kpa(clamp_f32(t1 - second, 0.0, 1.0), self.top_pressure_kpa)
+            } else {
+                knots.pressure_kpa(curve, *value)
+            };
+        }
+    }
+}
+
+/// The lanes' cubics coefficient by coefficient, so that each step is one loop over plain
+/// arrays (which the compiler can turn into vector instructions: the same IEEE operations per
+/// lane). A lane without an interval keeps zeros and a rise of 1.
+struct Lanes {
+    c0: [f32; BATCH_LANES],
+    c1: [f32; BATCH_LANES],
+    c2: [f32; BATCH_LANES],
+    c3: [f32; BATCH_LANES],
+    rise: [f32; BATCH_LANES],
+}
+
+impl Default for Lanes {
+    fn default() -> Self {
+        Self {
+            c0: [0.0; BATCH_LANES],
+            c1: [0.0; BATCH_LANES],
+            c2: [0.0; BATCH_LANES],
+            c3: [0.0; BATCH_LANES],
+            rise: [1.0; BATCH_LANES],
+        }
+    }
+}
+
+impl Lanes {
+    /// Lane `lane` takes the interval's cubic.
+    #[inline(always)]
+    fn set(&mut self, lane: usize, interval: &UnitInterval) {
+        if let (Some(c0), Some(c1), Some(c2), Some(c3), Some(rise)) = (
+            self.c0.get_mut(lane),
+            self.c1.get_mut(lane),
+            self.c2.get_mut(lane),
+            self.c3.get_mut(lane),
+            self.rise.get_mut(lane),
+        ) {
+            [*c0, *c1, *c2, *c3] = interval.cubic.coefficients;
+            *rise = interval.rise;
+        }
+    }
+
+    /// Where each lane's chord reaches its value, clamped to `0 ..= 1`.
+    #[inline(always)]
+    fn chord_starts(&self, values: &[f32; BATCH_LANES]) -> [f32; BATCH_LANES] {
+        let mut starts = [0.0f32; BATCH_LANES];
+        for (((start, value), c0), rise) in
+            starts.iter_mut().zip(values).zip(&self.c0).zip(&self.rise)
+        {
+            *start = clamp_f32((value - c0) / rise, 0.0, 1.0);
+        }
+        starts
+    }
+
+    /// One Newton step per lane toward `f(t) = value`, as [`CubicSegment`] evaluates it.
+    #[inline(always)]
+    fn newton_steps(
+        &self,
+        values: &[f32; BATCH_LANES],
+        t: &[f32; BATCH_LANES],
+    ) -> [f32; BATCH_LANES] {
+        let mut steps = [0.0f32; BATCH_LANES];
+        for ((((((step, value), t), c0), c1), c2), c3) in steps
+            .iter_mut()
+            .zip(values)
+            .zip(t)
+            .zip(&self.c0)
+            .zip(&self.c1)
+            .zip(&self.c2)
+            .zip(&self.c3)
+        {
+            let cubic = CubicSegment {
+                x_start: 0.0,
+                width: 1.0,
+                coefficients: [*c0, *c1, *c2, *c3],
+            };
+            *step = (cubic.value_at(*t) - value) / cubic.slope_at(*t);
+        }
+        steps
+    }
+}
+
+/// `t - step` per lane, clamped to `0 ..= 1`.
+#[inline(always)]
+fn clamped_steps(t: &[f32; BATCH_LANES], steps: &[f32; BATCH_LANES]) -> [f32; BATCH_LANES] {
+    let mut next = [0.0f32; BATCH_LANES];
+    for ((next, t), step) in next.iter_mut().zip(t).zip(steps) {
+        *next = clamp_f32(t - step, 0.0, 1.0);
+    }
+    next
 }
 
 /// The fast path's error bound of an interval (module doc), from its f32 coefficients in f64;
