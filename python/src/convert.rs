@@ -35,15 +35,17 @@ fn run_pad(model: &mut PadModel, pad: usize, inputs: &Inputs<'_>, outputs: &mut 
     let taxels = pads * TAXEL_COUNT;
     let rows = inputs.temperature_c.len() / pads.max(1);
     let first_cell = |row: usize| row * taxels + pad * TAXEL_COUNT;
-    let present_rows = || {
-        (0..rows).filter(move |&row| {
-            pads == 1
-                || !(inputs.temperature_c[row * pads + pad].is_nan()
-                    && inputs.capacitance_pf[first_cell(row)..first_cell(row) + TAXEL_COUNT]
-                        .iter()
-                        .all(|value| value.is_nan()))
-        })
+    let is_present = |row: usize| {
+        pads == 1
+            || !(inputs.temperature_c[row * pads + pad].is_nan()
+                && inputs.capacitance_pf[first_cell(row)..first_cell(row) + TAXEL_COUNT]
+                    .iter()
+                    .all(|value| value.is_nan()))
     };
+    let present_rows = || (0..rows).filter(move |&row| is_present(row));
+    for row in (0..rows).filter(|&row| !is_present(row)) {
+        outputs.pressure_kpa[first_cell(row)..first_cell(row) + TAXEL_COUNT].fill(f64::NAN);
+    }
     let samples = present_rows().map(|row| {
         let first = first_cell(row);
         let readings: [TaxelReading; TAXEL_COUNT] = std::array::from_fn(|taxel| {
@@ -209,7 +211,8 @@ pub fn convert_arrays<'py>(
     };
     let (outputs, warnings) = py.allow_threads(|| {
         let mut outputs = Outputs {
-            pressure_kpa: vec![f64::NAN; rows * taxels],
+            // Zeroed memory comes from the system untouched; `run_pad` writes every cell.
+            pressure_kpa: vec![0.0; rows * taxels],
             flags: vec![0u16; rows * taxels],
         };
         let mut warnings = Vec::new();
