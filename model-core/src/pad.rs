@@ -357,7 +357,8 @@ impl PadModel {
     /// [`PadModel::process`] of every sample set in turn, handing each output to `each` in
     /// order: the same outputs bit for bit (tested), faster when a host converts a recording,
     /// because the tier's inverses of up to [`BATCH_SAMPLE_SETS`] sets run together per taxel
-    /// (nothing the sets change depends on them).
+    /// (nothing the sets change depends on them). It holds those sets' outputs on the stack
+    /// (about 7 KB): a host's path; the device calls `process`.
     pub fn process_all<I>(&mut self, samples: I, mut each: impl FnMut(&PadOutput))
     where
         I: IntoIterator<Item = SampleInput>,
