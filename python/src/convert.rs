@@ -29,7 +29,7 @@ struct Outputs {
 /// path gives exactly what `PadModel::process` gives row by row (model-core tests it), which is
 /// what `taxel convert` runs. With several pads, a row where the pad's four capacitances and its
 /// temperature are all NaN is its frame missing from that set, as `taxel convert` reads a pad
-/// whose cells are all empty: the model skips it and its outputs stay NaN with no flags.
+/// whose cells are all empty: the model skips it, and its pressures are NaN and its flags 0.
 fn run_pad(model: &mut PadModel, pad: usize, inputs: &Inputs<'_>, outputs: &mut Outputs) {
     let pads = inputs.pads;
     let taxels = pads * TAXEL_COUNT;
