@@ -38,7 +38,7 @@ use crate::output_file::PendingRename;
 use crate::record::{
     identify_device, record_accounted, start_stream, stop_stream, stop_words, RecordArgs,
 };
-use crate::recording::SampleSink;
+use crate::recording::{SampleSink, SetCounter};
 
 /// The namespace and frame prefix of the topics, as `taxel bridge` has them by default.
 const NAMESPACE: &str = "/taxel";
@@ -82,8 +82,8 @@ pub struct McapSink {
     waiting: VecDeque<Waiting>,
     pads: BTreeMap<u8, PadChannels>,
     geometry: PadGeometry,
-    current_set: Option<u32>,
-    sets_started: u64,
+    /// The sample sets seen (`--samples` counts sets).
+    sets: SetCounter,
     messages: u64,
 }
 
@@ -109,8 +109,7 @@ impl McapSink {
             waiting: VecDeque::new(),
             pads: BTreeMap::new(),
             geometry: PadGeometry::ARTICLE,
-            current_set: None,
-            sets_started: 0,
+            sets: SetCounter::default(),
             messages: 0,
         })
     }
@@ -254,10 +253,7 @@ impl McapSink {
 impl SampleSink for McapSink {
     fn write_sample(&mut self, sample: &SampleFrame) -> anyhow::Result<()> {
         let arrival_us = self.clock.now_us();
-        if self.current_set != Some(sample.sequence) {
-            self.current_set = Some(sample.sequence);
-            self.sets_started += 1;
-        }
+        self.sets.observe(sample);
         self.mapper.observe(sample.timestamp_us, arrival_us);
         self.waiting.push_back(Waiting::Sample {
             sample: *sample,
@@ -272,11 +268,11 @@ impl SampleSink for McapSink {
 
     /// Sample sets closed: every set started but the one in progress.
     fn rows(&self) -> Option<u64> {
-        Some(self.sets_started.saturating_sub(1))
+        Some(self.sets.closed())
     }
 
     fn would_close_set(&self, sample: &SampleFrame) -> bool {
-        self.current_set.is_some_and(|set| set != sample.sequence)
+        self.sets.would_close(sample)
     }
 
     fn device_event(&mut self, event: &EventFrame) -> anyhow::Result<()> {

@@ -29,7 +29,7 @@ use crate::noteln;
 use crate::record::{
     identify_device, record_accounted, start_stream, stop_stream, RecordArgs, StopReason,
 };
-use crate::recording::{BaselineChange, RecordedDeviceState, SampleSink};
+use crate::recording::{BaselineChange, RecordedDeviceState, SampleSink, SetCounter};
 use crate::stream_accounting::StreamAccounting;
 use crate::timeline_files::{device_raw_path, format_sync_error_ms, TimelineFiles};
 
@@ -261,18 +261,14 @@ struct StampingSink<'a> {
     clock: &'a dyn HostClock,
     sender: Sender<Stamped>,
     state: RecordedDeviceState,
-    /// The sample set in progress and the sets started, so that `--samples` counts sample sets
-    /// for several devices as for one.
-    current_set: Option<u32>,
-    sets_started: u64,
+    /// The sample sets seen, so that `--samples` counts sample sets for several devices as for
+    /// one.
+    sets: SetCounter,
 }
 
 impl SampleSink for StampingSink<'_> {
     fn write_sample(&mut self, sample: &SampleFrame) -> anyhow::Result<()> {
-        if self.current_set != Some(sample.sequence) {
-            self.current_set = Some(sample.sequence);
-            self.sets_started += 1;
-        }
+        self.sets.observe(sample);
         let stamped = Stamped {
             device: self.device,
             sample: *sample,
@@ -289,11 +285,11 @@ impl SampleSink for StampingSink<'_> {
 
     /// Sample sets closed: every set started but the one in progress.
     fn rows(&self) -> Option<u64> {
-        Some(self.sets_started.saturating_sub(1))
+        Some(self.sets.closed())
     }
 
     fn would_close_set(&self, sample: &SampleFrame) -> bool {
-        self.current_set.is_some_and(|set| set != sample.sequence)
+        self.sets.would_close(sample)
     }
 
     fn baselines_changed(&mut self, pad: PadIndex, change: BaselineChange) {
@@ -357,8 +353,7 @@ fn read_device<P: Read + Write>(
         clock: context.clock,
         sender,
         state,
-        current_set: None,
-        sets_started: 0,
+        sets: SetCounter::default(),
     };
     let result = record_accounted(
         &mut link,

@@ -98,6 +98,35 @@ pub fn default_raw_path(csv_path: &Path) -> PathBuf {
     PathBuf::from(name)
 }
 
+/// The sample sets a sink has seen, counted by sequence number (the frames of one set share
+/// it), for [`SampleSink::rows`] and [`SampleSink::would_close_set`] of sinks that take whole
+/// frames.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct SetCounter {
+    current: Option<u32>,
+    started: u64,
+}
+
+impl SetCounter {
+    /// Notes a frame's set.
+    pub(crate) fn observe(&mut self, sample: &SampleFrame) {
+        if self.current != Some(sample.sequence) {
+            self.current = Some(sample.sequence);
+            self.started += 1;
+        }
+    }
+
+    /// Sets closed: every set started but the one in progress.
+    pub(crate) fn closed(&self) -> u64 {
+        self.started.saturating_sub(1)
+    }
+
+    /// Whether `sample` belongs to a later set than the one in progress.
+    pub(crate) fn would_close(&self, sample: &SampleFrame) -> bool {
+        self.current.is_some_and(|set| set != sample.sequence)
+    }
+}
+
 /// Where recorded samples go: a [`Recording`], [`RecordRows`] over any writer, or any CSV
 /// writer (one pad only: it writes one single-pad row per frame).
 pub trait SampleSink {
