@@ -31,8 +31,8 @@ echo "== python: virtual environment in $venv"
 "$python" -m venv "$venv" || fail "creating the virtual environment with $python"
 "$venv/bin/python" -m pip install --quiet --upgrade pip || fail "upgrading pip"
 
-echo "== python: pip install ./python pytest numpy"
-(cd "$repository" && "$venv/bin/python" -m pip install --quiet ./python pytest numpy) \
+echo "== python: pip install ./python[test] (pytest, pandas)"
+(cd "$repository" && "$venv/bin/python" -m pip install --quiet "./python[test]") \
   || fail "pip install ./python"
 
 echo "== python: the taxel command-line tool (the tests compare the package with it)"

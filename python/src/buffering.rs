@@ -35,8 +35,9 @@ pub struct Collected {
     pub sets: Vec<SetRecord>,
     /// Sets that arrived while the store was full, discarded.
     pub overflowed_sets: u64,
-    /// The error that ended the collection (the link failed), as the exception to raise.
-    pub error: Option<anyhow::Error>,
+    /// The error that ended the collection (the link failed), as the exception to raise; it
+    /// stays for every later read.
+    pub error: Option<Arc<anyhow::Error>>,
 }
 
 /// A running collection.
@@ -66,9 +67,15 @@ impl Buffering {
         })
     }
 
-    /// Takes what was collected so far (the store is empty afterwards).
+    /// Takes what was collected so far (the store is empty afterwards; an error that ended the
+    /// collection stays).
     pub fn take(&self) -> Collected {
-        std::mem::take(&mut *lock(&self.collected))
+        let mut store = lock(&self.collected);
+        Collected {
+            sets: std::mem::take(&mut store.sets),
+            overflowed_sets: std::mem::take(&mut store.overflowed_sets),
+            error: store.error.clone(),
+        }
     }
 
     /// Stops the thread and waits for it.
@@ -117,7 +124,7 @@ fn collect(
             }
         }
         if let Err(error) = result {
-            store.error = Some(error);
+            store.error = Some(Arc::new(error));
             return;
         }
     }

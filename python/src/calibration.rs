@@ -5,8 +5,8 @@
 use std::path::PathBuf;
 
 use model_core::{Calibration as ModelCalibration, TAXEL_COUNT, TAXEL_NAMES};
-use numpy::{PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
+use numpy::ndarray::{Ix1, Ix2};
+use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use taxel::calibrate::{
@@ -14,6 +14,7 @@ use taxel::calibrate::{
 };
 use taxel::calibration_file;
 
+use crate::arrays::{c_order_values, float64_c_array};
 use crate::errors::{anyhow_error, taxel_error, ErrorKind};
 
 /// One tier's leave-one-out result on one taxel.
@@ -47,12 +48,6 @@ impl Calibration {
     pub fn model(&self) -> &ModelCalibration {
         &self.model
     }
-}
-
-fn column_of<'a>(values: &'a PyReadonlyArray1<'_, f64>, name: &str) -> PyResult<&'a [f64]> {
-    values
-        .as_slice()
-        .map_err(|_| PyValueError::new_err(format!("{name} must be a contiguous array")))
 }
 
 #[pymethods]
@@ -99,21 +94,28 @@ impl Calibration {
 
     /// Fits a calibration from reference loads, as ``taxel calibrate`` does: ``pressure_kpa``
     /// (N,) applied pressures (several rows at 0 kPa give C0), ``capacitance_pf`` (N, 4)
-    /// measured capacitances, ``temp_c`` (N,) pad temperatures (NaN or omitted: none). The
-    /// result's :attr:`fit_report` is the command's report and :attr:`leave_one_out` its
+    /// measured capacitances, ``temp_c`` (N,) pad temperatures (NaN or omitted: none). Any
+    /// array-like is accepted (lists, numpy arrays of any numeric type and memory layout,
+    /// pandas Series and DataFrames) and read as float64 in row order. The result's :attr:`fit_report` is the command's report and :attr:`leave_one_out` its
     /// cross-validation of every tier.
     #[staticmethod]
     #[pyo3(signature = (pressure_kpa, capacitance_pf, temp_c=None, id=1, parasitic_pf=0.0, budget_kpa=model_core::UseCase::GRIPPER.error_budget_kpa))]
     fn fit(
         py: Python<'_>,
-        pressure_kpa: PyReadonlyArray1<'_, f64>,
-        capacitance_pf: PyReadonlyArray2<'_, f64>,
-        temp_c: Option<PyReadonlyArray1<'_, f64>>,
+        pressure_kpa: &Bound<'_, PyAny>,
+        capacitance_pf: &Bound<'_, PyAny>,
+        temp_c: Option<&Bound<'_, PyAny>>,
         id: u32,
         parasitic_pf: f32,
         budget_kpa: f32,
     ) -> PyResult<Self> {
-        let pressures = column_of(&pressure_kpa, "pressure_kpa")?;
+        let kind = ErrorKind::Calibration;
+        let pressure_kpa = float64_c_array::<Ix1>(pressure_kpa, "pressure_kpa", kind)?;
+        let capacitance_pf = float64_c_array::<Ix2>(capacitance_pf, "capacitance_pf", kind)?;
+        let temp_c = temp_c
+            .map(|values| float64_c_array::<Ix1>(values, "temp_c", kind))
+            .transpose()?;
+        let pressures = c_order_values(&pressure_kpa, "pressure_kpa", kind)?;
         let rows = pressures.len();
         let shape = capacitance_pf.shape();
         if shape != [rows, TAXEL_COUNT] {
@@ -124,12 +126,10 @@ impl Calibration {
                 ),
             ));
         }
-        let capacitances = capacitance_pf
-            .as_slice()
-            .map_err(|_| PyValueError::new_err("capacitance_pf must be a contiguous array"))?;
+        let capacitances = c_order_values(&capacitance_pf, "capacitance_pf", kind)?;
         let temperatures = match &temp_c {
             Some(values) => {
-                let values = column_of(values, "temp_c")?;
+                let values = c_order_values(values, "temp_c", kind)?;
                 if values.len() != rows {
                     return Err(taxel_error(
                         ErrorKind::Calibration,

@@ -3,10 +3,11 @@
 //! its tier set, and a tare on the mean of the first `tare_rows` readable rows.
 
 use model_core::{PadModel, SampleInput, TareStatus, TaxelReading, Tier, TAXEL_COUNT, TAXEL_NAMES};
-use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::ndarray::{Array2, Ix1, Ix2};
+use numpy::{IntoPyArray, PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
+use crate::arrays::{c_order_values, float64_c_array};
 use crate::calibration::Calibration;
 use crate::errors::{taxel_error, ErrorKind};
 
@@ -117,9 +118,9 @@ fn tare_warnings(model: &PadModel, pad: usize, pads: usize) -> Vec<String> {
 #[allow(clippy::type_complexity)]
 pub fn convert_arrays<'py>(
     py: Python<'py>,
-    capacitance_pf: PyReadonlyArray2<'py, f64>,
-    temp_c: PyReadonlyArray2<'py, f64>,
-    time_s: Option<PyReadonlyArray1<'py, f64>>,
+    capacitance_pf: &Bound<'py, PyAny>,
+    temp_c: &Bound<'py, PyAny>,
+    time_s: Option<&Bound<'py, PyAny>>,
     calibration: Option<PyRef<'py, Calibration>>,
     tier: Option<&str>,
     tare_rows: u16,
@@ -128,6 +129,12 @@ pub fn convert_arrays<'py>(
     Bound<'py, PyArray2<u16>>,
     Vec<String>,
 )> {
+    let kind = ErrorKind::Convert;
+    let capacitance_pf = float64_c_array::<Ix2>(capacitance_pf, "capacitance_pf", kind)?;
+    let temp_c = float64_c_array::<Ix2>(temp_c, "temp_c", kind)?;
+    let time_s = time_s
+        .map(|values| float64_c_array::<Ix1>(values, "time_s", kind))
+        .transpose()?;
     let [rows, taxels] = [capacitance_pf.shape()[0], capacitance_pf.shape()[1]];
     if taxels == 0 || taxels % TAXEL_COUNT != 0 {
         return Err(taxel_error(
@@ -159,19 +166,11 @@ pub fn convert_arrays<'py>(
     let model_calibration = calibration
         .map(|calibration| calibration.model().clone())
         .unwrap_or_default();
-    let contiguous = |name: &str| {
-        taxel_error(
-            ErrorKind::Convert,
-            format!("{name} must be a contiguous array"),
-        )
-    };
-    let capacitances = capacitance_pf
-        .as_slice()
-        .map_err(|_| contiguous("capacitance_pf"))?;
-    let temperatures = temp_c.as_slice().map_err(|_| contiguous("temp_c"))?;
+    let capacitances = c_order_values(&capacitance_pf, "capacitance_pf", kind)?;
+    let temperatures = c_order_values(&temp_c, "temp_c", kind)?;
     let times = match &time_s {
         Some(times) => {
-            let times = times.as_slice().map_err(|_| contiguous("time_s"))?;
+            let times = c_order_values(times, "time_s", kind)?;
             if times.len() != rows {
                 return Err(taxel_error(
                     ErrorKind::Convert,

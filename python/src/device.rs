@@ -33,11 +33,18 @@ pub trait Backend: Send + Sync {
 
 /// A board or the simulated device, with its sample sets and commands (see the package's
 /// documentation). Use it as a context manager, or call :meth:`close`.
-#[pyclass(subclass, module = "taxel")]
+///
+/// Every method may be called from any thread: :meth:`close` from another thread or from a
+/// signal handler ends a :meth:`read` blocked in this one (it raises :class:`taxel.LinkError`
+/// within about 50 ms).
+#[pyclass(frozen, subclass, module = "taxel")]
 pub struct Device {
     session: SharedSession,
-    buffering: Option<Buffering>,
-    backend: Option<Box<dyn Backend>>,
+    // Behind locks of their own so that every method takes `&self`: a method holding a mutable
+    // borrow of the object would make `close()` from another thread fail with "Already
+    // borrowed" while a `read()` waits.
+    buffering: Mutex<Option<Buffering>>,
+    backend: Mutex<Option<Box<dyn Backend>>>,
     timeout: Duration,
     pads: usize,
     port_name: String,
@@ -55,15 +62,17 @@ pub fn timeout_from_s(timeout_s: f64) -> PyResult<Duration> {
 
 impl Device {
     /// A device on an open byte stream: the session starts (identity, stream) with the GIL
-    /// released.
+    /// released, within `timeout` in all (`slow_hint` is added to the message when it does
+    /// not).
     pub fn connect(
         py: Python<'_>,
         port: Box<dyn Transport>,
         port_name: String,
         timeout: Duration,
         backend: Option<Box<dyn Backend>>,
+        slow_hint: &str,
     ) -> PyResult<Self> {
-        let started = start_interruptibly(py, port, timeout);
+        let started = start_interruptibly(py, port, timeout, slow_hint);
         let session = match started {
             Ok(session) => session,
             Err(error) => {
@@ -76,8 +85,8 @@ impl Device {
         let pads = session.pad_count();
         Ok(Self {
             session: Arc::new(Mutex::new(Some(session))),
-            buffering: None,
-            backend,
+            buffering: Mutex::new(None),
+            backend: Mutex::new(backend),
             timeout,
             pads,
             port_name,
@@ -186,8 +195,12 @@ impl Device {
         Ok(())
     }
 
-    fn refuse_while_buffering(&self, what: &str) -> PyResult<()> {
-        if self.buffering.is_some() {
+    fn is_buffering(&self, py: Python<'_>) -> bool {
+        py.allow_threads(|| lock(&self.buffering).is_some())
+    }
+
+    fn refuse_while_buffering(&self, py: Python<'_>, what: &str) -> PyResult<()> {
+        if self.is_buffering(py) {
             return Err(taxel_error(
                 ErrorKind::Other,
                 format!("{what} while buffering: take the sets with read_buffer(), or call stop_buffering() first"),
@@ -196,29 +209,37 @@ impl Device {
         Ok(())
     }
 
-    fn close_now(&mut self, py: Python<'_>) {
-        if let Some(mut buffering) = self.buffering.take() {
-            py.allow_threads(|| buffering.stop());
-        }
-        let session = Arc::clone(&self.session);
+    /// Closes everything with the GIL released (no lock is ever held while Python code may
+    /// run, so a signal handler may call this while another call of this thread waits).
+    fn close_now(&self, py: Python<'_>) {
         py.allow_threads(|| {
-            if let Some(mut session) = lock(&session).take() {
+            let buffering = lock(&self.buffering).take();
+            if let Some(mut buffering) = buffering {
+                buffering.stop();
+            }
+            if let Some(mut session) = lock(&self.session).take() {
                 session.stop_stream();
             }
+            let backend = lock(&self.backend).take();
+            if let Some(mut backend) = backend {
+                backend.stop();
+            }
         });
-        if let Some(mut backend) = self.backend.take() {
-            py.allow_threads(|| backend.stop());
-        }
     }
 }
 
 /// [`Session::start`] on a thread of its own, waited for in slices with the GIL released so
-/// that Ctrl-C interrupts it; an abandoned start ends by itself within its timeout.
+/// that Ctrl-C interrupts it, and for `timeout` in all (the start makes several requests, each
+/// bounded by `timeout`); an abandoned start ends by itself within its own timeouts.
 fn start_interruptibly(
     py: Python<'_>,
     port: Box<dyn Transport>,
     timeout: Duration,
+    slow_hint: &str,
 ) -> PyResult<Session> {
+    // A little over the timeout, so that a first request that times out reports itself (with
+    // the request it was) rather than this overall bound.
+    let deadline = Instant::now() + timeout + 2 * SLICE;
     let (sender, receiver) = mpsc::channel();
     thread::Builder::new()
         .name("taxel-connect".into())
@@ -241,7 +262,18 @@ fn start_interruptibly(
         receiver = returned;
         match received {
             Ok(started) => return started.map_err(|error| anyhow_error(&error, ErrorKind::Other)),
-            Err(mpsc::RecvTimeoutError::Timeout) => py.check_signals()?,
+            Err(mpsc::RecvTimeoutError::Timeout) => {
+                py.check_signals()?;
+                if Instant::now() >= deadline {
+                    return Err(taxel_error(
+                        ErrorKind::Timeout,
+                        format!(
+                            "the device did not finish connecting (identity and stream start) within {} ms{slow_hint}",
+                            timeout.as_millis()
+                        ),
+                    ));
+                }
+            }
             Err(mpsc::RecvTimeoutError::Disconnected) => {
                 return Err(taxel_error(
                     ErrorKind::Other,
@@ -296,7 +328,7 @@ impl Device {
             Ok::<_, taxel::device_link::LinkError>((path, opened.port))
         });
         let (path, port) = opened.map_err(crate::errors::link_error)?;
-        Device::connect(py, Box::new(port), path, timeout, None)
+        Device::connect(py, Box::new(port), path, timeout, None, "")
     }
 
     /// The device's identity: protocol and firmware version, board serial, calibration id and
@@ -341,7 +373,7 @@ impl Device {
     /// raises :class:`taxel.DeviceTimeoutError` if none arrives.
     #[pyo3(signature = (timeout=None))]
     fn read(&self, py: Python<'_>, timeout: Option<f64>) -> PyResult<SampleSet> {
-        self.refuse_while_buffering("read()")?;
+        self.refuse_while_buffering(py, "read()")?;
         let timeout = match timeout {
             Some(timeout_s) => timeout_from_s(timeout_s)?,
             None => self.timeout,
@@ -363,7 +395,7 @@ impl Device {
 
     /// The next sample set (:meth:`read`); stops when the device is closed.
     fn __next__(&self, py: Python<'_>) -> PyResult<SampleSet> {
-        if lock(&self.session).is_none() {
+        if self.is_closed(py) {
             return Err(PyStopIteration::new_err(()));
         }
         self.read(py, None)
@@ -372,44 +404,61 @@ impl Device {
     /// Starts collecting every sample set in the background, up to ``capacity_sets`` sets
     /// between two :meth:`read_buffer` calls; sets beyond are counted as overflowed.
     #[pyo3(signature = (capacity_sets=1_000_000))]
-    fn start_buffering(&mut self, capacity_sets: usize) -> PyResult<()> {
-        self.refuse_while_buffering("start_buffering()")?;
+    fn start_buffering(&self, py: Python<'_>, capacity_sets: usize) -> PyResult<()> {
         if capacity_sets == 0 {
             return Err(PyValueError::new_err("capacity_sets must be at least 1"));
         }
-        let buffering =
-            Buffering::start(Arc::clone(&self.session), capacity_sets).map_err(|error| {
-                taxel_error(
-                    ErrorKind::Other,
-                    format!("starting the buffer thread: {error}"),
-                )
-            })?;
-        self.buffering = Some(buffering);
-        Ok(())
+        if self.is_closed(py) {
+            return Err(closed_error());
+        }
+        let started = py.allow_threads(|| -> std::io::Result<bool> {
+            let mut buffering = lock(&self.buffering);
+            if buffering.is_some() {
+                return Ok(false);
+            }
+            *buffering = Some(Buffering::start(Arc::clone(&self.session), capacity_sets)?);
+            Ok(true)
+        });
+        match started {
+            Ok(true) => Ok(()),
+            Ok(false) => self.refuse_while_buffering(py, "start_buffering()"),
+            Err(error) => Err(taxel_error(
+                ErrorKind::Other,
+                format!("starting the buffer thread: {error}"),
+            )),
+        }
     }
 
     /// The sets collected since the last call, as a :class:`taxel.Buffer`. With ``strict``
     /// (the default), sets lost meanwhile (the buffer was full, or sequence numbers have gaps)
-    /// raise :class:`taxel.DataLossError`, whose ``buffer`` holds what was collected.
+    /// raise :class:`taxel.DataLossError`, whose ``buffer`` holds what was collected. When the
+    /// link failed (the board was unplugged), :class:`taxel.LinkError` is raised, with the sets
+    /// collected before the failure in its ``buffer``; so is every later call.
     #[pyo3(signature = (strict=true))]
     fn read_buffer(&self, py: Python<'_>, strict: bool) -> PyResult<Buffer> {
-        let Some(buffering) = &self.buffering else {
+        let taken = py.allow_threads(|| {
+            lock(&self.buffering)
+                .as_ref()
+                .map(|buffering| (buffering.take(), buffering.capacity_sets))
+        });
+        let Some((collected, capacity_sets)) = taken else {
             return Err(taxel_error(
                 ErrorKind::Other,
                 "read_buffer() needs start_buffering() first",
             ));
         };
-        let collected = py.allow_threads(|| buffering.take());
-        if let Some(error) = &collected.error {
-            return Err(anyhow_error(error, ErrorKind::Link));
-        }
         let buffer = Buffer::new(py, &collected.sets, self.pads, collected.overflowed_sets);
+        if let Some(error) = &collected.error {
+            let error = anyhow_error(error, ErrorKind::Link);
+            error.value(py).setattr("buffer", Py::new(py, buffer)?)?;
+            return Err(error);
+        }
         if strict && (buffer.overflowed_sets > 0 || buffer.sequence_gap_sets > 0) {
             let message = format!(
                 "{} sample set(s) lost: {} arrived while the buffer of {} sets was full (call read_buffer() more often or give a larger capacity_sets), {} missing from the sequence numbers",
                 buffer.overflowed_sets + buffer.sequence_gap_sets,
                 buffer.overflowed_sets,
-                buffering.capacity_sets,
+                capacity_sets,
                 buffer.sequence_gap_sets
             );
             let error = taxel_error(ErrorKind::DataLoss, message);
@@ -419,17 +468,25 @@ impl Device {
         Ok(buffer)
     }
 
-    /// Stops collecting in the background (sets not yet read are discarded).
-    fn stop_buffering(&mut self, py: Python<'_>) {
-        if let Some(mut buffering) = self.buffering.take() {
-            py.allow_threads(|| buffering.stop());
-        }
+    /// Stops collecting in the background and returns the sets collected since the last
+    /// :meth:`read_buffer` (as ``read_buffer(strict=False)``: losses are in its counters; an
+    /// empty buffer when none was running). Sets arriving afterwards are for :meth:`read`.
+    fn stop_buffering(&self, py: Python<'_>) -> Buffer {
+        let collected = py.allow_threads(|| {
+            let buffering = lock(&self.buffering).take();
+            buffering.map(|mut buffering| {
+                buffering.stop();
+                buffering.take()
+            })
+        });
+        let collected = collected.unwrap_or_default();
+        Buffer::new(py, &collected.sets, self.pads, collected.overflowed_sets)
     }
 
     /// Whether sets are being collected in the background.
     #[getter]
-    fn buffering(&self) -> bool {
-        self.buffering.is_some()
+    fn buffering(&self, py: Python<'_>) -> bool {
+        self.is_buffering(py)
     }
 
     /// Tares every pad: the unloaded reference of each taxel becomes the mean of the next
@@ -605,15 +662,17 @@ impl Device {
         Ok(dict)
     }
 
-    /// Stops the stream and closes the port (and stops the simulated device). Idempotent.
-    fn close(&mut self, py: Python<'_>) {
+    /// Stops the stream and closes the port (and stops the simulated device). Idempotent, and
+    /// safe from any thread or a signal handler: a :meth:`read` or request waiting meanwhile
+    /// raises :class:`taxel.LinkError` ("the device is closed").
+    fn close(&self, py: Python<'_>) {
         self.close_now(py);
     }
 
     /// Whether :meth:`close` was called.
     #[getter]
-    fn closed(&self) -> bool {
-        lock(&self.session).is_none()
+    fn closed(&self, py: Python<'_>) -> bool {
+        self.is_closed(py)
     }
 
     /// The device, for ``with``.
@@ -623,7 +682,7 @@ impl Device {
 
     /// Closes the device at the end of ``with``; exceptions propagate.
     #[pyo3(signature = (*_exception))]
-    fn __exit__(&mut self, py: Python<'_>, _exception: &Bound<'_, pyo3::types::PyTuple>) -> bool {
+    fn __exit__(&self, py: Python<'_>, _exception: &Bound<'_, pyo3::types::PyTuple>) -> bool {
         self.close_now(py);
         false
     }
@@ -635,6 +694,10 @@ impl Device {
 }
 
 impl Device {
+    fn is_closed(&self, py: Python<'_>) -> bool {
+        py.allow_threads(|| lock(&self.session).is_none())
+    }
+
     fn pad_index(&self, pad: u8) -> PyResult<PadIndex> {
         if usize::from(pad) >= self.pads {
             return Err(PyValueError::new_err(format!(
@@ -649,13 +712,13 @@ impl Device {
 
 impl Drop for Device {
     fn drop(&mut self) {
-        if let Some(mut buffering) = self.buffering.take() {
+        if let Some(mut buffering) = lock(&self.buffering).take() {
             buffering.stop();
         }
         if let Some(mut session) = lock(&self.session).take() {
             session.stop_stream();
         }
-        if let Some(mut backend) = self.backend.take() {
+        if let Some(mut backend) = lock(&self.backend).take() {
             backend.stop();
         }
     }

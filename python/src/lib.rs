@@ -5,6 +5,7 @@
 //! argument checks of `taxel.convert`, the `Flags` enumeration and the exception classes.
 #![deny(missing_docs)]
 
+mod arrays;
 mod buffering;
 mod calibration;
 mod convert;

@@ -12,7 +12,7 @@ use std::time::Duration;
 use anyhow::Context;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use sim_device::{SimulatedDevice, SimulatedDeviceConfig};
+use sim_device::{Pacing, SimulatedDevice, SimulatedDeviceConfig, Simulation};
 
 use taxel::sim::{board_for, load_scene};
 
@@ -28,12 +28,16 @@ struct SimulatorRun {
     stop: Arc<AtomicBool>,
     handle: Option<thread::JoinHandle<()>>,
     host: HostEnd,
+    simulation: Simulation,
 }
 
 impl Backend for SimulatorRun {
     fn stop(&mut self) {
         self.host.disconnect();
         self.stop.store(true, Ordering::Relaxed);
+        // A slow simulation sleeps for a long time per step (a day per simulated second at
+        // speed 1e-5): turning the pacing off wakes it, and it sees the stop at once.
+        let _ = self.simulation.set_pacing(Pacing::Off);
         if let Some(handle) = self.handle.take() {
             let _ = handle.join();
         }
@@ -48,7 +52,7 @@ impl Backend for SimulatorRun {
 /// give the same samples). ``pads``: pads on the board, each playing a scene of one pad
 /// (default: as many as the scene describes). ``link_buffer_bytes``: what the link towards the
 /// host holds before the device drops frames, as a USB host's buffers would.
-#[pyclass(extends = Device, module = "taxel")]
+#[pyclass(extends = Device, frozen, module = "taxel")]
 pub struct Simulator {
     scene_name: String,
 }
@@ -97,6 +101,7 @@ impl Simulator {
                 topology,
                 bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
             })?;
+            let simulation = device.simulation().clone();
             let (mut device_end, host_end) = memory_link(link_buffer_bytes, LINK_READ_TIMEOUT);
             let stop = Arc::new(AtomicBool::new(false));
             let thread_stop = Arc::clone(&stop);
@@ -108,6 +113,7 @@ impl Simulator {
                 stop,
                 handle: Some(handle),
                 host: host_end.clone(),
+                simulation,
             };
             Ok((run, host_end, scene_name))
         });
@@ -119,6 +125,11 @@ impl Simulator {
             "simulated".to_owned(),
             timeout,
             Some(Box::new(run)),
+            &speed
+                .filter(|speed| *speed < 1.0)
+                .map_or(String::new(), |speed| {
+                    format!(" (the simulator runs at speed {speed}: give a longer timeout)")
+                }),
         )?;
         Ok(PyClassInitializer::from(device).add_subclass(Simulator { scene_name }))
     }

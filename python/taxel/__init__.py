@@ -18,6 +18,7 @@ and ``(N, 4)`` from a buffer, and a device of ``P`` pads ``(4 * P,)`` and ``(N, 
 from __future__ import annotations
 
 import enum
+import operator
 import warnings
 from typing import Optional, Tuple
 
@@ -82,6 +83,19 @@ class Flags(enum.IntFlag):
     TEMPERATURE_FALLBACK = 1 << 12
     TEMPERATURE_IMPLAUSIBLE = 1 << 13
     BASELINE_FAR_FROM_CALIBRATION = 1 << 14
+
+    @classmethod
+    def _missing_(cls, value: object) -> "Optional[Flags]":
+        # numpy's integers (a cell of ``sample.flags``) are not ``int``: the enum's own lookup
+        # finds single bits by hash but refuses 0 and combinations of bits. Any integer that
+        # ``operator.index`` accepts is read as its value.
+        if isinstance(value, int):
+            return super()._missing_(value)
+        try:
+            index = operator.index(value)  # type: ignore[arg-type]
+        except TypeError:
+            return None
+        return cls(index)
 
 
 class TaxelWarning(UserWarning):

@@ -20,7 +20,14 @@ class DeviceNotFoundError(TaxelError, LookupError):
 
 class LinkError(TaxelError, OSError):
     """The link to the device failed: the port is missing or is not a serial port, it could not
-    be opened, or the device closed the connection (unplugged)."""
+    be opened, or the device closed the connection (unplugged). Raised by
+    :meth:`taxel.Device.read_buffer`, ``buffer`` holds the sets collected before the failure (a
+    :class:`taxel.Buffer`); otherwise it is ``None``."""
+
+    def __init__(self, *args: object, buffer: object = None) -> None:
+        super().__init__(*args)
+        #: The sample sets collected before the link failed, or ``None``.
+        self.buffer = buffer
 
 
 class DeviceTimeoutError(TaxelError, builtins.TimeoutError):

@@ -18,14 +18,14 @@ def tier_names() -> List[str]:
     """The inversion tiers' names, in id order."""
 
 def convert_arrays(
-    capacitance_pf: npt.NDArray[np.float64],
-    temp_c: npt.NDArray[np.float64],
-    time_s: Optional[npt.NDArray[np.float64]],
+    capacitance_pf: npt.ArrayLike,
+    temp_c: npt.ArrayLike,
+    time_s: Optional[npt.ArrayLike],
     calibration: Optional["Calibration"],
     tier: Optional[str],
     tare_rows: int,
 ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint16], List[str]]:
-    """The native half of :func:`taxel.convert` (contiguous float64 arrays, checked shapes)."""
+    """The native half of :func:`taxel.convert` (array-likes, read as C-ordered float64)."""
 
 class SampleSet:
     """One sample set of every pad. Arrays over the taxels have shape ``(taxels,)`` with
@@ -124,9 +124,9 @@ class Calibration:
         """The calibration file's JSON text."""
     @staticmethod
     def fit(
-        pressure_kpa: npt.NDArray[np.float64],
-        capacitance_pf: npt.NDArray[np.float64],
-        temp_c: Optional[npt.NDArray[np.float64]] = None,
+        pressure_kpa: npt.ArrayLike,
+        capacitance_pf: npt.ArrayLike,
+        temp_c: Optional[npt.ArrayLike] = None,
         id: int = 1,
         parasitic_pf: float = 0.0,
         budget_kpa: float = 0.5,
@@ -170,9 +170,10 @@ class Device:
         """Starts collecting every sample set in the background."""
     def read_buffer(self, strict: bool = True) -> Buffer:
         """The sets collected since the last call; with ``strict``, lost sets raise
-        :class:`taxel.DataLossError` (its ``buffer`` holds what was collected)."""
-    def stop_buffering(self) -> None:
-        """Stops collecting in the background."""
+        :class:`taxel.DataLossError` (its ``buffer`` holds what was collected); a failed link
+        raises :class:`taxel.LinkError`, whose ``buffer`` holds the sets collected before it."""
+    def stop_buffering(self) -> Buffer:
+        """Stops collecting in the background; returns the sets not yet read."""
     @property
     def buffering(self) -> bool:
         """Whether sets are being collected in the background."""
@@ -200,7 +201,8 @@ class Device:
     def stats(self) -> Dict[str, int]:
         """This connection's accounting of sets, gaps and drops."""
     def close(self) -> None:
-        """Stops the stream and closes the port. Idempotent."""
+        """Stops the stream and closes the port. Idempotent; safe from any thread or a signal
+        handler (a read waiting meanwhile raises :class:`taxel.LinkError`)."""
     @property
     def closed(self) -> bool:
         """Whether :meth:`close` was called."""

@@ -6,10 +6,12 @@
 //! `Simulation::advance_us`) first completes, in time order, every device event due up to the
 //! new time, then paces. Pacing happens after the simulation's lock is released: a
 //! [`Pacing::RealTime`] sleep (`std::thread::sleep`, fine under a simple `block_on` executor)
-//! or a [`Pacing::Callback`], which may itself call into the simulation.
+//! or a [`Pacing::Callback`], which may itself call into the simulation. A real-time sleep ends
+//! early when the pacing changes (`Simulation::set_pacing`), so that a slow simulation can be
+//! stopped at once: setting [`Pacing::Off`] wakes every sleeper.
 
 use std::fmt;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use embedded_hal_async::delay::DelayNs;
@@ -69,12 +71,56 @@ impl fmt::Display for InvalidPacing {
 
 impl std::error::Error for InvalidPacing {}
 
+/// What a real-time sleep waits on besides its deadline: the number of pacing changes so far.
+#[derive(Debug, Default)]
+pub(crate) struct PacingChanges {
+    count: Mutex<u64>,
+    changed: Condvar,
+}
+
+impl PacingChanges {
+    fn count(&self) -> u64 {
+        *self
+            .count
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    fn announce(&self) {
+        *self
+            .count
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner()) += 1;
+        self.changed.notify_all();
+    }
+
+    /// Sleeps until `deadline`, or until the pacing changes after it read `seen`.
+    fn sleep_until(&self, deadline: Instant, seen: u64) {
+        let mut count = self
+            .count
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        while *count == seen {
+            let remaining = deadline.saturating_duration_since(Instant::now());
+            if remaining.is_zero() {
+                return;
+            }
+            count = self
+                .changed
+                .wait_timeout(count, remaining)
+                .unwrap_or_else(|poisoned| poisoned.into_inner())
+                .0;
+        }
+    }
+}
+
 /// The pacing in force and its anchor.
 #[derive(Debug, Clone)]
 pub(crate) struct Pacer {
     pacing: Pacing,
     wall_anchor: Instant,
     simulated_anchor_ns: u64,
+    changes: Arc<PacingChanges>,
 }
 
 impl Pacer {
@@ -83,6 +129,7 @@ impl Pacer {
             pacing: Pacing::Off,
             wall_anchor: Instant::now(),
             simulated_anchor_ns: 0,
+            changes: Arc::default(),
         }
     }
 
@@ -95,6 +142,7 @@ impl Pacer {
         self.pacing = pacing;
         self.wall_anchor = Instant::now();
         self.simulated_anchor_ns = now_ns;
+        self.changes.announce();
         Ok(())
     }
 
@@ -107,7 +155,11 @@ impl Pacer {
                 Duration::try_from_secs_f64(simulated_s / speed)
                     .ok()
                     .and_then(|wall| self.wall_anchor.checked_add(wall))
-                    .map_or(PacingAction::Nothing, PacingAction::SleepUntil)
+                    .map_or(PacingAction::Nothing, |deadline| PacingAction::SleepUntil {
+                        deadline,
+                        changes: Arc::clone(&self.changes),
+                        seen: self.changes.count(),
+                    })
             }
             Pacing::Callback(callback) => PacingAction::Call(Arc::clone(callback), now_ns),
         }
@@ -117,7 +169,11 @@ impl Pacer {
 /// Pacing work to do outside the lock.
 pub(crate) enum PacingAction {
     Nothing,
-    SleepUntil(Instant),
+    SleepUntil {
+        deadline: Instant,
+        changes: Arc<PacingChanges>,
+        seen: u64,
+    },
     Call(PacingCallback, u64),
 }
 
@@ -125,12 +181,11 @@ impl PacingAction {
     pub(crate) fn run(self) {
         match self {
             PacingAction::Nothing => {}
-            PacingAction::SleepUntil(deadline) => {
-                let remaining = deadline.saturating_duration_since(Instant::now());
-                if !remaining.is_zero() {
-                    std::thread::sleep(remaining);
-                }
-            }
+            PacingAction::SleepUntil {
+                deadline,
+                changes,
+                seen,
+            } => changes.sleep_until(deadline, seen),
             PacingAction::Call(callback, now_ns) => callback(now_ns),
         }
     }

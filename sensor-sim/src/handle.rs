@@ -155,7 +155,9 @@ impl Simulation {
         state.pad_mut(pad).map(|pad| pad.sample(now_us))
     }
 
-    /// Sets how simulated time relates to wall-clock time (anchored at this call).
+    /// Sets how simulated time relates to wall-clock time (anchored at this call). A real-time
+    /// sleep in progress on another thread ends at once, so `Pacing::Off` stops a slow
+    /// simulation from waiting out its sleeps.
     pub fn set_pacing(&self, pacing: Pacing) -> Result<(), InvalidPacing> {
         let mut state = self.state();
         let now_ns = state.now_ns;

@@ -119,3 +119,33 @@ fn real_time_pacing_refuses_bad_speeds_and_never_runs_ahead_of_the_wall_clock() 
     // A lower bound only: sleeping guarantees at least the time asked for.
     assert!(start.elapsed() >= Duration::from_millis(20));
 }
+
+#[test]
+fn changing_the_pacing_wakes_a_real_time_sleep_at_once() {
+    let simulation = Simulation::default();
+    // One simulated second at this speed is a wall-clock day.
+    simulation
+        .set_pacing(Pacing::RealTime {
+            speed: 1.0 / 86_400.0,
+        })
+        .unwrap();
+    let sleeper = simulation.clone();
+    let start = Instant::now();
+    let advancing = std::thread::spawn(move || sleeper.advance_us(1_000_000));
+    std::thread::sleep(Duration::from_millis(50));
+    assert!(
+        !advancing.is_finished(),
+        "the paced advance must be sleeping"
+    );
+    simulation.set_pacing(Pacing::Off).unwrap();
+    while !advancing.is_finished() && start.elapsed() < Duration::from_secs(5) {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    // Without the wake the thread would sleep for a day; it is left behind and the test fails.
+    assert!(
+        advancing.is_finished(),
+        "the paced sleep was still running 5 s after the pacing was turned off"
+    );
+    advancing.join().unwrap();
+    assert_eq!(simulation.now_us(), 1_000_000);
+}

@@ -265,11 +265,6 @@ impl SimulatedDevice {
                 )
                 .map_err(|error| SimulatedDeviceError::Simulation(format!("{error:?}")))?;
         }
-        if let Some(speed) = config.speed {
-            simulation
-                .set_pacing(Pacing::RealTime { speed })
-                .map_err(|error| SimulatedDeviceError::Simulation(error.to_string()))?;
-        }
         let mut store = CalibrationStore::new(SimulatedFlash::new(), 0..FLASH_REGION_LEN as u32)
             .map_err(|_| SimulatedDeviceError::Storage)?;
         if factory_calibrated {
@@ -292,6 +287,14 @@ impl SimulatedDevice {
             None,
             clock_error,
         );
+        // Paced from the end of the boot: the boot itself is not played in real time, so that a
+        // slow simulation (speed 1e-4) is constructed at once and answers as soon as its pace
+        // allows.
+        if let Some(speed) = config.speed {
+            simulation
+                .set_pacing(Pacing::RealTime { speed })
+                .map_err(|error| SimulatedDeviceError::Simulation(error.to_string()))?;
+        }
         Ok(Self {
             device,
             simulation,
