@@ -11,11 +11,11 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use clap::Parser;
 use sim_device::SimulatedDeviceConfig;
-use taxel::device_link::open_serial;
-use taxel::multi_record::MultiBoardArgs;
-use taxel::noteln;
-use taxel::output_file::PendingRename;
-use taxel::sim::{load_scene, SimulatorThread};
+use sim_device::{load_scene, SimulatorThread};
+use taxel_args::MultiBoardArgs;
+use taxel_host::device_link::open_serial;
+use taxel_host::noteln;
+use taxel_host::output_file::PendingRename;
 use zenoh::Wait;
 
 use crate::device_reader::{lock, read_device, BridgeClock, DeviceHealth, ReaderState};
@@ -258,7 +258,7 @@ fn bridge_ports(
             scope.spawn(move || {
                 if let Err(error) = read_device(device, port, clock, sender, &health, stop, timeout)
                 {
-                    let message = taxel::console::error_message(&error);
+                    let message = taxel_host::console::error_message(&error);
                     noteln!("device {device}: {message}");
                     lock(&health).state = ReaderState::Stopped(message);
                 }

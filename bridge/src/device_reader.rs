@@ -4,7 +4,7 @@
 //!
 //! # Timestamps
 //!
-//! Each device's clock is mapped with its own [`ClockMapper`] (see `taxel::clock_sync`), fed with
+//! Each device's clock is mapped with its own [`ClockMapper`] (see `taxel_host::clock_sync`), fed with
 //! each sample frame's device time and arrival. A message's stamp is that mapping of its device
 //! time, never later than its arrival, turned into Unix time with the wall clock read once when
 //! the bridge started ([`BridgeClock`]). The mapper needs about 1.5 s of frames before its
@@ -25,10 +25,10 @@ use std::sync::Mutex;
 use std::time::{Duration, SystemTime};
 
 use anyhow::Context;
-use taxel::clock_sync::{ClockEstimate, ClockMapper};
-use taxel::device_link::DeviceLink;
-use taxel::multi_record::{HostClock, MonotonicClock};
-use taxel::stream_accounting::StreamAccounting;
+use taxel_host::clock_sync::{ClockEstimate, ClockMapper};
+use taxel_host::device_link::DeviceLink;
+use taxel_host::multi_record::{HostClock, MonotonicClock};
+use taxel_host::stream_accounting::StreamAccounting;
 use wire::{
     Command, CountersFrame, DeviceEvent, DeviceFrame, InfoFrame, PadIndex, PadInfoFrame,
     ReplyPayload, SampleFrame,

@@ -3,7 +3,7 @@
 //! the clock mapping. Level: ERROR when the device stopped, WARN when anything was lost or
 //! dropped or a pad runs on a fallback temperature or a default calibration, else OK.
 
-use taxel::device_words::{board_serial_hex, calibration_source_words};
+use taxel_host::device_words::{board_serial_hex, calibration_source_words};
 use taxel_ros2::{DiagnosticLevel, DiagnosticStatus, KeyValue};
 use wire::{CalibrationSource, TemperatureSensor, TemperatureSource};
 

@@ -3,9 +3,9 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use taxel::console::error_message;
-use taxel::noteln;
 use taxel_bridge::command::{run, BridgeArgs};
+use taxel_host::console::error_message;
+use taxel_host::noteln;
 
 fn main() -> ExitCode {
     let args = BridgeArgs::parse();

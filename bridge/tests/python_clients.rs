@@ -94,7 +94,7 @@ fn the_python_mcap_readers_decode_a_taxel_record_mcap_file() {
     let directory = tempfile::tempdir().unwrap();
     let scene_text = std::fs::read_to_string(script("plateau.toml")).unwrap();
     let scene = sim_device::SceneFile::parse(&scene_text).unwrap();
-    let simulator = taxel::sim::SimulatorThread::start(
+    let simulator = sim_device::SimulatorThread::start(
         sim_device::SimulatedDeviceConfig {
             topology: sim_device::pads_topology(scene.pads.len()),
             scene,
@@ -108,21 +108,25 @@ fn the_python_mcap_readers_decode_a_taxel_record_mcap_file() {
     let recording = directory.path().join("rec.mcap");
     let port = simulator.path().display().to_string();
     let recording_arg = recording.display().to_string();
-    let cli = <taxel::cli::Cli as clap::Parser>::try_parse_from([
-        "taxel",
-        "record",
-        port.as_str(),
-        "--format",
-        "mcap",
-        "--samples",
-        "700",
-        "-o",
-        recording_arg.as_str(),
-    ])
-    .unwrap();
-    let result = taxel::cli::run(&cli);
+    let result = std::process::Command::new(taxel_cli())
+        .args([
+            "record",
+            port.as_str(),
+            "--format",
+            "mcap",
+            "--samples",
+            "700",
+            "-o",
+            recording_arg.as_str(),
+        ])
+        .output()
+        .unwrap();
     simulator.stop();
-    assert!(result.is_ok(), "{result:?}");
+    assert!(
+        result.status.success(),
+        "taxel record: {}",
+        String::from_utf8_lossy(&result.stderr)
+    );
     run_script(
         &python,
         "read_mcap.py",
@@ -145,4 +149,19 @@ fn a_plain_zenoh_subscriber_reads_the_documented_records() {
         "subscribe_plain.py",
         &["--port".to_owned(), free_port().to_string()],
     );
+}
+
+/// The `taxel` command line, another package of the workspace: `cargo test` builds it before
+/// the bridge's tests run (CI does), or `cargo build -p taxel` does.
+fn taxel_cli() -> std::path::PathBuf {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(|| root.join("target"), std::path::PathBuf::from);
+    let cli = target.join("debug").join("taxel");
+    assert!(
+        cli.is_file(),
+        "{} is missing: build the command line first (cargo build -p taxel)",
+        cli.display()
+    );
+    cli
 }

@@ -4,13 +4,13 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use taxel::convert::{convert_csv, convert_raw, ConvertOptions};
+use taxel_host::convert::{convert_csv, convert_raw, ConvertOptions};
 
 fuzz_target!(|bytes: &[u8]| {
     let options = ConvertOptions::default();
     let _ = convert_csv(bytes, std::io::sink(), &options);
     let _ = convert_raw(bytes, std::io::sink(), &options);
-    let _ = taxel::calibrate::read_loads(bytes);
+    let _ = taxel_host::calibrate::read_loads(bytes);
     if let Ok(series) = taxel::plot::read_pressure_series(bytes) {
         assert!(series.time_s.iter().all(|time_s| time_s.is_finite()));
         let _ = taxel::plot::pressures_svg(&series, (320, 200));

@@ -9,10 +9,10 @@ use numpy::ndarray::{Ix1, Ix2};
 use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use taxel::calibrate::{
+use taxel_host::calibrate::{
     cross_validate, curve_points, fit_calibration, reference_data, LoadRow, TierFitError,
 };
-use taxel::calibration_file;
+use taxel_host::calibration_file;
 
 use crate::arrays::{c_order_values, float64_c_array};
 use crate::errors::{anyhow_error, taxel_error, ErrorKind};
@@ -169,7 +169,7 @@ impl Calibration {
             let law = ModelCalibration::default().temperature_law().clone();
             let data = reference_data(&loads, [f64::from(parasitic_pf); TAXEL_COUNT], &law)?;
             let model = fit_calibration(&data, id, parasitic_pf)?;
-            let report = taxel::calibrate_report::fit_report(&data, &model, budget_kpa);
+            let report = taxel_host::calibrate_report::fit_report(&data, &model, budget_kpa);
             let leave_one_out = (0..TAXEL_COUNT)
                 .flat_map(|taxel| {
                     cross_validate(&curve_points(&data, taxel))

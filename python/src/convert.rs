@@ -100,7 +100,7 @@ fn tare_warnings(model: &PadModel, pad: usize, pads: usize) -> Vec<String> {
                         "{prefix}taxel {} could not be tared ({}); it stays not_tared",
                         TAXEL_NAMES[taxel],
                         errors[taxel]
-                            .map(|error| taxel::device_words::baseline_error_words(&error))
+                            .map(|error| taxel_host::device_words::baseline_error_words(&error))
                             .unwrap_or_else(|| "no usable reading".to_owned())
                     )
                 })
@@ -159,7 +159,7 @@ pub fn convert_arrays<'py>(
         ));
     }
     let tier = match tier {
-        Some(name) => taxel::convert::parse_tier(name)
+        Some(name) => taxel_host::convert::parse_tier(name)
             .map_err(|message| taxel_error(ErrorKind::Convert, message))?,
         None => Tier::default(),
     };

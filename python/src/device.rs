@@ -10,7 +10,7 @@ use anyhow::Context;
 use pyo3::exceptions::{PyStopIteration, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use taxel::device_link::{open_serial, select_port, RequestError, DEFAULT_PID, DEFAULT_VID};
+use taxel_host::device_link::{open_serial, select_port, RequestError, DEFAULT_PID, DEFAULT_VID};
 use wire::{Command, PadIndex, ReplyPayload, SampleRate};
 
 use crate::buffering::{lock, Buffer, Buffering, SharedSession};
@@ -325,7 +325,7 @@ impl Device {
         let opened = py.allow_threads(|| {
             let path = select_port(port.as_deref(), serial.as_deref(), DEFAULT_VID, DEFAULT_PID)?;
             let opened = open_serial(&path, PORT_READ_TIMEOUT)?;
-            Ok::<_, taxel::device_link::LinkError>((path, opened.port))
+            Ok::<_, taxel_host::device_link::LinkError>((path, opened.port))
         });
         let (path, port) = opened.map_err(crate::errors::link_error)?;
         Device::connect(py, Box::new(port), path, timeout, None, "")
@@ -343,7 +343,7 @@ impl Device {
             "firmware_version",
             format!("{}.{}.{}", version.major, version.minor, version.patch),
         )?;
-        dict.set_item("board_serial", taxel::device_words::board_serial_hex(&info))?;
+        dict.set_item("board_serial", taxel_host::device_words::board_serial_hex(&info))?;
         dict.set_item("calibration_id", info.calibration_id)?;
         dict.set_item(
             "calibration_source",
@@ -524,7 +524,7 @@ impl Device {
 
     /// Selects the pressure-model tier by name (see :data:`taxel.TIERS`).
     fn set_tier(&self, py: Python<'_>, tier: &str) -> PyResult<()> {
-        let tier = taxel::convert::parse_tier(tier).map_err(PyValueError::new_err)?;
+        let tier = taxel_host::convert::parse_tier(tier).map_err(PyValueError::new_err)?;
         let payload = self.request(
             py,
             Command::SetModelTier { tier },
@@ -567,8 +567,8 @@ impl Device {
         let timeout = self.timeout;
         let calibration = self.with_session(py, move |session| {
             let link = session.link_mut();
-            let pad_info = taxel::calibration_transfer::pad_info(link, pad_index, timeout)?;
-            taxel::calibration_transfer::pull(link, pad_index, pad_info.calibration_id, timeout)
+            let pad_info = taxel_host::calibration_transfer::pad_info(link, pad_index, timeout)?;
+            taxel_host::calibration_transfer::pull(link, pad_index, pad_info.calibration_id, timeout)
                 .with_context(|| format!("reading pad {pad}'s calibration"))
         })?;
         Ok(Calibration::from_model(calibration))
@@ -588,7 +588,7 @@ impl Device {
         let model = calibration.model().clone();
         let timeout = self.timeout;
         self.with_session(py, move |session| {
-            taxel::calibration_transfer::upload_to_pads(
+            taxel_host::calibration_transfer::upload_to_pads(
                 session.link_mut(),
                 &model,
                 only_pad,

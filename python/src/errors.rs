@@ -4,7 +4,7 @@
 
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
-use taxel::device_link::{LinkError, RequestError};
+use taxel_host::device_link::{LinkError, RequestError};
 
 /// The Python exception classes, by their name in `taxel._errors`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,7 +94,7 @@ pub fn link_error(error: LinkError) -> PyErr {
 /// An error of the host library (an `anyhow` chain) as a Python exception: the class from the
 /// innermost typed cause, the message as the CLI prints it.
 pub fn anyhow_error(error: &anyhow::Error, default_kind: ErrorKind) -> PyErr {
-    let message = taxel::console::error_message(error);
+    let message = taxel_host::console::error_message(error);
     let mut kind = default_kind;
     for cause in error.chain() {
         if let Some(request) = cause.downcast_ref::<RequestError>() {

@@ -20,7 +20,7 @@ mod use_case;
 use model_core::{TaxelFlags, Tier};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use taxel::device_link::{attached_boards, DEFAULT_PID, DEFAULT_VID};
+use taxel_host::device_link::{attached_boards, DEFAULT_PID, DEFAULT_VID};
 
 /// The boards attached by USB with the pad's VID:PID, sorted by port: one dict per board with
 /// ``port``, ``serial_number``, ``manufacturer``, ``product``, ``vid`` and ``pid``.

@@ -7,8 +7,8 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use model_core::TAXEL_COUNT;
 use numpy::{PyArray1, ToPyArray};
 use pyo3::prelude::*;
-use taxel::csv_format::temperature_source_name;
-use taxel::pad_set::PadSet;
+use taxel_host::csv_format::temperature_source_name;
+use taxel_host::pad_set::PadSet;
 
 /// The numbers of one sample set, every pad's.
 #[derive(Debug, Clone, PartialEq)]

@@ -10,9 +10,9 @@ use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use taxel::device_link::{DeviceLink, RequestError};
-use taxel::pad_set::PadSetAssembler;
-use taxel::stream_accounting::StreamAccounting;
+use taxel_host::device_link::{DeviceLink, RequestError};
+use taxel_host::pad_set::PadSetAssembler;
+use taxel_host::stream_accounting::StreamAccounting;
 use wire::{Command, DeviceFrame, ErrorCode, InfoFrame, ReplyFrame, ReplyPayload};
 
 use crate::sample_set::{host_time_s, SetRecord};
@@ -64,7 +64,7 @@ impl Session {
         let (info, stale) = link
             .synchronise(timeout)
             .context("asking the device who it is")?;
-        let accounting = taxel::record::start_stream(&mut link, stale, timeout)?;
+        let accounting = taxel_host::record::start_stream(&mut link, stale, timeout)?;
         Ok(Self {
             link,
             info,
@@ -213,7 +213,7 @@ impl Session {
         }
     }
 
-    fn gathered(&mut self, set: &taxel::pad_set::PadSet) {
+    fn gathered(&mut self, set: &taxel_host::pad_set::PadSet) {
         let gap = self
             .gaps
             .iter()

@@ -14,7 +14,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use sim_device::{Pacing, SimulatedDevice, SimulatedDeviceConfig, Simulation};
 
-use taxel::sim::{board_for, load_scene};
+use sim_device::{board_for, load_scene};
 
 use crate::device::{timeout_from_s, Backend, Device};
 use crate::errors::{anyhow_error, ErrorKind};

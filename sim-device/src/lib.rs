@@ -7,6 +7,7 @@ pub mod flash;
 pub mod memory_port;
 pub mod pty;
 pub mod scene_file;
+pub mod serve;
 pub mod simulated_device;
 
 pub use flash::{SimulatedFlash, FLASH_REGION_LEN, FLASH_SECTOR_LEN};
@@ -16,6 +17,7 @@ pub use scene_file::{
     FaultKind, PadScene, SceneFault, SceneFile, SceneFileError, BUILT_IN_SCENES, DEFAULT_SCENE_TOML,
 };
 pub use sensor_sim::{Pacing, Simulation, Topology};
+pub use serve::{board_for, load_scene, SimulatorThread};
 pub use simulated_device::{
     pads_topology, simulated_board_serial, ClockError, SimulatedDevice, SimulatedDeviceConfig,
     SimulatedDeviceError, BUS_FREQUENCY_HZ, FACTORY_CALIBRATION_ID,

@@ -6,7 +6,8 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand};
 
-use crate::{calibrate, calibration_transfer, convert, list, plot, record, sim, view};
+use crate::commands::{calibrate, calibration, convert, record};
+use crate::{list, plot, sim, view};
 
 /// Host tool for the taxel tactile pad.
 #[derive(Debug, Parser)]
@@ -41,8 +42,8 @@ pub enum Commands {
     #[command(long_about = calibrate::LONG_ABOUT)]
     Calibrate(calibrate::CalibrateArgs),
     /// Read the calibration a device uses into a file, or write one to it.
-    #[command(long_about = calibration_transfer::LONG_ABOUT)]
-    Calibration(calibration_transfer::CalibrationArgs),
+    #[command(long_about = calibration::LONG_ABOUT)]
+    Calibration(calibration::CalibrationArgs),
     /// Plot a recording or a calibration (SVG or PNG).
     #[command(long_about = plot::LONG_ABOUT)]
     Plot(plot::PlotArgs),
@@ -104,7 +105,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<ExitCode> {
         Commands::Sim(args) => sim::run(args),
         Commands::Convert(args) => convert::run(args),
         Commands::Calibrate(args) => calibrate::run(args),
-        Commands::Calibration(args) => calibration_transfer::run(args),
+        Commands::Calibration(args) => calibration::run(args),
         Commands::Plot(args) => plot::run(args),
         Commands::List(args) => list::run(args),
         Commands::Record(args) => record::run(args),

@@ -2,8 +2,8 @@
 
 use std::process::ExitCode;
 
-use crate::device_link::parse_hex_u16;
-use crate::device_link::{attached_boards, BoardPort, DEFAULT_PID, DEFAULT_VID};
+use taxel_host::device_link::parse_hex_u16;
+use taxel_host::device_link::{attached_boards, BoardPort, DEFAULT_PID, DEFAULT_VID};
 
 /// The long help of the subcommand.
 pub const LONG_ABOUT: &str = "List the boards attached by USB with the pad's VID:PID: port, \
@@ -56,7 +56,7 @@ pub fn listing(boards: &[BoardPort]) -> String {
 /// Runs `taxel list`.
 pub fn run(args: &ListArgs) -> anyhow::Result<ExitCode> {
     let boards = attached_boards(args.vid, args.pid)?;
-    crate::console::out(format_args!("{}", listing(&boards)))?;
+    taxel_host::console::out(format_args!("{}", listing(&boards)))?;
     Ok(ExitCode::SUCCESS)
 }
 

@@ -4,8 +4,8 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use taxel::cli::{run, Cli};
-use taxel::console::{error_message, is_broken_pipe};
-use taxel::noteln;
+use taxel_host::console::{error_message, is_broken_pipe};
+use taxel_host::noteln;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();

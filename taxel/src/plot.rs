@@ -10,46 +10,20 @@ use std::fs::File;
 use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::OnceLock;
 
 use anyhow::{bail, Context};
 use model_core::{Calibration, TaxelInverses, Tier, TAXEL_COUNT};
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use plotters::style::register_font;
 
-use crate::calibrate::{read_loads, reference_data, ReferenceData};
-use crate::csv_format::{
+use taxel_host::calibrate::{read_loads, reference_data, ReferenceData};
+use taxel_host::csv_format::{
     detect_dialect, find_column, find_columns, parse_number, parse_time_s, PRESSURE_COLUMNS,
     TAXEL_LABELS, TIME_COLUMN,
 };
-use crate::noteln;
-use crate::output_file::PendingRename;
-
-/// The embedded font (DejaVu Sans 2.37, Bitstream Vera license, see assets/).
-static EMBEDDED_FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
-
-/// Colours of the four taxels.
-const TAXEL_COLOURS: [RGBColor; TAXEL_COUNT] = [
-    RGBColor(214, 39, 40),
-    RGBColor(31, 119, 180),
-    RGBColor(44, 160, 44),
-    RGBColor(148, 103, 189),
-];
-
-/// The colour of a tier in every picture (calibration residuals here, the performance
-/// report's speed-vs-error plot).
-pub const fn tier_colour(tier: Tier) -> RGBColor {
-    match tier {
-        Tier::Linear => RGBColor(0x7f, 0x7f, 0x7f),
-        Tier::PiecewiseLinear => RGBColor(0x2c, 0xa0, 0x2c),
-        Tier::MonotoneCubic => RGBColor(0x1f, 0x77, 0xb4),
-        Tier::Saturating => RGBColor(0xff, 0x7f, 0x0e),
-        Tier::SaturatingMicromath => RGBColor(0xd6, 0x27, 0x28),
-        Tier::Table => RGBColor(0x94, 0x67, 0xbd),
-        Tier::Polynomial => RGBColor(0x8c, 0x56, 0x4b),
-    }
-}
+use taxel_host::noteln;
+use taxel_host::output_file::PendingRename;
+pub use taxel_plot_style::{register_embedded_font, tier_colour, TAXEL_COLOURS};
 
 /// The long help of the subcommand.
 pub const LONG_ABOUT: &str = "Plot to SVG or PNG (chosen by the output file's extension).\n\n\
@@ -112,18 +86,6 @@ pub fn image_format(path: &Path) -> anyhow::Result<ImageFormat> {
         Some("svg") => Ok(ImageFormat::Svg),
         Some("png") => Ok(ImageFormat::Png),
         _ => bail!("{}: the output must end in .svg or .png", path.display()),
-    }
-}
-
-/// Registers the embedded font as plotters' "sans-serif" (once per process).
-pub fn register_embedded_font() -> anyhow::Result<()> {
-    static REGISTERED: OnceLock<bool> = OnceLock::new();
-    let registered = *REGISTERED
-        .get_or_init(|| register_font("sans-serif", FontStyle::Normal, EMBEDDED_FONT).is_ok());
-    if registered {
-        Ok(())
-    } else {
-        bail!("the embedded font could not be loaded")
     }
 }
 
@@ -634,7 +596,7 @@ pub fn run(args: &PlotArgs) -> anyhow::Result<ExitCode> {
     image_format(&args.output)?;
     match (&args.input, &args.calibration) {
         (Some(input), None) => {
-            crate::output_file::refuse_same_file(input, &args.output)?;
+            taxel_host::output_file::refuse_same_file(input, &args.output)?;
             if input.is_dir() {
                 bail!("{} is a directory, not a file", input.display());
             }
@@ -667,7 +629,7 @@ pub fn run(args: &PlotArgs) -> anyhow::Result<ExitCode> {
             );
         }
         (None, Some(calibration_path)) => {
-            let calibration = crate::calibration_file::read(calibration_path)
+            let calibration = taxel_host::calibration_file::read(calibration_path)
                 .with_context(|| format!("reading {}", calibration_path.display()))?;
             let loads = match &args.loads {
                 Some(loads_path) => {

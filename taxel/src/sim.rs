@@ -2,7 +2,7 @@
 //! storage and protocol code against the simulated FDC1004 and TMP117 — served on a
 //! pseudo-terminal that any serial program opens like the board's /dev/ttyACM*.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -10,7 +10,7 @@ use std::thread;
 
 use anyhow::Context;
 use clap::Args;
-use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+use sim_device::{board_for, load_scene, SimulatedDeviceConfig, SimulatorThread};
 
 use crate::view;
 
@@ -91,82 +91,6 @@ pub struct DemoArgs {
     pub snapshot_after: Option<f64>,
 }
 
-/// The scene `--scene` names: a file when one exists at that path, else a built-in scene.
-pub fn load_scene(path: Option<&Path>) -> anyhow::Result<SceneFile> {
-    match path {
-        Some(path) if path.exists() => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("reading scene {}", path.display()))?;
-            SceneFile::parse(&text).with_context(|| format!("scene {}", path.display()))
-        }
-        Some(name) => SceneFile::built_in(&name.to_string_lossy())
-            .with_context(|| format!("no scene file {}", name.display())),
-        None => Ok(SceneFile::default_scene()?),
-    }
-}
-
-/// The simulated board for a scene: `pads` pads (each playing a scene of one pad), or as many as
-/// the scene describes.
-pub fn board_for(scene: &SceneFile, pads: Option<u8>) -> anyhow::Result<sim_device::Topology> {
-    let described = scene.pads.len();
-    let pads = match pads {
-        Some(pads) if described > 1 && usize::from(pads) != described => anyhow::bail!(
-            "the scene describes {described} pads; --pads {pads} would leave pads without one"
-        ),
-        Some(pads) => usize::from(pads),
-        None => described,
-    };
-    Ok(sim_device::pads_topology(pads))
-}
-
-/// A running simulated device on its own thread.
-pub struct SimulatorThread {
-    path: PathBuf,
-    stop: Arc<AtomicBool>,
-    handle: Option<thread::JoinHandle<()>>,
-}
-
-impl SimulatorThread {
-    /// Starts the simulated device on a new pseudo-terminal.
-    pub fn start(config: SimulatedDeviceConfig, until_s: Option<f64>) -> anyhow::Result<Self> {
-        let mut device = SimulatedDevice::new(config)?;
-        let mut port = PtyPort::open().context("opening a pseudo-terminal")?;
-        let path = port.path().to_path_buf();
-        let stop = Arc::new(AtomicBool::new(false));
-        let thread_stop = Arc::clone(&stop);
-        let handle = thread::Builder::new()
-            .name("simulated-device".into())
-            .spawn(move || {
-                device.run(&mut port, until_s, &thread_stop);
-                thread_stop.store(true, Ordering::Relaxed);
-            })
-            .context("starting the simulated device")?;
-        Ok(Self {
-            path,
-            stop,
-            handle: Some(handle),
-        })
-    }
-
-    /// The terminal to open.
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-
-    /// Whether the device stopped (duration reached or asked to stop).
-    pub fn finished(&self) -> bool {
-        self.stop.load(Ordering::Relaxed)
-    }
-
-    /// Stops the device and waits for its thread.
-    pub fn stop(mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(handle) = self.handle.take() {
-            let _ = handle.join();
-        }
-    }
-}
-
 /// `taxel sim`.
 pub fn run(args: &SimArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(args.scene.as_deref())?;
@@ -196,14 +120,14 @@ pub fn run(args: &SimArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(path_file) = &args.path_file {
         // Through a temporary name: a script polling the file never reads half a path.
-        let mut file = crate::output_file::OutputFile::create(path_file)?;
+        let mut file = taxel_host::output_file::OutputFile::create(path_file)?;
         std::io::Write::write_all(&mut file, simulator.path().to_string_lossy().as_bytes())
             .and_then(|()| std::io::Write::flush(&mut file))
             .with_context(|| format!("writing {}", path_file.display()))?;
         file.commit()?;
     }
-    crate::outln!("{}", simulator.path().display()).context("writing the port to stdout")?;
-    crate::noteln!(
+    taxel_host::outln!("{}", simulator.path().display()).context("writing the port to stdout")?;
+    taxel_host::noteln!(
         "simulated device '{}' on {} ({}); Ctrl-C to stop",
         if name.is_empty() { "scene" } else { &name },
         simulator.path().display(),
@@ -223,7 +147,7 @@ pub fn run(args: &SimArgs) -> anyhow::Result<ExitCode> {
     if let Some(link) = &args.link {
         let _ = std::fs::remove_file(link);
     }
-    crate::noteln!("simulated device stopped");
+    taxel_host::noteln!("simulated device stopped");
     Ok(ExitCode::SUCCESS)
 }
 

@@ -521,7 +521,7 @@ fn a_closed_stdout_is_a_clean_failure_and_files_are_written_first() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(1), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
-    let written = taxel::calibration_file::read(&directory.path().join("c.json"));
+    let written = taxel_host::calibration_file::read(&directory.path().join("c.json"));
     assert!(
         written.is_ok(),
         "the calibration is written before the report: {stderr}"

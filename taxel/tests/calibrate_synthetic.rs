@@ -13,9 +13,9 @@ use std::time::Duration;
 
 use model_core::{CalibrationCurve, TaxelInverses, TemperatureLaw};
 use support::{ack, taxel_binary, FakeDevice, SplitMix64};
-use taxel::calibration_file;
-use taxel::calibration_transfer::upload;
-use taxel::device_link::DeviceLink;
+use taxel_host::calibration_file;
+use taxel_host::calibration_transfer::upload;
+use taxel_host::device_link::DeviceLink;
 use wire::Command as WireCommand;
 
 const GAINS: [f64; 4] = [1.0, 0.92, 1.08, 1.15];

@@ -5,7 +5,7 @@
 // Test helpers may unwrap: a failure is the test failing.
 #![allow(clippy::unwrap_used)]
 
-use taxel::clock_sync::{
+use taxel_host::clock_sync::{
     merge_by_host_time, ClockMapper, ClockMapperConfig, Observation, RestartReason,
 };
 

@@ -246,7 +246,7 @@ fn calibration_file_replaces_the_curve() {
     }
     let calibration = Calibration::new(&spec).unwrap();
     let calibration_path = directory.path().join("double.json");
-    taxel::calibration_file::write(&calibration_path, &calibration).unwrap();
+    taxel_host::calibration_file::write(&calibration_path, &calibration).unwrap();
     let doubled_pf = 4.5 * (1.0 + 2.0 * 0.0829);
     let input = format!(
         "time_s,temp_c,c11_pf,c12_pf,c21_pf,c22_pf\n\

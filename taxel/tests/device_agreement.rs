@@ -114,10 +114,10 @@ fn a_tare_during_a_recording_is_followed_by_the_conversion() {
     use std::sync::Arc;
 
     use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
-    use taxel::device_link::{open_serial, DeviceLink};
-    use taxel::record::record_accounted;
-    use taxel::recording::{read_device_state, Recording};
-    use taxel::stream_accounting::StreamAccounting;
+    use taxel_host::device_link::{open_serial, DeviceLink};
+    use taxel_host::record::record_accounted;
+    use taxel_host::recording::{read_device_state, Recording};
+    use taxel_host::stream_accounting::StreamAccounting;
 
     let directory = tempfile::tempdir().unwrap();
     let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
@@ -171,7 +171,7 @@ fn a_tare_during_a_recording_is_followed_by_the_conversion() {
     device_thread.join().unwrap();
     let files = recording.finish(None).unwrap();
     let device_state =
-        taxel::recording::RecordedDeviceState::read(&files.device_state.unwrap()).unwrap();
+        taxel_host::recording::RecordedDeviceState::read(&files.device_state.unwrap()).unwrap();
     // The recording may start before the boot tare ends (then that tare is a change too); the
     // commanded tare is the last change, after sample 100.
     let changes = &device_state.baselines;
@@ -237,7 +237,7 @@ fn calibration_pull_writes_the_device_calibration() {
     let messages = String::from_utf8_lossy(&output.stderr);
     assert!(output.status.success(), "{messages}");
     assert!(messages.contains("from flash"), "{messages}");
-    let calibration = taxel::calibration_file::read(&pulled).unwrap();
+    let calibration = taxel_host::calibration_file::read(&pulled).unwrap();
     assert_eq!(calibration.id(), sim_device::FACTORY_CALIBRATION_ID);
     let truth = sim_device::SimulatedDevice::new(sim_device::SimulatedDeviceConfig {
         scene: sim_device::SceneFile::default_scene().unwrap(),

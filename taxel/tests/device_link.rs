@@ -10,9 +10,9 @@ use std::time::Duration;
 
 use model_core::{Calibration, CalibrationSpec, CurvePoint};
 use support::{ack, encoded, sample, ChunkedReader, FakeDevice};
-use taxel::calibration_transfer::upload;
-use taxel::device_link::{DeviceLink, FrameReceiver, LinkError, RequestError};
-use taxel::record::{record_header, record_link, StopReason};
+use taxel_host::calibration_transfer::upload;
+use taxel_host::device_link::{DeviceLink, FrameReceiver, LinkError, RequestError};
+use taxel_host::record::{record_header, record_link, StopReason};
 use wire::{
     Command, CountersFrame, DecodeError, DeviceEvent, DeviceFrame, ErrorCode, EventFrame,
     ReplyFrame, ReplyPayload, SampleRate, TemperatureSource, Tier,

@@ -25,9 +25,9 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use sim_device::{ClockError, MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
-use taxel::multi_record::{record_devices, DeviceInput, HostClock, MultiRecordOptions};
-use taxel::record::StopReason;
-use taxel::timeline_files::timeline_header;
+use taxel_host::multi_record::{record_devices, DeviceInput, HostClock, MultiRecordOptions};
+use taxel_host::record::StopReason;
+use taxel_host::timeline_files::timeline_header;
 use wire::{DeviceFrame, DeviceFrameDecoder};
 
 /// A small xorshift for the latency (the test's own, seeded), as in multi_device_timeline.rs.

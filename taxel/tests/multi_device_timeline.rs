@@ -8,7 +8,7 @@
 #![allow(clippy::unwrap_used, clippy::panic)]
 
 use sim_device::{ClockError, MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
-use taxel::clock_sync::{merge_by_host_time, ClockMapper};
+use taxel_host::clock_sync::{merge_by_host_time, ClockMapper};
 use wire::{DeviceFrame, DeviceFrameDecoder};
 
 /// One board: its device, link, decoder, mapper, and where it started on the host clock.

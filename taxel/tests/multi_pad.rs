@@ -13,10 +13,10 @@ use std::time::Duration;
 
 use model_core::{Calibration, PadModel, SampleInput, TaxelReading};
 use support::{encoded, taxel_binary, ChunkedReader, SplitMix64};
-use taxel::convert::{convert_csv, convert_raw, ConvertOptions};
-use taxel::device_link::DeviceLink;
-use taxel::record::{record_link, StopReason};
-use taxel::record_rows::RecordRows;
+use taxel_host::convert::{convert_csv, convert_raw, ConvertOptions};
+use taxel_host::device_link::DeviceLink;
+use taxel_host::record::{record_link, StopReason};
+use taxel_host::record_rows::RecordRows;
 use wire::{DeviceFrame, PadIndex, PadSummary, SampleFrame, TaxelSample, TemperatureSource};
 
 /// A frame whose every value tells its pad and set apart: capacitance 4.5 + pad/10 +
@@ -83,7 +83,7 @@ fn expected_cells(pad: u8, sequence: u32) -> Vec<(String, String)> {
     let mut cells: Vec<(String, String)> = vec![
         (
             "time_s".into(),
-            taxel::csv_format::format_time_us(frame.timestamp_us),
+            taxel_host::csv_format::format_time_us(frame.timestamp_us),
         ),
         ("temp_c".into(), format!("{}", 20 + u32::from(pad))),
         (
@@ -146,7 +146,7 @@ fn assert_pad_missing(row: &HashMap<String, String>, pad: u8) {
 /// What a recording through the link gave.
 struct Recorded {
     text: String,
-    summary: taxel::record::RecordSummary,
+    summary: taxel_host::record::RecordSummary,
     rows: u64,
     incomplete_rows: u64,
     missing_of_pad: Vec<u64>,
@@ -556,7 +556,7 @@ fn a_multi_pad_header_out_of_order_or_lacking_a_column_is_a_clear_error() {
 #[test]
 fn a_recording_file_of_two_pads_converts_with_its_device_state_from_csv_and_raw() {
     use std::io::Write;
-    use taxel::recording::{RecordedDeviceState, Recording};
+    use taxel_host::recording::{RecordedDeviceState, Recording};
     let directory = tempfile::tempdir().unwrap();
     let csv_path = directory.path().join("rec.csv");
     let raw_path = directory.path().join("rec.csv.raw");

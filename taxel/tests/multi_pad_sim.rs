@@ -239,7 +239,7 @@ fn two_devices_with_several_pads_are_recorded_on_one_timeline() {
         let path = directory
             .path()
             .join(format!("both.csv.dev{device}.device.json"));
-        let state = taxel::recording::RecordedDeviceState::read(&path).unwrap();
+        let state = taxel_host::recording::RecordedDeviceState::read(&path).unwrap();
         assert_eq!(state.pad_count, pad_count, "device {device}");
         let pads: Vec<u8> = state.other_pads.iter().map(|pad| pad.pad).collect();
         assert_eq!(pads, (1..pad_count).collect::<Vec<_>>(), "device {device}");

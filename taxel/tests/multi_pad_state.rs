@@ -13,9 +13,9 @@ use std::process::{Command, Output};
 use std::time::Duration;
 
 use model_core::{BaselineRecord, Calibration, TAXEL_COUNT};
-use taxel::calibration_transfer::{pull, pull_baselines, upload_to_pads};
-use taxel::device_link::DeviceLink;
-use taxel::recording::{
+use taxel_host::calibration_transfer::{pull, pull_baselines, upload_to_pads};
+use taxel_host::device_link::DeviceLink;
+use taxel_host::recording::{
     read_device_state, BaselineChange, BaselineFollower, RecordedDeviceState, SampleSink,
 };
 use wire::{
@@ -130,10 +130,11 @@ fn a_pad_with_its_own_calibration_is_recorded_and_converted_with_it() {
         .arg(&pad_0_file));
     assert!(output.status.success(), "{messages}");
     assert!(messages.contains("of pad 0"), "{messages}");
-    let pad_0_calibration = taxel::calibration_file::read(&pad_0_file).unwrap();
+    let pad_0_calibration = taxel_host::calibration_file::read(&pad_0_file).unwrap();
     assert_eq!(pad_0_calibration.id(), sim_device::FACTORY_CALIBRATION_ID);
     let pad_1_file = directory.path().join("pad1.json");
-    taxel::calibration_file::write(&pad_1_file, &another_calibration(&pad_0_calibration)).unwrap();
+    taxel_host::calibration_file::write(&pad_1_file, &another_calibration(&pad_0_calibration))
+        .unwrap();
     let (output, messages) = run(taxel()
         .args(["calibration", "push"])
         .arg(&pad_1_file)
@@ -159,7 +160,10 @@ fn a_pad_with_its_own_calibration_is_recorded_and_converted_with_it() {
             .args(["calibration", "pull", &port, "--pad", pad, "-o"])
             .arg(&pulled));
         assert!(output.status.success(), "{messages}");
-        assert_eq!(taxel::calibration_file::read(&pulled).unwrap().id(), id);
+        assert_eq!(
+            taxel_host::calibration_file::read(&pulled).unwrap().id(),
+            id
+        );
     }
 
     let recording = directory.path().join("rec.csv");
@@ -228,10 +232,10 @@ fn a_tare_during_a_recording_lands_in_each_pads_own_history() {
     use std::sync::Arc;
 
     use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
-    use taxel::device_link::open_serial;
-    use taxel::record::record_accounted;
-    use taxel::recording::Recording;
-    use taxel::stream_accounting::StreamAccounting;
+    use taxel_host::device_link::open_serial;
+    use taxel_host::record::record_accounted;
+    use taxel_host::recording::Recording;
+    use taxel_host::stream_accounting::StreamAccounting;
 
     let directory = tempfile::tempdir().unwrap();
     let mut device = SimulatedDevice::new(SimulatedDeviceConfig {

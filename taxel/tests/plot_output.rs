@@ -89,7 +89,7 @@ fn recording_plots_as_svg_and_png() {
 fn calibration_plots_with_residuals() {
     let directory = tempfile::tempdir().unwrap();
     let calibration = directory.path().join("calibration.json");
-    taxel::calibration_file::write(&calibration, &model_core::Calibration::default()).unwrap();
+    taxel_host::calibration_file::write(&calibration, &model_core::Calibration::default()).unwrap();
     let loads = directory.path().join("loads.csv");
     std::fs::write(
         &loads,

@@ -9,8 +9,8 @@ mod support;
 use std::time::Duration;
 
 use support::sample;
-use taxel::device_link::DeviceLink;
 use taxel::view::{render_to_string, RecordingStatus, ViewState};
+use taxel_host::device_link::DeviceLink;
 use wire::{
     CalibrationSource, CountersFrame, DeviceFrame, FirmwareVersion, InfoFrame, ReplyFrame,
     ReplyPayload,

@@ -11,8 +11,8 @@ use std::thread;
 use std::time::Duration;
 
 use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
-use taxel::device_link::{open_serial, DeviceLink};
-use taxel::record::{record_header, record_link};
+use taxel_host::device_link::{open_serial, DeviceLink};
+use taxel_host::record::{record_header, record_link};
 
 /// Largest difference between a recorded pressure and the scene, kPa. The scene is the
 /// simulator's own truth: its physics does not use the pressure model, and the device converts
@@ -136,7 +136,7 @@ fn a_recording_of_the_simulated_device_matches_its_scene() {
 #[test]
 fn a_calibration_uploaded_and_saved_over_the_serial_path_survives_a_reboot() {
     use model_core::{Calibration, CalibrationSpec};
-    use taxel::calibration_transfer::upload;
+    use taxel_host::calibration_transfer::upload;
     use wire::{CalibrationSource, Command, ReplyPayload};
 
     let mut device = SimulatedDevice::new(SimulatedDeviceConfig {

@@ -433,7 +433,7 @@ fn report() -> Result<()> {
 /// Writes `text` to `path` through a temporary file renamed into place, so an interrupted run
 /// leaves the previous file, never half of a new one.
 fn write_whole_file(path: &Path, text: &str) -> Result<()> {
-    let mut file = taxel::output_file::OutputFile::create(path)?;
+    let mut file = taxel_host::output_file::OutputFile::create(path)?;
     std::io::Write::write_all(&mut file, text.as_bytes())
         .with_context(|| format!("writing {}", path.display()))?;
     file.commit()?;

@@ -408,7 +408,7 @@ fn draw<DB: DrawingBackend>(
 
 /// The plot as an SVG document.
 pub fn render_svg(plot: &Plot) -> anyhow::Result<String> {
-    taxel::plot::register_embedded_font()?;
+    taxel_plot_style::register_embedded_font()?;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (WIDTH_PX, HEIGHT_PX)).into_drawing_area();

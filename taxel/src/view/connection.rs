@@ -8,7 +8,7 @@ use wire::Command;
 
 use super::state::ViewState;
 use super::{ViewArgs, VIEW_REQUEST_TIMEOUT};
-use crate::device_link::{self, attached_boards, choose_board, DeviceLink, LinkError};
+use taxel_host::device_link::{self, attached_boards, choose_board, DeviceLink, LinkError};
 
 /// How to find the board again after an unplug.
 #[derive(Debug, Clone)]

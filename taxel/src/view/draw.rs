@@ -19,8 +19,8 @@ use ratatui::Frame;
 use wire::TaxelSample;
 
 use super::state::{PadFreshness, ViewState};
-use crate::csv_format::{temperature_source_words, wire_flag_names, TAXEL_LABELS};
-use crate::device_words::{calibration_source_words, info_words, tier_words};
+use taxel_host::csv_format::{temperature_source_words, wire_flag_names, TAXEL_LABELS};
+use taxel_host::device_words::{calibration_source_words, info_words, tier_words};
 
 /// The smallest terminal the view draws in.
 pub const MIN_WIDTH: u16 = 40;

@@ -44,11 +44,11 @@ use ratatui::layout::Rect;
 use ratatui::Terminal;
 use wire::{Command, DeviceFrame};
 
-use crate::device_link::{DeviceLink, LinkError};
 use crate::layout::Layout;
-use crate::multi_record::MultiBoardArgs;
-use crate::recording::{read_device_state, BaselineFollower, Recording};
 use connection::{connect, BoardTarget, Connection, SerialLink};
+use taxel_args::MultiBoardArgs;
+use taxel_host::device_link::{DeviceLink, LinkError};
+use taxel_host::recording::{read_device_state, BaselineFollower, Recording};
 
 /// Samples `--once` collects (for a rate) before it prints, unless its timeout ends first.
 pub(super) const SNAPSHOT_SAMPLES: u64 = 20;
@@ -300,7 +300,7 @@ fn start_recording<P: Read + Write>(
             Err(error) => {
                 state.status = format!(
                     "recording without the device's state ({})",
-                    crate::console::error_message(&error)
+                    taxel_host::console::error_message(&error)
                 )
             }
         },
@@ -328,7 +328,7 @@ fn finish_recording(recording: ViewRecording, state: &mut ViewState) {
         ),
         Err(error) => format!(
             "recording {path} failed: {}",
-            crate::console::error_message(&error)
+            taxel_host::console::error_message(&error)
         ),
     };
 }
@@ -357,7 +357,7 @@ fn record_frame<P: Read + Write>(
             {
                 state.status = format!(
                     "new baselines not recorded: {}",
-                    crate::console::error_message(&error)
+                    taxel_host::console::error_message(&error)
                 );
             }
             Ok(())
@@ -373,7 +373,7 @@ fn record_frame<P: Read + Write>(
             state.recording = None;
             state.status = format!(
                 "recording stopped: {}; kept {}",
-                crate::console::error_message(&error),
+                taxel_host::console::error_message(&error),
                 kept.iter()
                     .map(|path| path.display().to_string())
                     .collect::<Vec<_>>()
@@ -412,7 +412,7 @@ where
                         error.downcast_ref::<LinkError>(),
                         Some(LinkError::NotSerialPort { .. })
                     );
-                    let message = crate::console::error_message(&error);
+                    let message = taxel_host::console::error_message(&error);
                     if not_a_port {
                         // Waiting cannot turn a file into a port: say so once and stop trying.
                         retry = false;
@@ -507,8 +507,10 @@ where
                     match start_recording(&args.record_dir, active, &mut state) {
                         Ok(started) => recording = Some(started),
                         Err(error) => {
-                            state.status =
-                                format!("cannot record: {}", crate::console::error_message(&error))
+                            state.status = format!(
+                                "cannot record: {}",
+                                taxel_host::console::error_message(&error)
+                            )
                         }
                     }
                 }
@@ -578,7 +580,7 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
         );
         let _ = link.send(Command::StopStreaming);
         let text = render_to_string(&state, args.width, args.height);
-        crate::console::out(format_args!("{text}")).context("writing the snapshot")?;
+        taxel_host::console::out(format_args!("{text}")).context("writing the snapshot")?;
         return Ok(if state.any_sample() {
             ExitCode::SUCCESS
         } else {

@@ -31,11 +31,11 @@ use super::draw::rate_text;
 use super::pads::draw_pad_grid;
 use super::state::ViewState;
 use super::{area_text, note_reply, Pending, ViewArgs, SNAPSHOT_SAMPLES};
-use crate::clock_sync::ClockMapper;
-use crate::device_link::LinkError;
 use crate::layout::Layout;
-use crate::multi_record::{HostClock, MonotonicClock};
-use crate::timeline_files::format_sync_error_ms;
+use taxel_host::clock_sync::ClockMapper;
+use taxel_host::device_link::LinkError;
+use taxel_host::multi_record::{HostClock, MonotonicClock};
+use taxel_host::timeline_files::format_sync_error_ms;
 
 /// The line of keys in the view of several devices.
 pub const KEYS_LINE_DEVICES: &str =
@@ -312,7 +312,7 @@ fn read_device(
                     error.downcast_ref::<LinkError>(),
                     Some(LinkError::NotSerialPort { .. })
                 );
-                let message = crate::console::error_message(&error);
+                let message = taxel_host::console::error_message(&error);
                 let message = if not_a_port || context.once {
                     message
                 } else {
@@ -501,7 +501,7 @@ pub(super) fn run(args: &ViewArgs, layout: Option<Layout>) -> anyhow::Result<Exi
         return Ok(ExitCode::SUCCESS);
     }
     let text = render_devices_to_string(&view, args.width, args.height);
-    crate::console::out(format_args!("{text}")).context("writing the snapshot")?;
+    taxel_host::console::out(format_args!("{text}")).context("writing the snapshot")?;
     let every_device_sent = view.devices.iter().all(|shown| shown.state.any_sample());
     Ok(if every_device_sent {
         ExitCode::SUCCESS

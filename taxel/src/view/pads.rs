@@ -21,8 +21,8 @@ use super::draw::{
     accounting_line, device_line, pressure_style, rate_text, status_line, taxel_flag_words,
 };
 use super::state::{PadFreshness, ViewState};
-use crate::csv_format::{temperature_source_words, TAXEL_LABELS};
 use crate::layout::{Arrangement, PadTile};
+use taxel_host::csv_format::{temperature_source_words, TAXEL_LABELS};
 
 /// The line of keys in the view of every pad.
 pub const KEYS_LINE_EVERY_PAD: &str =

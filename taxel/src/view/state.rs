@@ -15,9 +15,9 @@ use std::time::{Duration, Instant};
 use model_core::TAXEL_COUNT;
 use wire::{CountersFrame, DeviceFrame, InfoFrame, ReplyPayload, SampleFrame};
 
-use crate::device_words::event_words;
 use crate::layout::{Arrangement, Layout, MAX_PADS};
-use crate::stream_accounting::StreamAccounting;
+use taxel_host::device_words::event_words;
+use taxel_host::stream_accounting::StreamAccounting;
 
 /// Sample timestamps kept for the sample-set rate.
 const RATE_WINDOW: usize = 128;

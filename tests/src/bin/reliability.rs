@@ -41,12 +41,11 @@ fn main() -> ExitCode {
         COMMAND,
     );
     // Through a temporary name: an interrupted run leaves the previous report, not half of one.
-    let written = taxel::output_file::OutputFile::create(std::path::Path::new(&output)).and_then(
-        |mut file| {
+    let written = taxel_host::output_file::OutputFile::create(std::path::Path::new(&output))
+        .and_then(|mut file| {
             std::io::Write::write_all(&mut file, markdown.as_bytes())?;
             file.commit()
-        },
-    );
+        });
     if let Err(error) = written {
         eprintln!("error: writing {output}: {error:#}");
         return ExitCode::FAILURE;

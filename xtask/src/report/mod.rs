@@ -212,7 +212,7 @@ pub fn plot(data: &ReportData) -> Plot {
     let mut points = Vec::new();
     let mut links = Vec::new();
     for figure in figures(data) {
-        let colour = taxel::plot::tier_colour(figure.tier);
+        let colour = taxel_plot_style::tier_colour(figure.tier);
         let Some(y) = figure.max_from_default_kpa else {
             continue;
         };

@@ -10,100 +10,21 @@
 use std::fs::File;
 use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender};
-use std::time::{Duration, Instant, SystemTime};
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use wire::{InfoFrame, PadIndex, SampleFrame};
 
 use crate::clock_sync::ClockEstimate;
-use crate::device_link::{
-    self, attached_boards, choose_board, parse_hex_u16, select_port, DeviceLink, DEFAULT_PID,
-    DEFAULT_VID,
-};
-use crate::device_words::{board_serial_hex, counters_words, info_words};
+use crate::device_link::DeviceLink;
+use crate::device_words::{counters_words, info_words};
 use crate::host_timeline::{DeviceTimelineCounts, HostTimeline, TimelineConfig};
-use crate::noteln;
-use crate::record::{
-    identify_device, record_accounted, start_stream, stop_stream, RecordArgs, StopReason,
-};
+use crate::record::{identify_device, record_accounted, start_stream, stop_stream, StopReason};
 use crate::recording::{BaselineChange, RecordedDeviceState, SampleSink, SetCounter};
 use crate::stream_accounting::StreamAccounting;
-use crate::timeline_files::{device_raw_path, format_sync_error_ms, TimelineFiles};
-
-/// Which boards `taxel record` and `taxel view` read: any number of ports and of serial
-/// numbers (one device is handled as before; several go on one host timeline).
-#[derive(Debug, Clone, PartialEq, Eq, clap::Args)]
-pub struct MultiBoardArgs {
-    /// Serial ports of the devices, one or more (default: the only attached board, or --serial).
-    #[arg(value_name = "PORT")]
-    pub ports: Vec<String>,
-    /// Choose an attached board by its USB serial number; repeat for several boards (devices
-    /// after the PORTs, in the order given).
-    #[arg(long, value_name = "SN")]
-    pub serial: Vec<String>,
-    /// USB vendor id of the boards, for finding them.
-    #[arg(long, value_name = "VID", default_value = "0x1209", value_parser = parse_hex_u16)]
-    pub vid: u16,
-    /// USB product id of the boards, for finding them.
-    #[arg(long, value_name = "PID", default_value = "0x0001", value_parser = parse_hex_u16)]
-    pub pid: u16,
-}
-
-impl MultiBoardArgs {
-    /// The boards on these ports, found by the default VID:PID.
-    pub fn for_ports(ports: Vec<String>) -> Self {
-        Self {
-            ports,
-            serial: Vec::new(),
-            vid: DEFAULT_VID,
-            pid: DEFAULT_PID,
-        }
-    }
-
-    /// Refuses a PORT or a serial number given twice: each device is `handled` (recorded,
-    /// shown) once.
-    pub fn refuse_repeats(&self, handled: &str) -> anyhow::Result<()> {
-        if let Some(port) = first_repeated(&self.ports) {
-            anyhow::bail!("{port} is given twice: each device is {handled} once");
-        }
-        if let Some(serial) = first_repeated(&self.serial) {
-            anyhow::bail!("--serial {serial} is given twice: each device is {handled} once");
-        }
-        Ok(())
-    }
-
-    /// The ports to open, in device order: the PORTs, then the boards with the serial numbers;
-    /// with neither, the only attached board. A port named twice, also once as a PORT and once
-    /// by its board's serial number, is refused.
-    pub fn select_ports(&self) -> anyhow::Result<Vec<String>> {
-        self.refuse_repeats("recorded")?;
-        let mut ports = self.ports.clone();
-        if !self.serial.is_empty() {
-            let boards = attached_boards(self.vid, self.pid)?;
-            for serial in &self.serial {
-                ports.push(choose_board(&boards, Some(serial), self.vid, self.pid)?.port_name);
-            }
-        }
-        if ports.is_empty() {
-            ports.push(select_port(None, None, self.vid, self.pid)?);
-        }
-        if let Some(port) = first_repeated(&ports) {
-            anyhow::bail!("{port} is given twice: each device is recorded once");
-        }
-        Ok(ports)
-    }
-}
-
-/// The first item that an earlier one equals, if any.
-fn first_repeated<T: PartialEq>(items: &[T]) -> Option<&T> {
-    items
-        .iter()
-        .enumerate()
-        .find_map(|(index, item)| items[..index].contains(item).then_some(item))
-}
+use crate::timeline_files::{format_sync_error_ms, TimelineFiles};
 
 /// The host's clock as the reader threads stamp arrivals with it: µs since an origin, never
 /// going back, the same for every thread.
@@ -583,108 +504,5 @@ fn overall_stop_reason(devices: &[DeviceSummary]) -> StopReason {
         Some(reason) => reason,
         None if all_at_limit => StopReason::SampleLimit,
         None => StopReason::Interrupted,
-    }
-}
-
-/// Runs `taxel record` with several devices on `ports` (already selected, in device order).
-pub fn run(args: &RecordArgs, ports: &[String], stop: &AtomicBool) -> anyhow::Result<ExitCode> {
-    if args.raw.is_some() {
-        anyhow::bail!(
-            "--raw names one file: with several devices the raw logs are {} and so on",
-            device_raw_path(&args.output, 0).display()
-        );
-    }
-    let mut devices = Vec::new();
-    for port_path in ports {
-        let opened = device_link::open_serial(port_path, Duration::from_millis(100))?;
-        if let Some(error) = &opened.dtr_error {
-            noteln!(
-                "note: {port_path}: DTR not set ({error}); a simulated device does not need it"
-            );
-        }
-        devices.push(DeviceInput {
-            name: port_path.clone(),
-            port: opened.port,
-        });
-    }
-    let clock = MonotonicClock::new();
-    let origin = SystemTime::now()
-        .duration_since(SystemTime::UNIX_EPOCH)
-        .unwrap_or_default();
-    noteln!(
-        "recording {} devices ({}) to {} (Ctrl-C to stop); host_time_s 0 is Unix time {}.{:06} s",
-        ports.len(),
-        ports
-            .iter()
-            .enumerate()
-            .map(|(device, port)| format!("device {device}: {port}"))
-            .collect::<Vec<_>>()
-            .join(", "),
-        args.output.display(),
-        origin.as_secs(),
-        origin.subsec_micros()
-    );
-    let options = MultiRecordOptions {
-        timeout: Duration::from_millis(args.timeout_ms),
-        samples_per_device: args.samples,
-        ..MultiRecordOptions::default()
-    };
-    let summary = record_devices(devices, &args.output, &clock, stop, &options, &|message| {
-        noteln!("{message}")
-    })?;
-    for (device, summary) in summary.devices.iter().enumerate() {
-        noteln!(
-            "device {device} ({}, serial {}): {}",
-            summary.name,
-            board_serial_hex(&summary.info),
-            summary.words()
-        );
-        if summary.samples_beyond_pad_count > 0 {
-            noteln!(
-                "warning: device {device}: {} sample frames named a pad the device does not have (protocol violation); set aside",
-                summary.samples_beyond_pad_count
-            );
-        }
-    }
-    let reason = match &summary.stop_reason {
-        StopReason::Interrupted => "stopped by Ctrl-C".to_owned(),
-        StopReason::SampleLimit => "sample limit reached on every device".to_owned(),
-        StopReason::Disconnected(message) => format!("{message}; the recording ended"),
-    };
-    let names: Vec<String> = summary
-        .files
-        .iter()
-        .map(|path| path.display().to_string())
-        .collect();
-    noteln!(
-        "{reason}; wrote {} rows in host-time order; files: {}",
-        summary.rows,
-        names.join(", ")
-    );
-    Ok(ExitCode::SUCCESS)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_port_given_twice_is_refused() {
-        let args = MultiBoardArgs::for_ports(vec!["/dev/a".into(), "/dev/a".into()]);
-        assert!(args.select_ports().is_err());
-        let error = args.refuse_repeats("shown").unwrap_err();
-        assert_eq!(
-            error.to_string(),
-            "/dev/a is given twice: each device is shown once"
-        );
-        let mut args = MultiBoardArgs::for_ports(vec!["/dev/a".into()]);
-        args.serial = vec!["S1".into(), "S2".into(), "S1".into()];
-        let error = args.refuse_repeats("recorded").unwrap_err();
-        assert_eq!(
-            error.to_string(),
-            "--serial S1 is given twice: each device is recorded once"
-        );
-        let args = MultiBoardArgs::for_ports(vec!["/dev/a".into(), "/dev/b".into()]);
-        assert_eq!(args.select_ports().unwrap(), ["/dev/a", "/dev/b"]);
     }
 }

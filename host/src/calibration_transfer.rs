@@ -6,82 +6,14 @@
 //! recording, which keeps the device's calibration beside the data.
 
 use std::io::{Read, Write};
-use std::path::PathBuf;
-use std::process::ExitCode;
 use std::time::Duration;
 
 use anyhow::{bail, Context};
 use model_core::{BaselineRecord, Calibration, CalibrationSpec, TAXEL_COUNT, TAXEL_NAMES};
 use wire::{Command, PadIndex, PadInfoFrame, ReplyPayload};
 
-use crate::calibration_file::{self, describe_calibration_error};
-use crate::device_link::{self, BoardArgs, DeviceLink, RequestError};
-use crate::device_words::{calibration_source_words, info_words};
-use crate::noteln;
-
-/// The long help of the subcommand.
-pub const LONG_ABOUT: &str = "Read the calibration a device uses, or write one to it.\n\n\
-`pull` writes the device's calibration in use (every taxel's curve, parasitic capacitance and \
-C0, and the calibration id) to a calibration file, the format `taxel calibrate` writes and \
-`taxel convert --calibration` reads. `push` writes a calibration file to the device (in RAM; \
---save also stores it in the device's flash).\n\n\
-A device that reads several pads holds a calibration per pad. `pull` reads pad 0's, or with \
---pad N pad N's (its id from the pad's PadInfo). `push` writes every pad, or with --pad N pad N \
-only; --save then fails while the pads hold different calibrations (the device's flash keeps \
-one calibration for all its pads).\n\n\
-Examples:\n  taxel calibration pull /dev/ttyACM0 -o cal.json\n  taxel calibration push cal.json \
-/dev/ttyACM0 --save\n  taxel calibration push finger.json /dev/ttyACM0 --pad 1";
-
-/// Arguments of `taxel calibration`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct CalibrationArgs {
-    /// What to do.
-    #[command(subcommand)]
-    pub action: CalibrationAction,
-}
-
-/// Where the device is.
-#[derive(Debug, Clone, clap::Args)]
-pub struct PortArgs {
-    /// The device.
-    #[command(flatten)]
-    pub board: BoardArgs,
-    /// How long to wait for each reply from the device, ms.
-    #[arg(long, value_name = "MS", default_value_t = 2000)]
-    pub timeout_ms: u64,
-}
-
-/// `pull` or `push`.
-#[derive(Debug, Clone, clap::Subcommand)]
-pub enum CalibrationAction {
-    /// Read the device's calibration into a file.
-    Pull {
-        /// The device.
-        #[command(flatten)]
-        port: PortArgs,
-        /// Calibration file to write.
-        #[arg(short, long, value_name = "FILE")]
-        output: PathBuf,
-        /// The pad whose calibration to read, on a device of several pads.
-        #[arg(long, value_name = "N", default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=7))]
-        pad: u8,
-    },
-    /// Write a calibration file to the device.
-    Push {
-        /// Calibration file to send.
-        #[arg(value_name = "FILE")]
-        file: PathBuf,
-        /// The device.
-        #[command(flatten)]
-        port: PortArgs,
-        /// Also save it to the device's flash.
-        #[arg(long)]
-        save: bool,
-        /// Write only this pad's calibration (default: every pad's).
-        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(0..=7))]
-        pad: Option<u8>,
-    },
-}
+use crate::calibration_file::describe_calibration_error;
+use crate::device_link::{DeviceLink, RequestError};
 
 /// Reads the calibration a device uses: four ReadCalibration requests, taken together with
 /// the calibration id the device reports in its Info.
@@ -167,7 +99,7 @@ fn device_pad_count<P: Read + Write>(
 }
 
 /// Refuses a pad the device does not have, naming how many it has.
-fn ensure_pad_exists(pad: PadIndex, pad_count: u8) -> anyhow::Result<()> {
+pub fn ensure_pad_exists(pad: PadIndex, pad_count: u8) -> anyhow::Result<()> {
     if pad.get() >= pad_count {
         bail!(
             "the device reads {pad_count} pad{}: there is no pad {}",
@@ -228,8 +160,9 @@ pub fn upload_to_pads<P: Read + Write>(
     Ok(())
 }
 
-/// A pad index from the command line (its parser keeps it in range; this says so if not).
-fn pad_index(pad: u8) -> anyhow::Result<PadIndex> {
+/// A pad index given by a user (a parser that keeps it in range makes this infallible; this
+/// says so if not).
+pub fn pad_index(pad: u8) -> anyhow::Result<PadIndex> {
     PadIndex::new(pad)
         .with_context(|| format!("pad {pad}: a device has at most {} pads", PadIndex::MAX + 1))
 }
@@ -245,74 +178,4 @@ pub fn pad_info<P: Read + Write>(
         Ok(_) => Err(RequestError::UnexpectedReply("PadInfo").into()),
         Err(error) => Err(error).with_context(|| format!("PadInfo {}", pad.get())),
     }
-}
-
-fn open(port: &PortArgs) -> anyhow::Result<(String, DeviceLink<Box<dyn serialport::SerialPort>>)> {
-    let path = port.board.select_port()?;
-    let opened = device_link::open_serial(&path, Duration::from_millis(50))?;
-    Ok((path, DeviceLink::new(opened.port)))
-}
-
-/// Runs `taxel calibration`.
-pub fn run(args: &CalibrationArgs) -> anyhow::Result<ExitCode> {
-    match &args.action {
-        CalibrationAction::Pull { port, output, pad } => {
-            let timeout = Duration::from_millis(port.timeout_ms);
-            let (path, mut link) = open(port)?;
-            let (info, _) = link
-                .synchronise(timeout)
-                .with_context(|| format!("asking the device on {path} who it is"))?;
-            noteln!("device on {path}: {}", info_words(&info));
-            let pad = pad_index(*pad)?;
-            ensure_pad_exists(pad, info.pad_count)?;
-            let (calibration_id, source) = if pad.get() == 0 {
-                (info.calibration_id, info.calibration_source)
-            } else {
-                let pad_info = pad_info(&mut link, pad, timeout)?;
-                (pad_info.calibration_id, pad_info.calibration_source)
-            };
-            let calibration = pull(&mut link, pad, calibration_id, timeout)?;
-            calibration_file::write(output, &calibration)?;
-            let of_pad = if info.pad_count > 1 {
-                format!(" of pad {}", pad.get())
-            } else {
-                String::new()
-            };
-            noteln!(
-                "wrote calibration id {}{of_pad} ({}) to {}",
-                calibration.id(),
-                calibration_source_words(source),
-                output.display()
-            );
-        }
-        CalibrationAction::Push {
-            file,
-            port,
-            save,
-            pad,
-        } => {
-            let calibration = calibration_file::read(file)
-                .with_context(|| format!("reading {}", file.display()))?;
-            let timeout = Duration::from_millis(port.timeout_ms);
-            let (path, mut link) = open(port)?;
-            let only_pad = pad.map(pad_index).transpose()?;
-            match only_pad {
-                Some(pad) => noteln!(
-                    "writing calibration id {} to pad {} of {path}",
-                    calibration.id(),
-                    pad.get()
-                ),
-                None => noteln!("writing calibration id {} to {path}", calibration.id()),
-            }
-            upload_to_pads(
-                &mut link,
-                &calibration,
-                only_pad,
-                *save,
-                timeout,
-                &mut |message| noteln!("{message}"),
-            )?;
-        }
-    }
-    Ok(ExitCode::SUCCESS)
 }

@@ -17,10 +17,6 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
-use std::process::ExitCode;
-use std::sync::atomic::AtomicBool;
-use std::time::Duration;
-
 use anyhow::Context;
 use model_core::PadGeometry;
 use taxel_ros2::mcap_file::TopicId;
@@ -30,14 +26,8 @@ use taxel_ros2::{Header, McapRecorder, RosMessage, Time};
 use wire::{DeviceEvent, EventFrame, SampleFrame};
 
 use crate::clock_sync::ClockMapper;
-use crate::device_link::{self, DeviceLink};
-use crate::device_words::{counters_words, info_words};
 use crate::multi_record::{HostClock, MonotonicClock};
-use crate::noteln;
 use crate::output_file::PendingRename;
-use crate::record::{
-    identify_device, record_accounted, start_stream, stop_stream, stop_words, RecordArgs,
-};
 use crate::recording::{SampleSink, SetCounter};
 
 /// The namespace and frame prefix of the topics, as `taxel bridge` has them by default.
@@ -289,53 +279,4 @@ impl SampleSink for McapSink {
         });
         self.release()
     }
-}
-
-/// Runs `taxel record --format mcap` on the device at `port_path` until `stop` is set, the
-/// sample limit is reached or the device goes away.
-pub fn run(args: &RecordArgs, port_path: &str, stop: &AtomicBool) -> anyhow::Result<ExitCode> {
-    let opened = device_link::open_serial(port_path, Duration::from_millis(100))?;
-    let mut link = DeviceLink::new(opened.port);
-    let timeout = Duration::from_millis(args.timeout_ms);
-    let (_, _, stale) = identify_device(&mut link, timeout, &mut |info| {
-        noteln!("device on {port_path}: {}", info_words(info));
-    })
-    .with_context(|| format!("the device on {port_path}"))?;
-    let mut sink = McapSink::create(&args.output)?;
-    let mut accounting = start_stream(&mut link, stale, timeout).context("nothing was recorded")?;
-    noteln!(
-        "recording from {port_path} to {} (Ctrl-C to stop)",
-        args.output.display()
-    );
-    let result = record_accounted(
-        &mut link,
-        &mut sink,
-        &mut accounting,
-        stop,
-        args.samples,
-        Duration::from_millis(500),
-        &mut |message| noteln!("{message}"),
-    );
-    let stop_reason = match result {
-        Ok(stop_reason) => stop_reason,
-        Err(error) => {
-            let kept = sink
-                .abandon()
-                .map_or_else(|| "nothing".to_owned(), |path| path.display().to_string());
-            return Err(error.context(format!(
-                "the recording stopped; what was received is kept in {kept}"
-            )));
-        }
-    };
-    if let Some(counters) = stop_stream(&mut link, &mut accounting, &stop_reason) {
-        noteln!("device counters {}", counters_words(&counters));
-    }
-    let (path, messages) = sink.finish()?;
-    noteln!(
-        "{}; wrote {} ({messages} messages): {}",
-        stop_words(&stop_reason),
-        path.display(),
-        accounting.summary()
-    );
-    Ok(ExitCode::SUCCESS)
 }

@@ -7,13 +7,13 @@
 use anyhow::Context;
 use model_core::{Calibration, Tier};
 
-use super::{ConvertArgs, ConvertOptions, PadOptions, TareSource};
+use super::{ConvertOptions, ConvertSettings, PadOptions, TareSource};
 use crate::recording::{device_state_path, RecordedDeviceState, RecordedPadState};
 
 /// One pad's options from the command line and, for what it does not give, the pad's recorded
 /// state (`None`: no device state; the built-in defaults and a tare on the first row).
 fn pad_options(
-    args: &ConvertArgs,
+    args: &ConvertSettings,
     file_calibration: Option<&Calibration>,
     recorded: Option<&RecordedPadState>,
 ) -> anyhow::Result<PadOptions> {
@@ -47,7 +47,7 @@ fn pad_options(
 }
 
 /// What a device state of several pads gave the pads other than pad 0, in words.
-fn other_pads_words(args: &ConvertArgs, state: &RecordedDeviceState) -> String {
+fn other_pads_words(args: &ConvertSettings, state: &RecordedDeviceState) -> String {
     let pad_count = state.pad_count;
     let without = state.pads_without_state();
     if !without.is_empty() {
@@ -92,7 +92,7 @@ fn other_pads_words(args: &ConvertArgs, state: &RecordedDeviceState) -> String {
 }
 
 /// The options a conversion runs with, and a sentence saying where each came from.
-pub fn resolve_options(args: &ConvertArgs) -> anyhow::Result<(ConvertOptions, String)> {
+pub fn resolve_options(args: &ConvertSettings) -> anyhow::Result<(ConvertOptions, String)> {
     let input = args.raw.as_ref().or(args.input.as_ref());
     let state_path = match (&args.device_state, input) {
         _ if args.no_device_state => None,

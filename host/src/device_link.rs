@@ -22,46 +22,6 @@ pub const DEFAULT_VID: u16 = 0x1209;
 /// The pad's USB product id.
 pub const DEFAULT_PID: u16 = 0x0001;
 
-/// Which board to talk to: a serial port, or an attached board chosen by its USB serial number
-/// (or the only one attached).
-#[derive(Debug, Clone, PartialEq, Eq, clap::Args)]
-pub struct BoardArgs {
-    /// Serial port of the device (default: the only attached board, or --serial).
-    #[arg(value_name = "PORT")]
-    pub port: Option<String>,
-    /// Choose the attached board with this USB serial number.
-    #[arg(long, value_name = "SN", conflicts_with = "port")]
-    pub serial: Option<String>,
-    /// USB vendor id of the board, for finding it.
-    #[arg(long, value_name = "VID", default_value = "0x1209", value_parser = parse_hex_u16)]
-    pub vid: u16,
-    /// USB product id of the board, for finding it.
-    #[arg(long, value_name = "PID", default_value = "0x0001", value_parser = parse_hex_u16)]
-    pub pid: u16,
-}
-
-impl BoardArgs {
-    /// The board on `port`, found by its default VID:PID.
-    pub fn for_port(port: String) -> Self {
-        Self {
-            port: Some(port),
-            serial: None,
-            vid: DEFAULT_VID,
-            pid: DEFAULT_PID,
-        }
-    }
-
-    /// The port to open (see [`select_port`]).
-    pub fn select_port(&self) -> Result<String, LinkError> {
-        select_port(
-            self.port.as_deref(),
-            self.serial.as_deref(),
-            self.vid,
-            self.pid,
-        )
-    }
-}
-
 /// Parses a USB id written in hexadecimal, with or without `0x`.
 pub fn parse_hex_u16(text: &str) -> Result<u16, String> {
     let digits = text
