@@ -303,7 +303,14 @@ pub fn check_is_serial_port(path: &str) -> Result<(), LinkError> {
     }
 }
 
-/// A link to one device over any byte stream.
+/// Requests sent and not yet answered whose replies are kept for [`DeviceLink::wait_reply`];
+/// beyond this the oldest is forgotten (its reply, if it comes, is an ordinary frame).
+pub const AWAITED_CAPACITY: usize = 16;
+
+/// A link to one device over any byte stream. It is the host's one matcher of requests and
+/// replies: the reply to a request sent here is kept for [`DeviceLink::wait_reply`] (and
+/// [`DeviceLink::request`]), never handed out by [`DeviceLink::next_frame`], whoever reads the
+/// stream meanwhile.
 pub struct DeviceLink<P> {
     port: P,
     receiver: FrameReceiver,
@@ -312,6 +319,8 @@ pub struct DeviceLink<P> {
     raw_log: Option<Box<dyn Write + Send>>,
     next_request_id: u16,
     read_buffer: Vec<u8>,
+    awaited: VecDeque<u16>,
+    replies: VecDeque<ReplyFrame>,
 }
 
 impl<P: Read + Write> DeviceLink<P> {
@@ -325,6 +334,8 @@ impl<P: Read + Write> DeviceLink<P> {
             raw_log: None,
             next_request_id: 1,
             read_buffer: vec![0; 4096],
+            awaited: VecDeque::new(),
+            replies: VecDeque::new(),
         }
     }
 
@@ -419,18 +430,101 @@ impl<P: Read + Write> DeviceLink<P> {
     }
 
     /// The next frame: a queued one, else whatever one read brings (`None` if it brought no
-    /// complete frame).
+    /// complete frame). The reply to a request still awaited is kept for
+    /// [`DeviceLink::wait_reply`] instead.
     pub fn next_frame(&mut self) -> Result<Option<DeviceFrame>, LinkError> {
-        if let Some(frame) = self.frames.pop_front() {
-            return Ok(Some(frame));
+        if self.frames.is_empty() {
+            self.poll()?;
         }
-        self.poll()?;
-        Ok(self.frames.pop_front())
+        while let Some(frame) = self.frames.pop_front() {
+            match frame {
+                DeviceFrame::Reply(reply) if self.awaited.contains(&reply.request_id) => {
+                    self.keep_reply(reply);
+                }
+                frame => return Ok(Some(frame)),
+            }
+        }
+        Ok(None)
     }
 
-    /// Sends a request without waiting; returns its request id. The reply arrives later as a
-    /// [`DeviceFrame::Reply`] with that id. A 00 goes before the frame so that anything the
-    /// device holds (a partial frame, typed text) cannot be glued to its front.
+    fn keep_reply(&mut self, reply: ReplyFrame) {
+        if self.replies.len() >= AWAITED_CAPACITY {
+            self.replies.pop_front();
+        }
+        self.replies.push_back(reply);
+    }
+
+    /// The reply to request `request_id` (sent with [`DeviceLink::send_awaited`]) if it arrives by
+    /// `deadline` (`None` then; the request stays awaited until its reply is taken or
+    /// [`DeviceLink::forget`] is called). Frames that arrive meanwhile stay queued, in order,
+    /// for [`DeviceLink::next_frame`]. A refusal is the device's error code.
+    pub fn wait_reply(
+        &mut self,
+        request_id: u16,
+        deadline: Instant,
+    ) -> Result<Option<Result<ReplyPayload, ErrorCode>>, LinkError> {
+        loop {
+            if let Some(position) = self
+                .replies
+                .iter()
+                .position(|reply| reply.request_id == request_id)
+            {
+                let reply = self.replies.remove(position);
+                self.forget(request_id);
+                return Ok(reply.map(|reply| reply.result));
+            }
+            let queued = self.frames.iter().position(|frame| {
+                matches!(frame, DeviceFrame::Reply(ReplyFrame { request_id: id, .. }) if *id == request_id)
+            });
+            if let Some(DeviceFrame::Reply(reply)) =
+                queued.and_then(|position| self.frames.remove(position))
+            {
+                self.forget(request_id);
+                return Ok(Some(reply.result));
+            }
+            if Instant::now() >= deadline {
+                return Ok(None);
+            }
+            self.poll()?;
+        }
+    }
+
+    /// Stops awaiting request `request_id`: its reply, if it still comes, is an ordinary frame.
+    pub fn forget(&mut self, request_id: u16) {
+        self.awaited.retain(|id| *id != request_id);
+        self.replies.retain(|reply| reply.request_id != request_id);
+    }
+
+    /// Why request `request_id` got no reply within `timeout`: a device that speaks another
+    /// protocol version is named as such, anything else is a timeout.
+    pub fn no_reply_error(&self, request_id: u16, timeout: Duration) -> RequestError {
+        match self.statistics().other_protocol_version {
+            Some(found) => RequestError::OtherProtocolVersion {
+                found,
+                supported: wire::PROTOCOL_VERSION,
+            },
+            None => RequestError::Timeout {
+                request_id,
+                timeout_ms: timeout.as_millis(),
+            },
+        }
+    }
+
+    /// Sends a request without waiting; returns its request id, awaited from now on: its reply
+    /// is taken with [`DeviceLink::wait_reply`] (or given up with [`DeviceLink::forget`]).
+    pub fn send_awaited(&mut self, command: Command) -> Result<u16, LinkError> {
+        let request_id = self.send(command)?;
+        if self.awaited.len() >= AWAITED_CAPACITY {
+            self.awaited.pop_front();
+        }
+        self.awaited.push_back(request_id);
+        Ok(request_id)
+    }
+
+    /// Sends a request without waiting; returns its request id. Its reply arrives as an
+    /// ordinary [`DeviceFrame::Reply`] (see [`DeviceLink::send_awaited`] to wait for it). A 00
+    /// goes before the frame so that anything the device holds (a partial frame, typed text)
+    /// cannot be glued to its front.
     pub fn send(&mut self, command: Command) -> Result<u16, LinkError> {
         let request_id = self.next_request_id;
         self.next_request_id = self.next_request_id.wrapping_add(1).max(1);
@@ -452,8 +546,14 @@ impl<P: Read + Write> DeviceLink<P> {
         command: Command,
         timeout: Duration,
     ) -> Result<ReplyPayload, RequestError> {
-        self.request_discarding_earlier(command, timeout, false)
-            .map(|(payload, _)| payload)
+        let request_id = self.send_awaited(command)?;
+        match self.wait_reply(request_id, Instant::now() + timeout)? {
+            Some(result) => result.map_err(RequestError::Refused),
+            None => {
+                self.forget(request_id);
+                Err(self.no_reply_error(request_id, timeout))
+            }
+        }
     }
 
     /// Starts a session on a freshly opened port: asks for the device's identity and discards
@@ -462,54 +562,25 @@ impl<P: Read + Write> DeviceLink<P> {
     /// device on a pseudo-terminal), so their samples are stale. Returns the identity and the
     /// number of frames discarded.
     pub fn synchronise(&mut self, timeout: Duration) -> Result<(InfoFrame, u64), RequestError> {
-        match self.request_discarding_earlier(Command::Info, timeout, true)? {
-            (ReplyPayload::Info(info), discarded) => Ok((info, discarded)),
-            (_, _) => Err(RequestError::UnexpectedReply("Info")),
-        }
-    }
-
-    fn request_discarding_earlier(
-        &mut self,
-        command: Command,
-        timeout: Duration,
-        discard_earlier: bool,
-    ) -> Result<(ReplyPayload, u64), RequestError> {
-        let request_id = self.send(command)?;
+        let request_id = self.send(Command::Info)?;
         let deadline = Instant::now() + timeout;
         let mut discarded = 0u64;
         loop {
-            let position = self.frames.iter().position(|frame| {
-                matches!(frame, DeviceFrame::Reply(ReplyFrame { request_id: id, .. }) if *id == request_id)
-            });
-            if let Some(position) = position {
-                if discard_earlier {
-                    self.frames.drain(..position);
-                    discarded += position as u64;
+            // Everything queued before the reply is stale; so is everything while it is awaited.
+            while let Some(frame) = self.frames.pop_front() {
+                match frame {
+                    DeviceFrame::Reply(reply) if reply.request_id == request_id => {
+                        return match reply.result {
+                            Ok(ReplyPayload::Info(info)) => Ok((info, discarded)),
+                            Ok(_) => Err(RequestError::UnexpectedReply("Info")),
+                            Err(code) => Err(RequestError::Refused(code)),
+                        };
+                    }
+                    _ => discarded += 1,
                 }
-            } else if discard_earlier {
-                discarded += self.frames.len() as u64;
-                self.frames.clear();
-            }
-            let position = position.map(|position| if discard_earlier { 0 } else { position });
-            if let Some(DeviceFrame::Reply(reply)) =
-                position.and_then(|position| self.frames.remove(position))
-            {
-                return reply
-                    .result
-                    .map(|payload| (payload, discarded))
-                    .map_err(RequestError::Refused);
             }
             if Instant::now() >= deadline {
-                if let Some(found) = self.statistics().other_protocol_version {
-                    return Err(RequestError::OtherProtocolVersion {
-                        found,
-                        supported: wire::PROTOCOL_VERSION,
-                    });
-                }
-                return Err(RequestError::Timeout {
-                    request_id,
-                    timeout_ms: timeout.as_millis(),
-                });
+                return Err(self.no_reply_error(request_id, timeout));
             }
             self.poll()?;
         }

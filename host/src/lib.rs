@@ -3,8 +3,10 @@
 //! argument-parsing dependency.
 //!
 //! - The device: [`device_link`] (board discovery, the serial link, frames, requests matched
-//!   with their replies), [`stream_accounting`] (gaps, drops), [`pad_set`] (every pad's frame of
-//!   a sample set), [`clock_sync`] and [`host_timeline`] (device clocks mapped onto the host's).
+//!   with their replies), [`session`] (one device's stream, the host's only stream loop),
+//!   [`worker`] (sessions on threads, their events down one queue with their arrival on the
+//!   [`host_clock`]), [`stream_accounting`] (gaps, drops), [`pad_set`] (every pad's frame of a
+//!   sample set), [`clock_sync`] and [`host_timeline`] (device clocks mapped onto the host's).
 //! - Its state: [`device_state`], [`device_words`] (what a device says, in words),
 //!   [`calibration_file`], [`calibration_transfer`], [`calibrate`] and [`calibrate_report`]
 //!   (fitting a calibration from reference loads).
@@ -28,6 +30,7 @@ pub mod device_link;
 pub mod device_state;
 pub mod device_words;
 pub mod frame_receiver;
+pub mod host_clock;
 pub mod host_timeline;
 pub mod mcap_record;
 pub mod multi_record;
@@ -36,5 +39,7 @@ pub mod pad_set;
 pub mod record;
 pub mod record_rows;
 pub mod recording;
+pub mod session;
 pub mod stream_accounting;
 pub mod timeline_files;
+pub mod worker;

@@ -20,45 +20,12 @@ use wire::{InfoFrame, PadIndex, SampleFrame};
 use crate::clock_sync::ClockEstimate;
 use crate::device_link::DeviceLink;
 use crate::device_words::{counters_words, info_words};
+pub use crate::host_clock::{HostClock, MonotonicClock};
 use crate::host_timeline::{DeviceTimelineCounts, HostTimeline, TimelineConfig};
 use crate::record::{identify_device, record_accounted, start_stream, stop_stream, StopReason};
 use crate::recording::{BaselineChange, RecordedDeviceState, SampleSink, SetCounter};
 use crate::stream_accounting::StreamAccounting;
 use crate::timeline_files::{format_sync_error_ms, TimelineFiles};
-
-/// The host's clock as the reader threads stamp arrivals with it: µs since an origin, never
-/// going back, the same for every thread.
-pub trait HostClock: Send + Sync {
-    /// µs since the clock's origin.
-    fn now_us(&self) -> u64;
-}
-
-/// The operating system's monotonic clock, µs since [`MonotonicClock::new`].
-#[derive(Debug, Clone, Copy)]
-pub struct MonotonicClock {
-    origin: Instant,
-}
-
-impl MonotonicClock {
-    /// A clock whose origin is now.
-    pub fn new() -> Self {
-        Self {
-            origin: Instant::now(),
-        }
-    }
-}
-
-impl Default for MonotonicClock {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl HostClock for MonotonicClock {
-    fn now_us(&self) -> u64 {
-        u64::try_from(self.origin.elapsed().as_micros()).unwrap_or(u64::MAX)
-    }
-}
 
 /// One device to record: a name for messages (its port) and the open port.
 #[derive(Debug)]

@@ -86,3 +86,24 @@ impl SimulatorThread {
         }
     }
 }
+
+/// The configuration of a simulated board playing `scene` (a built-in name or a file; `None`:
+/// the demo) with `pads` pads (default: as many as the scene describes), at `speed` simulated
+/// seconds per wall-clock second (`None`: as fast as the host computes), with the board's bus
+/// clock: what `taxel sim`, the bridge's `--sim`, the Python `Simulator` and the tests start.
+pub fn scene_config(
+    scene: Option<&Path>,
+    pads: Option<u8>,
+    speed: Option<f64>,
+    seed: u64,
+) -> anyhow::Result<SimulatedDeviceConfig> {
+    let scene = load_scene(scene)?;
+    let topology = board_for(&scene, pads)?;
+    Ok(SimulatedDeviceConfig {
+        scene,
+        seed,
+        speed,
+        topology,
+        bus_frequency_hz: crate::BUS_FREQUENCY_HZ,
+    })
+}
