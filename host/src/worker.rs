@@ -186,12 +186,8 @@ impl EventQueue {
     }
 }
 
-/// A request for a device's thread, and where its reply goes.
-struct Request {
-    command: Command,
-    timeout: Duration,
-    reply: Sender<Result<ReplyPayload, RequestError>>,
-}
+/// Work for a device's thread, carried out between reads.
+type Job<P> = Box<dyn FnOnce(&mut DeviceSession<P>) + Send>;
 
 /// A request the worker could not carry out.
 #[derive(Debug, thiserror::Error)]
@@ -210,7 +206,7 @@ pub enum WorkerRequestError {
 /// Devices read by threads of their own into one queue (see the module documentation).
 pub struct Worker<P> {
     threads: Vec<Option<thread::JoinHandle<DeviceSession<P>>>>,
-    requests: Vec<Sender<Request>>,
+    jobs: Vec<Sender<Job<P>>>,
     stop: Arc<AtomicBool>,
     queue: Arc<EventQueue>,
 }
@@ -226,18 +222,18 @@ impl<P: Read + Write + Send + 'static> Worker<P> {
         let stop = Arc::new(AtomicBool::new(false));
         let mut worker = Self {
             threads: Vec::new(),
-            requests: Vec::new(),
+            jobs: Vec::new(),
             stop: Arc::clone(&stop),
             queue: Arc::clone(&queue),
         };
         for (device, session) in sessions.into_iter().enumerate() {
-            let (sender, requests) = mpsc::channel();
+            let (sender, jobs) = mpsc::channel();
             let context = ThreadContext {
                 device,
                 queue: Arc::clone(&queue),
                 clock: Arc::clone(&clock),
                 stop: Arc::clone(&stop),
-                requests,
+                jobs,
             };
             let spawned = thread::Builder::new()
                 .name(format!("taxel-device-{device}"))
@@ -245,7 +241,7 @@ impl<P: Read + Write + Send + 'static> Worker<P> {
             match spawned {
                 Ok(handle) => {
                     worker.threads.push(Some(handle));
-                    worker.requests.push(sender);
+                    worker.jobs.push(sender);
                 }
                 Err(error) => {
                     worker.stop_threads();
@@ -263,30 +259,47 @@ impl<P: Read + Write + Send + 'static> Worker<P> {
 
     /// The number of devices.
     pub fn device_count(&self) -> usize {
-        self.requests.len()
+        self.jobs.len()
+    }
+
+    /// Runs `job` on `device`'s session, on its thread between reads (a calibration transfer,
+    /// a look at its accounting); returns where its result will arrive. Frames that arrive
+    /// meanwhile become events afterwards, in order.
+    pub fn run<R: Send + 'static>(
+        &self,
+        device: usize,
+        job: impl FnOnce(&mut DeviceSession<P>) -> R + Send + 'static,
+    ) -> Result<Receiver<R>, WorkerRequestError> {
+        let sender = self
+            .jobs
+            .get(device)
+            .ok_or(WorkerRequestError::NoDevice(device))?;
+        let (result, receiver) = mpsc::channel();
+        sender
+            .send(Box::new(move |session: &mut DeviceSession<P>| {
+                // The caller may have given up; the result is then nobody's.
+                let _ = result.send(job(session));
+            }))
+            .map_err(|_| WorkerRequestError::Ended(device))?;
+        Ok(receiver)
     }
 
     /// Sends `command` to `device` and returns where its reply will arrive (carried out by the
-    /// device's thread between reads, waiting up to `timeout`).
+    /// device's thread between reads, waiting up to `timeout`). A reply carrying a new Info
+    /// becomes the session's.
     pub fn send(
         &self,
         device: usize,
         command: Command,
         timeout: Duration,
     ) -> Result<Receiver<Result<ReplyPayload, RequestError>>, WorkerRequestError> {
-        let sender = self
-            .requests
-            .get(device)
-            .ok_or(WorkerRequestError::NoDevice(device))?;
-        let (reply, receiver) = mpsc::channel();
-        sender
-            .send(Request {
-                command,
-                timeout,
-                reply,
-            })
-            .map_err(|_| WorkerRequestError::Ended(device))?;
-        Ok(receiver)
+        self.run(device, move |session| {
+            let result = session.request(command, timeout);
+            if let Ok(ReplyPayload::Info(info)) = &result {
+                session.set_info(*info);
+            }
+            result
+        })
     }
 
     /// Sends `command` to `device` and waits for its reply.
@@ -327,15 +340,15 @@ impl<P> Drop for Worker<P> {
     }
 }
 
-struct ThreadContext {
+struct ThreadContext<P> {
     device: usize,
     queue: Arc<EventQueue>,
     clock: Arc<dyn HostClock>,
     stop: Arc<AtomicBool>,
-    requests: Receiver<Request>,
+    jobs: Receiver<Job<P>>,
 }
 
-impl ThreadContext {
+impl<P> ThreadContext<P> {
     fn deliver(&self, event: WorkerEvent) {
         self.queue.push(
             ArrivedEvent {
@@ -352,19 +365,14 @@ impl ThreadContext {
 /// carrying out requests between reads; then its last set, the stop and its end.
 fn read_device<P: Read + Write>(
     mut session: DeviceSession<P>,
-    context: &ThreadContext,
+    context: &ThreadContext<P>,
 ) -> DeviceSession<P> {
     let reason = loop {
         if context.stop.load(Ordering::Relaxed) {
             break EndReason::Stopped;
         }
-        while let Ok(request) = context.requests.try_recv() {
-            let result = session.request(request.command, request.timeout);
-            if let Ok(ReplyPayload::Info(info)) = &result {
-                session.set_info(*info);
-            }
-            // The requester may have given up; the reply is then nobody's.
-            let _ = request.reply.send(result);
+        while let Ok(job) = context.jobs.try_recv() {
+            job(&mut session);
         }
         match session.next_event(Instant::now() + READ_SLICE) {
             Ok(Some(event)) => context.deliver(WorkerEvent::Session(event)),

@@ -13,13 +13,10 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyUntypedArrayMethods, ToPyArray};
 use pyo3::prelude::*;
 
 use crate::sample_set::SetRecord;
-use crate::session::Session;
+use crate::stream::Stream;
 
-/// How long the collecting thread holds the session at a time (commands wait at most this).
+/// How long the collecting thread waits for a set before it looks at its stop flag.
 const SLICE: Duration = Duration::from_millis(20);
-
-/// The shared, closable session.
-pub type SharedSession = Arc<Mutex<Option<Session>>>;
 
 /// Locks a shared value; a panic while it was held left plain data, still usable.
 pub fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -50,15 +47,15 @@ pub struct Buffering {
 }
 
 impl Buffering {
-    /// Starts collecting from `session` into a store of `capacity_sets`.
-    pub fn start(session: SharedSession, capacity_sets: usize) -> std::io::Result<Self> {
+    /// Starts collecting from `stream` into a store of `capacity_sets`.
+    pub fn start(stream: Arc<Stream>, capacity_sets: usize) -> std::io::Result<Self> {
         let collected = Arc::new(Mutex::new(Collected::default()));
         let stop = Arc::new(AtomicBool::new(false));
         let thread_collected = Arc::clone(&collected);
         let thread_stop = Arc::clone(&stop);
         let handle = thread::Builder::new()
             .name("taxel-buffer".into())
-            .spawn(move || collect(&session, &thread_collected, &thread_stop, capacity_sets))?;
+            .spawn(move || collect(&stream, &thread_collected, &thread_stop, capacity_sets))?;
         Ok(Self {
             collected,
             stop,
@@ -93,39 +90,23 @@ impl Drop for Buffering {
     }
 }
 
-fn collect(
-    session: &SharedSession,
-    collected: &Mutex<Collected>,
-    stop: &AtomicBool,
-    capacity_sets: usize,
-) {
-    let mut arrived = Vec::new();
+fn collect(stream: &Stream, collected: &Mutex<Collected>, stop: &AtomicBool, capacity_sets: usize) {
     while !stop.load(Ordering::Relaxed) {
-        let result = {
-            let mut guard = lock(session);
-            let Some(session) = guard.as_mut() else {
-                return;
-            };
-            let until = Instant::now() + SLICE;
-            loop {
-                match session.next_set(until) {
-                    Ok(Some(set)) => arrived.push(set),
-                    Ok(None) => break Ok(()),
-                    Err(error) => break Err(error),
+        let result = stream.next_set(Instant::now() + SLICE);
+        let mut store = lock(collected);
+        match result {
+            Ok(Some(set)) => {
+                if store.sets.len() < capacity_sets {
+                    store.sets.push(set);
+                } else {
+                    store.overflowed_sets += 1;
                 }
             }
-        };
-        let mut store = lock(collected);
-        for set in arrived.drain(..) {
-            if store.sets.len() < capacity_sets {
-                store.sets.push(set);
-            } else {
-                store.overflowed_sets += 1;
+            Ok(None) => {}
+            Err(ended) => {
+                store.error = Some(Arc::new(anyhow::anyhow!(ended.0)));
+                return;
             }
-        }
-        if let Err(error) = result {
-            store.error = Some(Arc::new(error));
-            return;
         }
     }
 }

@@ -1,23 +1,39 @@
 //! `taxel.Device`: one board (or, through `taxel.Simulator`, the simulated device) as a Python
 //! object: its identity, sample sets one at a time or collected in the background, and its
-//! commands. Every wait releases the GIL and looks for Ctrl-C every [`SLICE`].
+//! commands. The host library's worker reads the device on a thread of its own (the one stream
+//! loop, `taxel_host::session`); every wait here releases the GIL and looks for Ctrl-C every
+//! [`SLICE`].
 
-use std::sync::{mpsc, Arc, Mutex};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::sync::{Arc, Mutex};
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::Context;
 use pyo3::exceptions::{PyStopIteration, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use taxel_host::device_link::{open_serial, select_port, RequestError, DEFAULT_PID, DEFAULT_VID};
+use taxel_host::device_link::{
+    open_serial, select_port, DeviceLink, RequestError, DEFAULT_PID, DEFAULT_VID,
+};
+use taxel_host::host_clock::MonotonicClock;
+use taxel_host::session::{DeviceSession, SessionConfig};
+use taxel_host::worker::{EventQueue, Overflow, Worker};
 use wire::{Command, PadIndex, ReplyPayload, SampleRate};
 
-use crate::buffering::{lock, Buffer, Buffering, SharedSession};
+use crate::buffering::{lock, Buffer, Buffering};
 use crate::calibration::Calibration;
 use crate::errors::{anyhow_error, taxel_error, ErrorKind};
 use crate::sample_set::SampleSet;
-use crate::session::{Session, Transport};
+use crate::stream::{Stream, QUEUE_SETS};
+
+/// A byte stream to a device.
+pub trait Transport: std::io::Read + std::io::Write + Send {}
+
+impl<T: std::io::Read + std::io::Write + Send> Transport for T {}
+
+/// The link a device is read over.
+type Link = Box<dyn Transport>;
 
 /// How long a blocking call waits with the GIL released before it looks for Ctrl-C.
 const SLICE: Duration = Duration::from_millis(50);
@@ -39,15 +55,24 @@ pub trait Backend: Send + Sync {
 /// within about 50 ms).
 #[pyclass(frozen, subclass, module = "taxel")]
 pub struct Device {
-    session: SharedSession,
     // Behind locks of their own so that every method takes `&self`: a method holding a mutable
     // borrow of the object would make `close()` from another thread fail with "Already
     // borrowed" while a `read()` waits.
+    worker: Mutex<Option<Worker<Link>>>,
+    stream: Arc<Stream>,
     buffering: Mutex<Option<Buffering>>,
     backend: Mutex<Option<Box<dyn Backend>>>,
     timeout: Duration,
     pads: usize,
     port_name: String,
+}
+
+/// A queue size given by the caller, checked.
+pub fn queue_sets_checked(queue_sets: usize) -> PyResult<usize> {
+    if queue_sets == 0 {
+        return Err(PyValueError::new_err("queue_sets must be at least 1"));
+    }
+    Ok(queue_sets)
 }
 
 /// A timeout given in seconds, checked.
@@ -70,11 +95,12 @@ impl Device {
         port_name: String,
         timeout: Duration,
         backend: Option<Box<dyn Backend>>,
+        queue_sets: usize,
         slow_hint: &str,
     ) -> PyResult<Self> {
-        let started = start_interruptibly(py, port, timeout, slow_hint);
-        let session = match started {
-            Ok(session) => session,
+        let started = start_interruptibly(py, port, timeout, queue_sets, slow_hint);
+        let (worker, stream) = match started {
+            Ok(started) => started,
             Err(error) => {
                 if let Some(mut backend) = backend {
                     py.allow_threads(|| backend.stop());
@@ -82,9 +108,10 @@ impl Device {
                 return Err(error);
             }
         };
-        let pads = session.pad_count();
+        let pads = usize::from(stream.state().info.pad_count.max(1));
         Ok(Self {
-            session: Arc::new(Mutex::new(Some(session))),
+            worker: Mutex::new(Some(worker)),
+            stream,
             buffering: Mutex::new(None),
             backend: Mutex::new(backend),
             timeout,
@@ -93,35 +120,25 @@ impl Device {
         })
     }
 
-    /// Runs `step` on the open session in slices of [`SLICE`] with the GIL released until it
-    /// gives a value or `deadline` passes (`None` then), raising on Ctrl-C.
-    fn wait_for<T: Send>(
+    /// Runs `job` on the device's session (on the worker's thread, between reads) and waits
+    /// for its result with the GIL released, looking for Ctrl-C, for `timeout` and a little
+    /// more (the job bounds itself; this only guards against a worker that stopped).
+    fn on_session<T: Send + 'static>(
         &self,
         py: Python<'_>,
-        deadline: Instant,
-        mut step: impl FnMut(&mut Session, Instant) -> anyhow::Result<Option<T>> + Send,
-    ) -> PyResult<Option<T>> {
-        loop {
-            let slice_end = deadline.min(Instant::now() + SLICE);
-            let session = Arc::clone(&self.session);
-            let result = py.allow_threads(|| {
-                let mut guard = lock(&session);
-                match guard.as_mut() {
-                    Some(session) => step(session, slice_end).map(Some),
-                    None => Ok(None),
-                }
-            });
-            match result {
-                Ok(Some(Some(value))) => return Ok(Some(value)),
-                Ok(Some(None)) => {}
-                Ok(None) => return Err(closed_error()),
-                Err(error) => return Err(anyhow_error(&error, ErrorKind::Other)),
-            }
-            py.check_signals()?;
-            if Instant::now() >= deadline {
-                return Ok(None);
-            }
-        }
+        timeout: Duration,
+        job: impl FnOnce(&mut DeviceSession<Link>) -> T + Send + 'static,
+    ) -> PyResult<T> {
+        let receiver = py
+            .allow_threads(|| lock(&self.worker).as_ref().map(|worker| worker.run(0, job)))
+            .ok_or_else(closed_error)?
+            .map_err(|_| self.ended_error())?;
+        wait_interruptibly(
+            py,
+            receiver,
+            Instant::now() + timeout + Duration::from_secs(1),
+        )?
+        .ok_or_else(|| self.ended_error())
     }
 
     /// Sends a request and waits (interruptibly) for a successful reply; `what` names it in
@@ -133,43 +150,29 @@ impl Device {
         what: &str,
         timeout: Duration,
     ) -> PyResult<ReplyPayload> {
-        let request_id =
-            self.with_session(py, |session| session.send(command).context(what.to_owned()))?;
-        let deadline = Instant::now() + timeout;
-        let reply = self.wait_for(py, deadline, |session, until| {
-            session.reply(request_id, until)
-        })?;
-        match reply {
-            Some(Ok(payload)) => Ok(payload),
-            Some(Err(code)) => Err(anyhow_error(
-                &anyhow::Error::new(RequestError::Refused(code)).context(what.to_owned()),
-                ErrorKind::Refused,
-            )),
-            None => {
-                let error = self.with_session(py, |session| {
-                    Ok(session.no_reply_error(request_id, timeout))
-                })?;
-                Err(anyhow_error(
-                    &anyhow::Error::new(error).context(what.to_owned()),
-                    ErrorKind::Timeout,
-                ))
+        let result = self.on_session(py, timeout, move |session| {
+            let result = session.request(command, timeout);
+            if let Ok(ReplyPayload::Info(info)) = &result {
+                session.set_info(*info);
             }
-        }
+            result
+        })?;
+        result.map_err(|error| {
+            let kind = match &error {
+                RequestError::Refused(_) => ErrorKind::Refused,
+                RequestError::Timeout { .. } => ErrorKind::Timeout,
+                _ => ErrorKind::Other,
+            };
+            anyhow_error(&anyhow::Error::new(error).context(what.to_owned()), kind)
+        })
     }
 
-    /// Runs `action` on the open session with the GIL released (for short, bounded work).
-    fn with_session<T: Send>(
-        &self,
-        py: Python<'_>,
-        action: impl FnOnce(&mut Session) -> anyhow::Result<T> + Send,
-    ) -> PyResult<T> {
-        let session = Arc::clone(&self.session);
-        py.allow_threads(|| {
-            let mut guard = lock(&session);
-            guard.as_mut().map(action)
-        })
-        .ok_or_else(closed_error)?
-        .map_err(|error| anyhow_error(&error, ErrorKind::Other))
+    /// Why the device can no longer be asked anything: closed, or its stream ended.
+    fn ended_error(&self) -> PyErr {
+        match self.stream.is_ended() {
+            Some(ended) => taxel_error(ErrorKind::Link, ended.0),
+            None => closed_error(),
+        }
     }
 
     fn expect_ack(payload: ReplyPayload, what: &str) -> PyResult<()> {
@@ -187,10 +190,7 @@ impl Device {
 
     fn refresh_info(&self, py: Python<'_>) -> PyResult<()> {
         if let ReplyPayload::Info(info) = self.request(py, Command::Info, "Info", self.timeout)? {
-            self.with_session(py, |session| {
-                session.set_info(info);
-                Ok(())
-            })?;
+            self.stream.state().info = info;
         }
         Ok(())
     }
@@ -212,31 +212,75 @@ impl Device {
     /// Closes everything with the GIL released (no lock is ever held while Python code may
     /// run, so a signal handler may call this while another call of this thread waits).
     fn close_now(&self, py: Python<'_>) {
-        py.allow_threads(|| {
-            let buffering = lock(&self.buffering).take();
-            if let Some(mut buffering) = buffering {
-                buffering.stop();
-            }
-            if let Some(mut session) = lock(&self.session).take() {
-                session.stop_stream();
-            }
-            let backend = lock(&self.backend).take();
-            if let Some(mut backend) = backend {
-                backend.stop();
-            }
-        });
+        py.allow_threads(|| self.close_blocking());
+    }
+
+    fn close_blocking(&self) {
+        let buffering = lock(&self.buffering).take();
+        if let Some(mut buffering) = buffering {
+            buffering.stop();
+        }
+        let worker = lock(&self.worker).take();
+        if let Some(worker) = worker {
+            // Stops the stream; its end reaches the queue, so a read waiting now ends.
+            worker.finish();
+        }
+        let backend = lock(&self.backend).take();
+        if let Some(mut backend) = backend {
+            backend.stop();
+        }
     }
 }
 
-/// [`Session::start`] on a thread of its own, waited for in slices with the GIL released so
-/// that Ctrl-C interrupts it, and for `timeout` in all (the start makes several requests, each
-/// bounded by `timeout`); an abandoned start ends by itself within its own timeouts.
+/// Waits for `receiver` until `deadline` in slices with the GIL released, raising on Ctrl-C;
+/// `None` when nothing came (or the sender went away).
+fn wait_interruptibly<T: Send>(
+    py: Python<'_>,
+    receiver: Receiver<T>,
+    deadline: Instant,
+) -> PyResult<Option<T>> {
+    let mut receiver = receiver;
+    loop {
+        let slice = deadline
+            .saturating_duration_since(Instant::now())
+            .min(SLICE);
+        // Moved in and out: a receiver may not be shared between threads, only sent.
+        let (received, returned) = py.allow_threads(move || {
+            let received = receiver.recv_timeout(slice);
+            (received, receiver)
+        });
+        receiver = returned;
+        match received {
+            Ok(value) => return Ok(Some(value)),
+            Err(RecvTimeoutError::Disconnected) => return Ok(None),
+            Err(RecvTimeoutError::Timeout) => {
+                py.check_signals()?;
+                if Instant::now() >= deadline {
+                    return Ok(None);
+                }
+            }
+        }
+    }
+}
+
+/// The host clock now, Unix seconds.
+fn unix_now_s() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |elapsed| elapsed.as_secs_f64())
+}
+
+/// Opens the session and starts the worker on a thread of its own, waited for in slices with
+/// the GIL released so that Ctrl-C interrupts it, and for `timeout` in all (the start makes
+/// several requests, each bounded by `timeout`); an abandoned start ends by itself within its
+/// own timeouts.
 fn start_interruptibly(
     py: Python<'_>,
-    port: Box<dyn Transport>,
+    port: Link,
     timeout: Duration,
+    queue_sets: usize,
     slow_hint: &str,
-) -> PyResult<Session> {
+) -> PyResult<(Worker<Link>, Arc<Stream>)> {
     // A little over the timeout, so that a first request that times out reports itself (with
     // the request it was) rather than this overall bound.
     let deadline = Instant::now() + timeout + 2 * SLICE;
@@ -244,7 +288,25 @@ fn start_interruptibly(
     thread::Builder::new()
         .name("taxel-connect".into())
         .spawn(move || {
-            let _ = sender.send(Session::start(port, timeout));
+            let config = SessionConfig {
+                request_timeout: timeout,
+                follow_state: false,
+            };
+            let started =
+                DeviceSession::open(DeviceLink::new(port), config).and_then(|mut session| {
+                    session.start()?;
+                    let info = *session.info();
+                    let queue = Arc::new(EventQueue::new(queue_sets, Overflow::DropOldestSet));
+                    let origin_unix_s = unix_now_s();
+                    let worker = Worker::start(
+                        vec![session],
+                        Arc::clone(&queue),
+                        Arc::new(MonotonicClock::new()),
+                    )
+                    .context("starting the device's reader thread")?;
+                    Ok((worker, Arc::new(Stream::new(queue, origin_unix_s, info))))
+                });
+            let _ = sender.send(started);
         })
         .map_err(|error| {
             taxel_error(
@@ -252,36 +314,23 @@ fn start_interruptibly(
                 format!("starting the connection: {error}"),
             )
         })?;
-    let mut receiver = receiver;
-    loop {
-        // Moved in and out: a receiver may not be shared between threads, only sent.
-        let (received, returned) = py.allow_threads(move || {
-            let received = receiver.recv_timeout(SLICE);
-            (received, receiver)
-        });
-        receiver = returned;
-        match received {
-            Ok(started) => return started.map_err(|error| anyhow_error(&error, ErrorKind::Other)),
-            Err(mpsc::RecvTimeoutError::Timeout) => {
-                py.check_signals()?;
-                if Instant::now() >= deadline {
-                    return Err(taxel_error(
-                        ErrorKind::Timeout,
-                        format!(
-                            "the device did not finish connecting (identity and stream start) within {} ms{slow_hint}",
-                            timeout.as_millis()
-                        ),
-                    ));
-                }
-            }
-            Err(mpsc::RecvTimeoutError::Disconnected) => {
-                return Err(taxel_error(
-                    ErrorKind::Other,
-                    "the connection thread ended without an answer",
-                ))
-            }
-        }
+    match wait_interruptibly(py, receiver, deadline)? {
+        Some(started) => started.map_err(|error| anyhow_error(&error, ErrorKind::Other)),
+        None => Err(taxel_error(
+            ErrorKind::Timeout,
+            format!(
+                "the device did not finish connecting (identity and stream start) within {} ms{slow_hint}",
+                timeout.as_millis()
+            ),
+        )),
     }
+}
+
+fn no_set_error(timeout: Duration) -> PyErr {
+    taxel_error(
+        ErrorKind::Timeout,
+        format!("no sample set within {} ms", timeout.as_millis()),
+    )
 }
 
 fn closed_error() -> PyErr {
@@ -308,17 +357,20 @@ fn counters_dict<'py>(
 #[pymethods]
 impl Device {
     /// Opens a board: the one on ``port``, else the attached board with USB serial number
-    /// ``serial``, else the only attached board. ``timeout`` (seconds) bounds every request and
-    /// every :meth:`read`.
+    /// ``serial``, else the only attached board. ``timeout`` (seconds) bounds the connection,
+    /// every request and every :meth:`read`. ``queue_sets``: the sample sets kept for
+    /// :meth:`read` while nobody reads (the oldest are dropped beyond, and counted).
     #[new]
-    #[pyo3(signature = (port=None, serial=None, timeout=2.0))]
+    #[pyo3(signature = (port=None, serial=None, timeout=2.0, queue_sets=QUEUE_SETS))]
     fn new(
         py: Python<'_>,
         port: Option<String>,
         serial: Option<String>,
         timeout: f64,
+        queue_sets: usize,
     ) -> PyResult<Self> {
         let timeout = timeout_from_s(timeout)?;
+        let queue_sets = queue_sets_checked(queue_sets)?;
         if port.is_some() && serial.is_some() {
             return Err(PyValueError::new_err("give port or serial, not both"));
         }
@@ -328,14 +380,17 @@ impl Device {
             Ok::<_, taxel_host::device_link::LinkError>((path, opened.port))
         });
         let (path, port) = opened.map_err(crate::errors::link_error)?;
-        Device::connect(py, Box::new(port), path, timeout, None, "")
+        Device::connect(py, Box::new(port), path, timeout, None, queue_sets, "")
     }
 
     /// The device's identity: protocol and firmware version, board serial, calibration id and
     /// source, converter rate, model tier, pad count, streaming.
     #[getter]
     fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let info = self.with_session(py, |session| Ok(*session.info()))?;
+        if self.is_closed(py) {
+            return Err(closed_error());
+        }
+        let info = self.stream.state().info;
         let dict = PyDict::new(py);
         let version = info.firmware_version;
         dict.set_item("protocol_version", info.protocol_version)?;
@@ -343,7 +398,10 @@ impl Device {
             "firmware_version",
             format!("{}.{}.{}", version.major, version.minor, version.patch),
         )?;
-        dict.set_item("board_serial", taxel_host::device_words::board_serial_hex(&info))?;
+        dict.set_item(
+            "board_serial",
+            taxel_host::device_words::board_serial_hex(&info),
+        )?;
         dict.set_item("calibration_id", info.calibration_id)?;
         dict.set_item(
             "calibration_source",
@@ -369,22 +427,42 @@ impl Device {
         self.pads * model_core::TAXEL_COUNT
     }
 
-    /// The next sample set. Waits up to ``timeout`` seconds (default: the device's timeout) and
-    /// raises :class:`taxel.DeviceTimeoutError` if none arrives.
+    /// The oldest sample set not yet read: sets queue up (in arrival order, each stamped
+    /// with its arrival in ``host_time_s``) while nobody reads, up to 65,536, beyond which the
+    /// oldest are dropped and counted in :attr:`stats`. Waits up to ``timeout`` seconds
+    /// (default: the device's timeout) and raises :class:`taxel.DeviceTimeoutError` if none
+    /// arrives. A control loop that wants the newest set uses :meth:`latest`.
     #[pyo3(signature = (timeout=None))]
     fn read(&self, py: Python<'_>, timeout: Option<f64>) -> PyResult<SampleSet> {
         self.refuse_while_buffering(py, "read()")?;
-        let timeout = match timeout {
-            Some(timeout_s) => timeout_from_s(timeout_s)?,
-            None => self.timeout,
-        };
-        let deadline = Instant::now() + timeout;
-        match self.wait_for(py, deadline, |session, until| session.next_set(until))? {
-            Some(record) => Ok(SampleSet::new(record)),
-            None => Err(taxel_error(
-                ErrorKind::Timeout,
-                format!("no sample set within {} ms", timeout.as_millis()),
-            )),
+        let timeout = self.timeout_or_default(timeout)?;
+        self.next_set_until(py, Instant::now() + timeout)?
+            .map(SampleSet::new)
+            .ok_or_else(|| no_set_error(timeout))
+    }
+
+    /// The newest complete sample set: the sets queued before it are discarded (they stay
+    /// counted in :attr:`stats` as delivered), and when none is queued, the next to arrive
+    /// (waiting up to ``timeout`` seconds). What a control loop reads each cycle.
+    #[pyo3(signature = (timeout=None))]
+    fn latest(&self, py: Python<'_>, timeout: Option<f64>) -> PyResult<SampleSet> {
+        self.refuse_while_buffering(py, "latest()")?;
+        let timeout = self.timeout_or_default(timeout)?;
+        if self.is_closed(py) {
+            return Err(closed_error());
+        }
+        let stream = Arc::clone(&self.stream);
+        let queued = py.allow_threads(|| stream.drain_sets());
+        match queued
+            .into_iter()
+            .rev()
+            .find(|set| set.missing_pads.is_empty())
+        {
+            Some(newest) => Ok(SampleSet::new(newest)),
+            None => self
+                .next_set_until(py, Instant::now() + timeout)?
+                .map(SampleSet::new)
+                .ok_or_else(|| no_set_error(timeout)),
         }
     }
 
@@ -416,7 +494,7 @@ impl Device {
             if buffering.is_some() {
                 return Ok(false);
             }
-            *buffering = Some(Buffering::start(Arc::clone(&self.session), capacity_sets)?);
+            *buffering = Some(Buffering::start(Arc::clone(&self.stream), capacity_sets)?);
             Ok(true)
         });
         match started {
@@ -496,7 +574,7 @@ impl Device {
         if sample_sets == 0 {
             return Err(PyValueError::new_err("sample_sets must be at least 1"));
         }
-        let rate_sps = self.with_session(py, |session| Ok(session.info().rate.sps()))?;
+        let rate_sps = self.stream.state().info.rate.sps();
         // A set takes about four conversions; allow twice that.
         let needed =
             Duration::from_secs_f64(f64::from(sample_sets) * 8.0 / f64::from(rate_sps.max(1)));
@@ -565,12 +643,21 @@ impl Device {
     fn read_calibration(&self, py: Python<'_>, pad: u8) -> PyResult<Calibration> {
         let pad_index = self.pad_index(pad)?;
         let timeout = self.timeout;
-        let calibration = self.with_session(py, move |session| {
-            let link = session.link_mut();
-            let pad_info = taxel_host::calibration_transfer::pad_info(link, pad_index, timeout)?;
-            taxel_host::calibration_transfer::pull(link, pad_index, pad_info.calibration_id, timeout)
+        // Four requests per taxel and the pad's info, each bounded by the timeout.
+        let calibration = self
+            .on_session(py, timeout * 6, move |session| {
+                let link = session.link_mut();
+                let pad_info =
+                    taxel_host::calibration_transfer::pad_info(link, pad_index, timeout)?;
+                taxel_host::calibration_transfer::pull(
+                    link,
+                    pad_index,
+                    pad_info.calibration_id,
+                    timeout,
+                )
                 .with_context(|| format!("reading pad {pad}'s calibration"))
-        })?;
+            })?
+            .map_err(|error| anyhow_error(&error, ErrorKind::Other))?;
         Ok(Calibration::from_model(calibration))
     }
 
@@ -587,7 +674,8 @@ impl Device {
         let only_pad = pad.map(|pad| self.pad_index(pad)).transpose()?;
         let model = calibration.model().clone();
         let timeout = self.timeout;
-        self.with_session(py, move |session| {
+        // Every pad's curve and its save: a few dozen requests, each bounded by the timeout.
+        self.on_session(py, timeout * 64, move |session| {
             taxel_host::calibration_transfer::upload_to_pads(
                 session.link_mut(),
                 &model,
@@ -596,7 +684,8 @@ impl Device {
                 timeout,
                 &mut |_| {},
             )
-        })?;
+        })?
+        .map_err(|error| anyhow_error(&error, ErrorKind::Other))?;
         self.refresh_info(py)
     }
 
@@ -642,22 +731,29 @@ impl Device {
     /// incomplete sets, stale frames discarded at connection, sets dropped unread.
     #[getter]
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let (accounting, counters, link) = self.with_session(py, |session| {
-            Ok((
-                session.accounting().clone(),
-                session.counters().clone(),
-                session.link_mut().statistics().clone(),
-            ))
-        })?;
+        let ended = self.stream.state().ended.clone();
+        let (accounting, link) = match ended {
+            Some(end) => (end.accounting, end.link),
+            None => self.on_session(py, self.timeout, |session| {
+                (
+                    session.accounting().clone(),
+                    session.link_statistics().clone(),
+                )
+            })?,
+        };
+        let (sets_delivered, incomplete_sets) = {
+            let state = self.stream.state();
+            (state.sets_delivered, state.incomplete_sets)
+        };
         let dict = PyDict::new(py);
-        dict.set_item("sets_delivered", counters.sets_delivered)?;
+        dict.set_item("sets_delivered", sets_delivered)?;
         dict.set_item("frames_received", accounting.received())?;
         dict.set_item("sequence_gap_frames", accounting.sequence_gap_sets())?;
         dict.set_item("device_dropped_frames", accounting.device_dropped())?;
         dict.set_item("lost_on_link_frames", accounting.lost_on_link())?;
         dict.set_item("stale_frames", accounting.stale_frames())?;
-        dict.set_item("incomplete_sets", counters.incomplete_sets)?;
-        dict.set_item("sets_dropped_unread", counters.sets_dropped_unread)?;
+        dict.set_item("incomplete_sets", incomplete_sets)?;
+        dict.set_item("sets_dropped_unread", self.stream.sets_dropped_unread())?;
         dict.set_item("frames_rejected", link.frames_rejected)?;
         Ok(dict)
     }
@@ -695,7 +791,39 @@ impl Device {
 
 impl Device {
     fn is_closed(&self, py: Python<'_>) -> bool {
-        py.allow_threads(|| lock(&self.session).is_none())
+        py.allow_threads(|| lock(&self.worker).is_none())
+    }
+
+    fn timeout_or_default(&self, timeout: Option<f64>) -> PyResult<Duration> {
+        match timeout {
+            Some(timeout_s) => timeout_from_s(timeout_s),
+            None => Ok(self.timeout),
+        }
+    }
+
+    /// The next set by `deadline`, in slices with the GIL released, raising on Ctrl-C, on a
+    /// closed device and at the end of the stream.
+    fn next_set_until(
+        &self,
+        py: Python<'_>,
+        deadline: Instant,
+    ) -> PyResult<Option<crate::sample_set::SetRecord>> {
+        loop {
+            if self.is_closed(py) {
+                return Err(closed_error());
+            }
+            let slice_end = deadline.min(Instant::now() + SLICE);
+            let stream = Arc::clone(&self.stream);
+            match py.allow_threads(move || stream.next_set(slice_end)) {
+                Ok(Some(set)) => return Ok(Some(set)),
+                Ok(None) => {}
+                Err(ended) => return Err(taxel_error(ErrorKind::Link, ended.0)),
+            }
+            py.check_signals()?;
+            if Instant::now() >= deadline {
+                return Ok(None);
+            }
+        }
     }
 
     fn pad_index(&self, pad: u8) -> PyResult<PadIndex> {
@@ -712,14 +840,6 @@ impl Device {
 
 impl Drop for Device {
     fn drop(&mut self) {
-        if let Some(mut buffering) = lock(&self.buffering).take() {
-            buffering.stop();
-        }
-        if let Some(mut session) = lock(&self.session).take() {
-            session.stop_stream();
-        }
-        if let Some(mut backend) = lock(&self.backend).take() {
-            backend.stop();
-        }
+        self.close_blocking();
     }
 }

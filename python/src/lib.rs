@@ -13,8 +13,8 @@ mod device;
 mod errors;
 mod memory_link;
 mod sample_set;
-mod session;
 mod simulator;
+mod stream;
 mod use_case;
 
 use model_core::{TaxelFlags, Tier};

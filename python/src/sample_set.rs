@@ -2,8 +2,6 @@
 //! and as the Python `SampleSet`, whose arrays are flat over the taxels: taxel `4 * pad + k`
 //! is taxel `k` (C11, C12, C21, C22) of pad `pad`.
 
-use std::time::{SystemTime, UNIX_EPOCH};
-
 use model_core::TAXEL_COUNT;
 use numpy::{PyArray1, ToPyArray};
 use pyo3::prelude::*;
@@ -36,13 +34,6 @@ pub struct SetRecord {
     pub missing_pads: Vec<usize>,
     /// Sample sets missing just before this one in the sequence numbers (0 normally).
     pub sets_missing_before: u64,
-}
-
-/// The host clock now, seconds since the Unix epoch (as `time.time()`).
-pub fn host_time_s() -> f64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |elapsed| elapsed.as_secs_f64())
 }
 
 impl SetRecord {

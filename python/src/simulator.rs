@@ -12,11 +12,9 @@ use std::time::Duration;
 use anyhow::Context;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use sim_device::{Pacing, SimulatedDevice, SimulatedDeviceConfig, Simulation};
+use sim_device::{scene_config, Pacing, SimulatedDevice, Simulation};
 
-use sim_device::{board_for, load_scene};
-
-use crate::device::{timeout_from_s, Backend, Device};
+use crate::device::{queue_sets_checked, timeout_from_s, Backend, Device};
 use crate::errors::{anyhow_error, ErrorKind};
 use crate::memory_link::{memory_link, HostEnd};
 
@@ -60,7 +58,7 @@ pub struct Simulator {
 #[pymethods]
 impl Simulator {
     #[new]
-    #[pyo3(signature = (scene=None, speed=Some(1.0), seed=0, pads=None, timeout=2.0, link_buffer_bytes=262_144))]
+    #[pyo3(signature = (scene=None, speed=Some(1.0), seed=0, pads=None, timeout=2.0, link_buffer_bytes=262_144, queue_sets=crate::stream::QUEUE_SETS))]
     fn new(
         py: Python<'_>,
         scene: Option<String>,
@@ -69,8 +67,10 @@ impl Simulator {
         pads: Option<u8>,
         timeout: f64,
         link_buffer_bytes: usize,
+        queue_sets: usize,
     ) -> PyResult<PyClassInitializer<Self>> {
         let timeout = timeout_from_s(timeout)?;
+        let queue_sets = queue_sets_checked(queue_sets)?;
         if let Some(speed) = speed {
             if !(speed.is_finite() && speed > 0.0) {
                 return Err(PyValueError::new_err(format!(
@@ -91,16 +91,9 @@ impl Simulator {
             ));
         }
         let started = py.allow_threads(|| -> anyhow::Result<(SimulatorRun, HostEnd, String)> {
-            let loaded = load_scene(scene.as_deref().map(Path::new))?;
-            let scene_name = loaded.name.clone();
-            let topology = board_for(&loaded, pads)?;
-            let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-                scene: loaded,
-                seed,
-                speed,
-                topology,
-                bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-            })?;
+            let config = scene_config(scene.as_deref().map(Path::new), pads, speed, seed)?;
+            let scene_name = config.scene.name.clone();
+            let mut device = SimulatedDevice::new(config)?;
             let simulation = device.simulation().clone();
             let (mut device_end, host_end) = memory_link(link_buffer_bytes, LINK_READ_TIMEOUT);
             let stop = Arc::new(AtomicBool::new(false));
@@ -125,6 +118,7 @@ impl Simulator {
             "simulated".to_owned(),
             timeout,
             Some(Box::new(run)),
+            queue_sets,
             &speed
                 .filter(|speed| *speed < 1.0)
                 .map_or(String::new(), |speed| {

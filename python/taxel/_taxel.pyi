@@ -149,9 +149,14 @@ class Device:
     :class:`SampleSet`."""
 
     def __init__(
-        self, port: Optional[str] = None, serial: Optional[str] = None, timeout: float = 2.0
+        self,
+        port: Optional[str] = None,
+        serial: Optional[str] = None,
+        timeout: float = 2.0,
+        queue_sets: int = 65_536,
     ) -> None:
-        """Opens the board on ``port``, or with USB serial number ``serial``, or the only one."""
+        """Opens the board on ``port``, or with USB serial number ``serial``, or the only one;
+        ``queue_sets`` sets are kept for :meth:`read` while nobody reads."""
     @property
     def info(self) -> Dict[str, Any]:
         """Protocol and firmware version, board serial, calibration id and source, rate, tier,
@@ -163,7 +168,10 @@ class Device:
     def taxels(self) -> int:
         """The number of taxels of each sample set (4 per pad)."""
     def read(self, timeout: Optional[float] = None) -> SampleSet:
-        """The next sample set (raises :class:`taxel.DeviceTimeoutError` if none in time)."""
+        """The oldest sample set not yet read (a queue; raises
+        :class:`taxel.DeviceTimeoutError` if none in time)."""
+    def latest(self, timeout: Optional[float] = None) -> SampleSet:
+        """The newest complete sample set (older queued ones are discarded), or the next."""
     def __iter__(self) -> Iterator[SampleSet]: ...
     def __next__(self) -> SampleSet: ...
     def start_buffering(self, capacity_sets: int = 1_000_000) -> None:
@@ -225,6 +233,7 @@ class Simulator(Device):
         pads: Optional[int] = None,
         timeout: float = 2.0,
         link_buffer_bytes: int = 262_144,
+        queue_sets: int = 65_536,
     ) -> None:
         """Starts the simulated device playing ``scene`` at ``speed`` times real time (None: as
         fast as possible)."""
