@@ -39,6 +39,7 @@ pub mod pad_set;
 pub mod record;
 pub mod record_rows;
 pub mod recording;
+pub mod schema;
 pub mod session;
 pub mod stream_accounting;
 pub mod timeline_files;
