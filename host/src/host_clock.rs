@@ -36,3 +36,50 @@ impl HostClock for MonotonicClock {
         u64::try_from(self.origin.elapsed().as_micros()).unwrap_or(u64::MAX)
     }
 }
+
+/// The monotonic clock with the Unix time of its origin: arrivals are stamped on the monotonic
+/// clock (it never goes back), and turned into Unix time for files and messages with the wall
+/// clock read once, at the origin.
+#[derive(Debug, Clone, Copy)]
+pub struct UnixClock {
+    monotonic: MonotonicClock,
+    origin_unix_us: u64,
+}
+
+impl Default for UnixClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl UnixClock {
+    /// A clock whose origin is now.
+    pub fn new() -> Self {
+        let monotonic = MonotonicClock::new();
+        let origin_unix_us = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |since| {
+                u64::try_from(since.as_micros()).unwrap_or(u64::MAX)
+            });
+        Self {
+            monotonic,
+            origin_unix_us,
+        }
+    }
+
+    /// A host time (µs on the monotonic clock since the origin) as µs since the Unix epoch.
+    pub fn unix_us(&self, host_us: u64) -> u64 {
+        self.origin_unix_us.saturating_add(host_us)
+    }
+
+    /// The Unix time of the origin, µs.
+    pub fn origin_unix_us(&self) -> u64 {
+        self.origin_unix_us
+    }
+}
+
+impl HostClock for UnixClock {
+    fn now_us(&self) -> u64 {
+        self.monotonic.now_us()
+    }
+}

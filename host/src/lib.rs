@@ -41,6 +41,7 @@ pub mod record_rows;
 pub mod recording;
 pub mod schema;
 pub mod session;
+pub mod stamping;
 pub mod stream_accounting;
 pub mod timeline_files;
 pub mod worker;

@@ -1,0 +1,203 @@
+//! When a sample set or an event happened on the host clock: the one stamping policy of the
+//! recorder (CSV and MCAP), the live view and the bridge.
+//!
+//! Each device's clock is mapped onto the host's by a [`ClockMapper`] fed with every sample
+//! frame's device time and arrival. An item (a set, an event) is stamped with its device time
+//! mapped onto the host clock, never later than its arrival, with the mapping's error bound.
+//! The mapper needs about 1.5 s of frames before its first estimate; until then items wait, at
+//! most [`MAX_WAIT_US`] each, and one that waited that long without an estimate is stamped
+//! with its arrival and no error bound (the files and messages say so). Nothing is dropped and
+//! the order of items is kept.
+
+use std::collections::VecDeque;
+
+use crate::clock_sync::{ClockEstimate, ClockMapper};
+
+/// How long an item waits for its device's first clock estimate, µs (the mapper needs about
+/// 1.5 s of frames).
+pub const MAX_WAIT_US: u64 = 3_000_000;
+
+/// An item with its stamp.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stamped<T> {
+    /// The item.
+    pub item: T,
+    /// When it happened on the host clock, µs (the clock its arrival was read on).
+    pub host_us: u64,
+    /// When it arrived, µs on the same clock.
+    pub arrival_us: u64,
+    /// Bound on `host_us`'s distance from the true instant, µs; `None` when the device had no
+    /// clock estimate and `host_us` is the arrival.
+    pub error_us: Option<u64>,
+}
+
+#[derive(Debug)]
+struct Held<T> {
+    item: T,
+    device_us: u64,
+    arrival_us: u64,
+}
+
+/// One device's clock mapping and the items waiting for it (see the module documentation).
+#[derive(Debug)]
+pub struct Stamper<T> {
+    mapper: ClockMapper,
+    waiting: VecDeque<Held<T>>,
+    stamped_at_arrival: u64,
+}
+
+impl<T> Default for Stamper<T> {
+    fn default() -> Self {
+        Self::new(ClockMapper::new())
+    }
+}
+
+impl<T> Stamper<T> {
+    /// A stamper mapping with `mapper`.
+    pub fn new(mapper: ClockMapper) -> Self {
+        Self {
+            mapper,
+            waiting: VecDeque::new(),
+            stamped_at_arrival: 0,
+        }
+    }
+
+    /// Takes a sample frame's device time and arrival into the clock mapping.
+    pub fn observe(&mut self, device_us: u64, arrival_us: u64) {
+        self.mapper.observe(device_us, arrival_us);
+    }
+
+    /// Adds an item that happened at `device_us` on the device clock and arrived at
+    /// `arrival_us`.
+    pub fn push(&mut self, item: T, device_us: u64, arrival_us: u64) {
+        self.waiting.push_back(Held {
+            item,
+            device_us,
+            arrival_us,
+        });
+    }
+
+    /// The items that can be stamped at host time `now_us`, in order: every one once the
+    /// device has a clock estimate; before that, those that waited [`MAX_WAIT_US`].
+    pub fn release(&mut self, now_us: u64) -> Vec<Stamped<T>> {
+        let estimate = self.mapper.estimate();
+        let mut released = Vec::new();
+        while let Some(held) = self.waiting.front() {
+            if estimate.is_none() && now_us.saturating_sub(held.arrival_us) < MAX_WAIT_US {
+                break;
+            }
+            let Some(held) = self.waiting.pop_front() else {
+                break;
+            };
+            released.push(self.stamp(held, estimate.as_ref()));
+        }
+        released
+    }
+
+    /// Every item still waiting, stamped as well as possible now (the end of the stream).
+    pub fn finish(&mut self) -> Vec<Stamped<T>> {
+        let estimate = self.mapper.estimate();
+        let held: Vec<Held<T>> = self.waiting.drain(..).collect();
+        held.into_iter()
+            .map(|held| self.stamp(held, estimate.as_ref()))
+            .collect()
+    }
+
+    /// The clock mapping now.
+    pub fn estimate(&self) -> Option<ClockEstimate> {
+        self.mapper.estimate()
+    }
+
+    /// The mapper (its restarts and their reasons).
+    pub fn mapper(&self) -> &ClockMapper {
+        &self.mapper
+    }
+
+    /// Items stamped with their arrival for want of an estimate.
+    pub fn stamped_at_arrival(&self) -> u64 {
+        self.stamped_at_arrival
+    }
+
+    fn stamp(&mut self, held: Held<T>, estimate: Option<&ClockEstimate>) -> Stamped<T> {
+        match estimate {
+            Some(estimate) => Stamped {
+                host_us: estimate.to_host_us(held.device_us).min(held.arrival_us),
+                error_us: Some(estimate.uncertainty_at_us(held.device_us)),
+                arrival_us: held.arrival_us,
+                item: held.item,
+            },
+            None => {
+                self.stamped_at_arrival += 1;
+                Stamped {
+                    host_us: held.arrival_us,
+                    error_us: None,
+                    arrival_us: held.arrival_us,
+                    item: held.item,
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A device whose clock runs 100 ppm fast, 1 s ahead, frames arriving 300 µs to 2.3 ms
+    /// after they were taken.
+    fn arrival_of(device_us: u64, index: u64) -> (u64, u64) {
+        let true_host_us = (device_us as f64 / 1.0001) as u64 + 1_000_000;
+        (true_host_us, true_host_us + 300 + (index * 7919) % 2_000)
+    }
+
+    #[test]
+    fn items_wait_for_the_estimate_then_go_out_in_order_never_after_arrival() {
+        let mut stamper = Stamper::default();
+        let mut released = Vec::new();
+        for index in 0..400u64 {
+            let device_us = 10_000 * index;
+            let (true_host_us, arrival_us) = arrival_of(device_us, index);
+            stamper.observe(device_us, arrival_us);
+            stamper.push((index, true_host_us), device_us, arrival_us);
+            released.extend(stamper.release(arrival_us));
+        }
+        released.extend(stamper.finish());
+        assert_eq!(released.len(), 400, "nothing dropped");
+        assert!(released
+            .windows(2)
+            .all(|pair| pair[0].item.0 + 1 == pair[1].item.0));
+        assert_eq!(
+            stamper.stamped_at_arrival(),
+            0,
+            "the estimate came within the wait"
+        );
+        for stamped in &released {
+            assert!(stamped.host_us <= stamped.arrival_us);
+            let error_us = stamped.error_us.expect("an error bound");
+            let true_host_us = stamped.item.1;
+            assert!(
+                stamped.host_us.abs_diff(true_host_us) <= error_us,
+                "{} vs {true_host_us} ± {error_us}",
+                stamped.host_us
+            );
+        }
+    }
+
+    #[test]
+    fn without_an_estimate_an_item_goes_out_at_its_arrival_after_the_wait() {
+        let mut stamper = Stamper::default();
+        stamper.push("event", 5, 1_000);
+        assert!(stamper.release(1_000 + MAX_WAIT_US - 1).is_empty());
+        let released = stamper.release(1_000 + MAX_WAIT_US);
+        assert_eq!(
+            released,
+            [Stamped {
+                item: "event",
+                host_us: 1_000,
+                arrival_us: 1_000,
+                error_us: None
+            }]
+        );
+        assert_eq!(stamper.stamped_at_arrival(), 1);
+    }
+}
