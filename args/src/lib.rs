@@ -118,6 +118,21 @@ fn first_repeated<T: PartialEq>(items: &[T]) -> Option<&T> {
         .find_map(|(index, item)| items[..index].contains(item).then_some(item))
 }
 
+/// How long to wait for a device: every request's reply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
+pub struct LinkArgs {
+    /// How long to wait for each reply from a device, ms.
+    #[arg(long, value_name = "MS", default_value_t = 2000)]
+    pub timeout_ms: u64,
+}
+
+impl LinkArgs {
+    /// The timeout of every request.
+    pub fn timeout(&self) -> std::time::Duration {
+        std::time::Duration::from_millis(self.timeout_ms)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

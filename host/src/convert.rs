@@ -1,67 +1,34 @@
-//! `taxel convert`: re-processes recorded capacitances with another calibration or inversion
-//! tier, from a CSV file or from the raw byte log written by `taxel record`.
+//! The conversion engine: recorded readings through the pad pipeline again — the model with
+//! its calibration, tier and baselines, force and centre of pressure, the contact detector —
+//! for every pad of every device, each with its own state. `taxel convert` runs it over a
+//! recording of the schema ([`crate::schema`]) or a raw byte log; the Python package over its
+//! arrays. With the device's recorded state (`NAME.dev<n>.device.json` beside the recording),
+//! re-processing reproduces what the device computed; options given replace its parts.
 //!
-//! Contract (input): a header row naming at least `time_s,temp_c,c11_pf,c12_pf,c21_pf,c22_pf`
-//! in any order (other columns are ignored); RFC 4180 quoting. Output: `time_s,temp_c` as given
-//! (text preserved), then `p11_kpa..p22_kpa` and `flags11..flags22`, one row per input row in
-//! order. A faulted taxel has an empty pressure cell and its flags cell says why. A row that
-//! cannot be read becomes a row of empty cells (its `time_s` kept when readable) and is reported
-//! with its line number; the run then ends with [`EXIT_BAD_ROWS`].
-//!
-//! A recording carries the device's state beside it (`NAME.csv.device.json`, see
-//! [`crate::recording`]): its calibration, tier and baselines. When it is there, the conversion
-//! uses it and says so, so that converting a recording with the defaults reproduces the
-//! device's pressures; options given on the command line replace its parts.
-//!
-//! A recording of several pads (pad-prefixed columns, see [`crate::pad_set`]) is recognised
-//! from its header and converted pad by pad into the same prefixed layout ([`multi_pad`]).
+//! Output: the same rows (identity, times, capacitances and temperature kept) with the
+//! pressures, flags, force, centre of pressure, partial and contact computed again; or, with
+//! [`WideWriter`], one row per sample set of a device with every pad's columns prefixed
+//! `pad<n>_` (an export, never an input).
 
-mod csv_input;
-pub mod multi_pad;
 mod pad_run;
-mod resolve;
 
-use std::io::{self, BufReader, Read, Write};
-use std::path::PathBuf;
+use std::collections::BTreeMap;
+use std::io::{BufRead, Read, Write};
+use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context};
-use model_core::{Calibration, Tier, TAXEL_COUNT};
+use anyhow::Context;
+use model_core::{Calibration, Tier};
 use wire::DeviceFrame;
 
-use crate::csv_format::{
-    detect_dialect, format_optional, format_time_us, parse_time_s, CsvDialect, FLAGS_COLUMNS,
-    PRESSURE_COLUMNS, TEMPERATURE_COLUMN, TIME_COLUMN,
-};
-use crate::device_link::FrameReceiver;
-use crate::recording::BaselineChange;
-use csv_input::{parse_sample, CsvColumns};
-use pad_run::{frame_input, PadRun};
-pub use resolve::resolve_options;
+use crate::device_state::{BaselineChange, RecordedDeviceState, RecordedPadState};
+use crate::frame_receiver::FrameReceiver;
+use crate::pad_set::PadSetAssembler;
+use crate::recorder::device_file;
+use crate::schema::{self, PadReading, PadRow, RowReader, RowWriter, SchemaError};
+use pad_run::PadRun;
 
 /// Exit status when at least one input row could not be read.
 pub const EXIT_BAD_ROWS: u8 = 3;
-
-/// What `taxel convert` was asked: the input, and the options that replace the recording's
-/// device state (see [`resolve_options`]).
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct ConvertSettings {
-    /// Input CSV file ('-' for stdin); not used with `raw`.
-    pub input: Option<PathBuf>,
-    /// The raw byte log written by `taxel record`, read instead of a CSV file.
-    pub raw: Option<PathBuf>,
-    /// Output CSV file (default: stdout).
-    pub output: Option<PathBuf>,
-    /// Tare on the mean of the first N rows instead of the recorded baselines.
-    pub tare_rows: Option<u16>,
-    /// Inversion tier (default: the recording's, else the default tier).
-    pub tier: Option<Tier>,
-    /// Calibration file (default: the recording's, else the built-in default).
-    pub calibration: Option<PathBuf>,
-    /// The device-state file of the recording (default: beside the input).
-    pub device_state: Option<PathBuf>,
-    /// Ignore the recording's device-state file.
-    pub no_device_state: bool,
-}
 
 /// Parses a tier name for the command line, listing the valid names on error.
 pub fn parse_tier(name: &str) -> Result<Tier, String> {
@@ -69,6 +36,20 @@ pub fn parse_tier(name: &str) -> Result<Tier, String> {
         let names: Vec<&str> = Tier::ALL.iter().map(|tier| tier.name()).collect();
         format!("unknown tier '{name}'; valid tiers: {}", names.join(", "))
     })
+}
+
+/// What replaces the recorded state: a calibration, a tier, a tare on the first rows.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ConvertSettings {
+    /// Tare each pad on the mean of its first N readable rows instead of the recorded
+    /// baselines.
+    pub tare_rows: Option<u16>,
+    /// Inversion tier (default: the recording's, else the default tier).
+    pub tier: Option<Tier>,
+    /// Calibration (default: the recording's, else the built-in default).
+    pub calibration: Option<Calibration>,
+    /// Ignore the recording's device states.
+    pub no_device_state: bool,
 }
 
 /// Where the baselines come from.
@@ -91,49 +72,276 @@ pub struct PadOptions {
     pub tare: TareSource,
 }
 
-/// What the model needs besides the data.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ConvertOptions {
-    /// The calibration of pad 0, and of every pad without options of its own.
-    pub calibration: Calibration,
-    /// The inversion tier of pad 0, and of every pad without options of its own.
-    pub tier: Tier,
-    /// The baselines of pad 0, and of every pad without options of its own.
-    pub tare: TareSource,
-    /// The pads of the recording, from its device state: a raw log of several pads is converted
-    /// to the pad-prefixed layout (a CSV file says it in its header).
-    pub pad_count: u8,
-    /// Pads 1 and up with options of their own (from a device state holding every pad's), in
-    /// pad order: pad n at index n − 1.
-    pub other_pads: Vec<PadOptions>,
-}
-
-impl ConvertOptions {
-    /// The options pad `pad` is converted with: its own, else pad 0's.
-    pub fn pad_options(&self, pad: usize) -> PadOptions {
-        match pad
-            .checked_sub(1)
-            .and_then(|index| self.other_pads.get(index))
-        {
-            Some(options) => options.clone(),
-            None => PadOptions {
-                calibration: self.calibration.clone(),
-                tier: self.tier,
-                tare: self.tare.clone(),
-            },
-        }
+impl PadOptions {
+    /// A pad's options: `settings`, and for what they do not give the pad's recorded state
+    /// (`None`: the built-in defaults and a tare on the first row).
+    pub fn resolve(
+        settings: &ConvertSettings,
+        recorded: Option<&RecordedPadState>,
+    ) -> anyhow::Result<Self> {
+        let calibration = match (&settings.calibration, recorded) {
+            (Some(calibration), _) => calibration.clone(),
+            (None, Some(recorded)) => recorded.calibration()?,
+            (None, None) => Calibration::default(),
+        };
+        let tier = match (settings.tier, recorded) {
+            (Some(tier), _) => tier,
+            (None, Some(recorded)) => Tier::from_name(&recorded.tier).with_context(|| {
+                format!(
+                    "the recording's tier '{}' of pad {} is unknown here",
+                    recorded.tier, recorded.pad
+                )
+            })?,
+            (None, None) => Tier::default(),
+        };
+        let tare = match (settings.tare_rows, recorded) {
+            (Some(rows), _) => TareSource::Rows(rows),
+            (None, Some(recorded)) if !recorded.baselines.is_empty() => {
+                TareSource::Recorded(recorded.baselines.clone())
+            }
+            (None, _) => TareSource::Rows(1),
+        };
+        Ok(Self {
+            calibration,
+            tier,
+            tare,
+        })
     }
 }
 
-impl Default for ConvertOptions {
-    fn default() -> Self {
-        Self {
-            calibration: Calibration::default(),
-            tier: Tier::default(),
-            tare: TareSource::Rows(1),
-            pad_count: 1,
-            other_pads: Vec::new(),
+/// The recorded state of each device of a recording, read from beside it.
+#[derive(Debug, Clone, Default)]
+pub struct RecordedStates {
+    devices: BTreeMap<u32, RecordedDeviceState>,
+    /// The files read.
+    pub files: Vec<PathBuf>,
+}
+
+impl RecordedStates {
+    /// The states beside `recording` (`NAME.dev<n>.device.json`), devices 0, 1, ... as long as
+    /// they exist.
+    pub fn beside(recording: &Path) -> anyhow::Result<Self> {
+        let mut states = Self::default();
+        for device in 0u32.. {
+            let path = device_file(recording, device as usize, "device.json");
+            if !path.exists() {
+                break;
+            }
+            states
+                .devices
+                .insert(device, RecordedDeviceState::read(&path)?);
+            states.files.push(path);
         }
+        Ok(states)
+    }
+
+    /// One device's state read from `path`.
+    pub fn of_one_device(device: u32, path: &Path) -> anyhow::Result<Self> {
+        let mut states = Self::default();
+        states
+            .devices
+            .insert(device, RecordedDeviceState::read(path)?);
+        states.files.push(path.to_path_buf());
+        Ok(states)
+    }
+
+    /// Device `device`'s state.
+    pub fn device(&self, device: u32) -> Option<&RecordedDeviceState> {
+        self.devices.get(&device)
+    }
+}
+
+/// The pipelines of every pad of every device, made as their rows come.
+pub struct ConversionEngine {
+    settings: ConvertSettings,
+    states: RecordedStates,
+    runs: BTreeMap<(u32, u8), PadRun>,
+    /// Pads without a recorded state of their own (converted with the defaults or the
+    /// settings): (device, pad).
+    pub pads_without_state: Vec<(u32, u8)>,
+}
+
+impl ConversionEngine {
+    /// An engine with `settings` over `states` (ignored with
+    /// [`ConvertSettings::no_device_state`]).
+    pub fn new(settings: ConvertSettings, states: RecordedStates) -> Self {
+        let states = if settings.no_device_state {
+            RecordedStates::default()
+        } else {
+            states
+        };
+        Self {
+            settings,
+            states,
+            runs: BTreeMap::new(),
+            pads_without_state: Vec::new(),
+        }
+    }
+
+    fn run(&mut self, device: u32, pad: u8) -> anyhow::Result<&mut PadRun> {
+        if !self.runs.contains_key(&(device, pad)) {
+            let recorded = self
+                .states
+                .device(device)
+                .and_then(|state| state.pad_state(pad));
+            if recorded.is_none() {
+                self.pads_without_state.push((device, pad));
+            }
+            let options = PadOptions::resolve(&self.settings, recorded.as_ref())
+                .with_context(|| format!("device {device} pad {pad}"))?;
+            let run =
+                PadRun::new(&options).with_context(|| format!("device {device} pad {pad}"))?;
+            self.runs.insert((device, pad), run);
+        }
+        self.runs
+            .get_mut(&(device, pad))
+            .context("the pad's pipeline was just made")
+    }
+
+    /// The row with its pad's outputs computed again (a missing frame stays missing).
+    pub fn convert(&mut self, row: &PadRow) -> anyhow::Result<PadRow> {
+        let Some(reading) = &row.reading else {
+            return Ok(row.clone());
+        };
+        let run = self.run(row.device, row.pad)?;
+        let reading = run.process(row.sequence, reading);
+        Ok(PadRow {
+            reading: Some(reading),
+            ..row.clone()
+        })
+    }
+
+    /// The problems with the tares, pad by pad, at the end.
+    pub fn finish(self) -> Vec<String> {
+        self.runs
+            .into_iter()
+            .flat_map(|((device, pad), run)| {
+                run.warnings()
+                    .into_iter()
+                    .map(move |warning| format!("device {device} pad {pad}: {warning}"))
+            })
+            .collect()
+    }
+}
+
+/// Where converted rows go: the schema's rows, or the wide export.
+pub trait RowSink {
+    /// Takes one converted row.
+    fn write_row(&mut self, row: &PadRow) -> anyhow::Result<()>;
+    /// Writes what is still held and flushes.
+    fn finish(&mut self) -> anyhow::Result<()>;
+}
+
+impl<W: Write> RowSink for RowWriter<W> {
+    fn write_row(&mut self, row: &PadRow) -> anyhow::Result<()> {
+        Ok(self.write(row)?)
+    }
+
+    fn finish(&mut self) -> anyhow::Result<()> {
+        Ok(self.flush()?)
+    }
+}
+
+/// The wide export: one row per sample set of a device — `host_time_s,device,seq`, then for
+/// each pad `n` below `pad_count` the schema's other columns prefixed `pad<n>_`, then
+/// `marker` (a set's pads that are not in the input have empty cells).
+pub struct WideWriter<W: Write> {
+    output: csv::Writer<W>,
+    pad_count: usize,
+    set: Vec<PadRow>,
+}
+
+impl<W: Write> WideWriter<W> {
+    /// A writer of sets of `pad_count` pads (the header is written first).
+    pub fn new(output: W, pad_count: usize) -> anyhow::Result<Self> {
+        let mut output = csv::Writer::from_writer(output);
+        let mut header = vec![
+            "host_time_s".to_owned(),
+            "device".to_owned(),
+            "seq".to_owned(),
+        ];
+        for pad in 0..pad_count {
+            header.extend(
+                schema::COLUMNS[4..]
+                    .iter()
+                    .map(|column| format!("pad{pad}_{}", column.name)),
+            );
+        }
+        header.push(schema::MARKER.name.to_owned());
+        output.write_record(&header)?;
+        Ok(Self {
+            output,
+            pad_count: pad_count.max(1),
+            set: Vec::new(),
+        })
+    }
+
+    fn flush_set(&mut self) -> anyhow::Result<()> {
+        let Some(first) = self.set.first() else {
+            return Ok(());
+        };
+        let mut cells = vec![
+            String::new(),
+            first.device.to_string(),
+            first.sequence.to_string(),
+        ];
+        let mut line = Vec::new();
+        schema::format_row(first, &mut line);
+        let first_cells = String::from_utf8_lossy(&line).into_owned();
+        cells[0] = first_cells.split(',').next().unwrap_or_default().to_owned();
+        let mut marker = String::new();
+        for pad in 0..self.pad_count {
+            match self.set.iter().find(|row| usize::from(row.pad) == pad) {
+                Some(row) => {
+                    let mut record = csv::ByteRecord::new();
+                    let mut line = Vec::new();
+                    schema::format_row(row, &mut line);
+                    let mut reader = csv::ReaderBuilder::new()
+                        .has_headers(false)
+                        .from_reader(line.as_slice());
+                    if reader.read_byte_record(&mut record)? {
+                        cells.extend(
+                            record
+                                .iter()
+                                .skip(4)
+                                .take(schema::COLUMNS.len() - 4)
+                                .map(|cell| String::from_utf8_lossy(cell).into_owned()),
+                        );
+                    }
+                    if marker.is_empty() {
+                        marker = row.marker.clone();
+                    }
+                }
+                None => cells.extend(std::iter::repeat_n(
+                    String::new(),
+                    schema::COLUMNS.len() - 4,
+                )),
+            }
+        }
+        cells.push(marker);
+        self.output.write_record(&cells)?;
+        self.set.clear();
+        Ok(())
+    }
+}
+
+impl<W: Write> RowSink for WideWriter<W> {
+    fn write_row(&mut self, row: &PadRow) -> anyhow::Result<()> {
+        if self
+            .set
+            .first()
+            .is_some_and(|first| first.device != row.device || first.sequence != row.sequence)
+        {
+            self.flush_set()?;
+        }
+        self.set.push(row.clone());
+        Ok(())
+    }
+
+    fn finish(&mut self) -> anyhow::Result<()> {
+        self.flush_set()?;
+        self.output.flush()?;
+        Ok(())
     }
 }
 
@@ -149,275 +357,129 @@ pub struct BadRow {
 /// The outcome of a conversion.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ConvertSummary {
-    /// Output rows written (one per input row or sample frame).
+    /// Rows converted and written.
     pub rows_written: u64,
-    /// Rows that could not be read.
+    /// Rows that could not be read (skipped; the conversion goes on).
     pub bad_rows: Vec<BadRow>,
-    /// Raw logs only: frames that could not be decoded, and their bytes.
+    /// Raw logs only: frames that could not be decoded.
     pub undecodable_frames: u64,
     /// Raw logs only: bytes that belonged to no decoded frame.
     pub undecodable_bytes: u64,
-    /// Problems with the tare (taxels that could not be tared, a tare that never finished).
+    /// Problems with the tares.
     pub tare_warnings: Vec<String>,
-    /// How the file was read, when not the default dialect (for the user).
-    pub dialect: Option<CsvDialect>,
-    /// The pads of the input (1 for the single-pad layout).
-    pub pad_count: u8,
-    /// Several pads: frames missing from the recording's sample sets (their cells empty).
-    pub missing_pad_frames: u64,
-    /// Raw logs converted as one pad: frames of other pads, skipped.
-    pub frames_of_other_pads: u64,
+    /// Pads converted without a recorded state of their own: (device, pad).
+    pub pads_without_state: Vec<(u32, u8)>,
+    /// Pad frames missing from the recording's sets (their rows kept as they are).
+    pub missing_frames: u64,
 }
 
-/// Header of the output.
-pub fn output_header() -> Vec<&'static str> {
-    let mut header = vec![TIME_COLUMN, TEMPERATURE_COLUMN];
-    header.extend(PRESSURE_COLUMNS);
-    header.extend(FLAGS_COLUMNS);
-    header
-}
-
-/// The next record of a CSV reader with its line number; `None` at the end. A row the reader
-/// cannot split gives the reason (and an empty record); an I/O failure is an error.
-fn next_record<R: Read>(
-    reader: &mut csv::Reader<R>,
-    record: &mut csv::StringRecord,
-) -> anyhow::Result<Option<(u64, Result<(), String>)>> {
-    let line_hint = reader.position().line();
-    match reader.read_record(record) {
-        Ok(false) => Ok(None),
-        Ok(true) => {
-            let line = record
-                .position()
-                .map_or(line_hint, |position| position.line());
-            Ok(Some((line, Ok(()))))
-        }
-        Err(error) => {
-            let line = error
-                .position()
-                .map_or(line_hint, |position| position.line());
-            if matches!(error.kind(), csv::ErrorKind::Io(_)) {
-                return Err(error).context(format!("reading line {line}"));
-            }
-            record.clear();
-            Ok(Some((line, Err(format!("unreadable row: {error}")))))
-        }
-    }
-}
-
-/// A cell as the output writes it: ','-separated with '.' decimals whatever the input was.
-fn as_written(cell: &str, dialect: CsvDialect) -> String {
-    if dialect.decimal_comma {
-        cell.replace(',', ".")
-    } else {
-        cell.to_owned()
-    }
-}
-
-/// The time cell of a row that could not be converted: kept when it is a readable time.
-fn readable_time(cell: &str, dialect: CsvDialect) -> String {
-    parse_time_s(cell, dialect.decimal_comma)
-        .map(|time_s| {
-            if dialect.decimal_comma {
-                format!("{time_s}")
-            } else {
-                cell.to_owned()
-            }
-        })
-        .unwrap_or_default()
-}
-
-fn csv_writer<W: Write>(output: W) -> csv::Writer<W> {
-    csv::WriterBuilder::new()
-        .terminator(csv::Terminator::CRLF)
-        .from_writer(output)
-}
-
-/// Converts a CSV input. Bad rows are written as empty cells and listed in the summary; a
-/// missing column, an input without any data row, or an I/O failure is an error.
-pub fn convert_csv<R: Read, W: Write>(
+/// Converts a recording of the schema from `input` into `sink`.
+pub fn convert_recording<R: BufRead>(
     input: R,
-    output: W,
-    options: &ConvertOptions,
+    sink: &mut dyn RowSink,
+    mut engine: ConversionEngine,
 ) -> anyhow::Result<ConvertSummary> {
-    let (dialect, input) =
-        detect_dialect(BufReader::new(input), TIME_COLUMN).context("reading the header row")?;
-    let mut reader = dialect.reader(input);
-    let header = reader.headers().context("reading the header row")?.clone();
-    if let Some(pad_count) = multi_pad::header_pad_count(&header)? {
-        return multi_pad::convert_csv(reader, &header, dialect, pad_count, output, options);
-    }
-    let columns = CsvColumns::find(&header, dialect)?;
-    let mut run = PadRun::new(&options.pad_options(0))?;
-    let mut writer = csv_writer(output);
-    writer.write_record(output_header())?;
-    let mut summary = ConvertSummary {
-        dialect: (dialect != CsvDialect::default()).then_some(dialect),
-        pad_count: 1,
-        ..ConvertSummary::default()
-    };
-    let mut record = csv::StringRecord::new();
-    let empty_cells = vec![String::new(); 2 * TAXEL_COUNT];
-    let time_column = columns.needed[0];
-    while let Some((line, readable)) = next_record(&mut reader, &mut record)? {
-        let parsed = readable.and_then(|()| parse_sample(&record, &columns));
-        let time_cell = record.get(time_column).unwrap_or("");
-        let temperature_cell = record.get(columns.needed[1]).unwrap_or("");
-        match parsed {
+    let mut reader = RowReader::new(input)?;
+    let mut summary = ConvertSummary::default();
+    while let Some(row) = reader.next_row() {
+        match row {
             Ok(row) => {
-                let mut cells = vec![
-                    as_written(time_cell, dialect),
-                    as_written(temperature_cell, dialect),
-                ];
-                cells.extend(run.cells(row.sequence, &row.input));
-                writer.write_record(&cells)?;
+                if row.reading.is_none() {
+                    summary.missing_frames += 1;
+                }
+                sink.write_row(&engine.convert(&row)?)?;
+                summary.rows_written += 1;
             }
-            Err(reason) => {
-                let mut cells = vec![readable_time(time_cell, dialect), String::new()];
-                cells.extend(empty_cells.iter().cloned());
-                writer.write_record(&cells)?;
-                summary.bad_rows.push(BadRow { line, reason });
+            Err(SchemaError::Row { line, reason }) => {
+                summary.bad_rows.push(BadRow { line, reason })
             }
+            Err(error) => return Err(error.into()),
         }
-        summary.rows_written += 1;
     }
-    if summary.rows_written == 0 {
-        bail!("the file has a header but no data rows: nothing to convert");
-    }
-    writer.flush()?;
-    summary.tare_warnings = run.warnings();
+    anyhow::ensure!(
+        summary.rows_written > 0 || !summary.bad_rows.is_empty(),
+        "the recording has no rows"
+    );
+    sink.finish()?;
+    summary.pads_without_state = engine.pads_without_state.clone();
+    summary.tare_warnings = engine.finish();
     Ok(summary)
 }
 
-/// Converts a raw byte log: every sample frame becomes a row; undecodable bytes are skipped and
-/// counted. A log without a single sample frame is an error.
-pub fn convert_raw<R: Read, W: Write>(
-    input: R,
-    output: W,
-    options: &ConvertOptions,
-) -> anyhow::Result<ConvertSummary> {
-    if options.pad_count > 1 {
-        return multi_pad::convert_raw(input, output, options);
-    }
-    let mut run = PadRun::new(&options.pad_options(0))?;
-    let mut writer = csv_writer(output);
-    writer.write_record(output_header())?;
-    let mut summary = ConvertSummary {
-        pad_count: 1,
-        ..ConvertSummary::default()
-    };
-    let statistics = read_frames(input, None, |frame| {
-        let DeviceFrame::Sample(sample) = frame else {
-            return Ok(());
-        };
-        if sample.pad.get() != 0 {
-            summary.frames_of_other_pads += 1;
-            return Ok(());
-        }
-        let input = frame_input(&sample);
-        let mut cells = vec![
-            format_time_us(sample.timestamp_us),
-            format_optional(input.temperature_c),
-        ];
-        cells.extend(run.cells(Some(sample.sequence), &input));
-        writer.write_record(&cells)?;
-        summary.rows_written += 1;
-        Ok(())
-    })?;
-    summary.undecodable_frames = statistics.frames_rejected;
-    summary.undecodable_bytes = statistics.bytes_rejected;
-    ensure_samples_decoded(summary.rows_written, &statistics)?;
-    writer.flush()?;
-    summary.tare_warnings = run.warnings();
-    Ok(summary)
-}
-
-/// Refuses a raw log in which no sample frame decoded: it is not one `taxel record` wrote.
-fn ensure_samples_decoded(
-    rows_written: u64,
-    statistics: &crate::device_link::LinkStatistics,
-) -> anyhow::Result<()> {
-    if rows_written == 0 {
-        bail!(
-            "no sample frame in {} bytes ({} undecodable frames): this is not a raw log written by `taxel record` (a CSV file is converted without --raw)",
-            statistics.bytes_received,
-            statistics.frames_rejected
-        );
-    }
-    Ok(())
-}
-
-/// Decodes a raw byte log and hands every frame to `take`, in order; returns the decoding
-/// counters (a partial frame at the end counted as rejected). With a pad count, frames of other
-/// pads are set aside by the receiver (and counted in its statistics).
-fn read_frames<R: Read>(
+/// Converts device `device`'s raw byte log (as `taxel record` writes it) into `sink`: its
+/// frames gathered into sets of `pad_count` pads, each pad's row converted. A raw log has no
+/// host times: `host_time_s` is the set's device time and `sync_error_ms` is empty.
+pub fn convert_raw<R: Read>(
     mut input: R,
-    pad_count: Option<u8>,
-    mut take: impl FnMut(DeviceFrame) -> anyhow::Result<()>,
-) -> anyhow::Result<crate::device_link::LinkStatistics> {
+    device: u32,
+    pad_count: u8,
+    sink: &mut dyn RowSink,
+    mut engine: ConversionEngine,
+) -> anyhow::Result<ConvertSummary> {
     let mut receiver = FrameReceiver::new();
-    if let Some(pad_count) = pad_count {
-        receiver.set_pad_count(pad_count);
-    }
+    receiver.set_pad_count(pad_count.max(1));
+    let mut assembler = PadSetAssembler::new(pad_count.max(1));
+    let mut summary = ConvertSummary::default();
     let mut buffer = vec![0u8; 64 * 1024];
     let mut frames = Vec::new();
+    let mut sets = Vec::new();
     loop {
-        let count = match input.read(&mut buffer) {
-            Ok(0) => break,
-            Ok(count) => count,
-            Err(error) if error.kind() == io::ErrorKind::Interrupted => continue,
+        let read = match input.read(&mut buffer) {
+            Ok(0) => {
+                receiver.finish();
+                sets.extend(assembler.finish());
+                0
+            }
+            Ok(read) => read,
+            Err(error) if error.kind() == std::io::ErrorKind::Interrupted => continue,
             Err(error) => return Err(error).context("reading the raw log"),
         };
-        receiver.push_bytes(&buffer[..count], &mut frames);
+        receiver.push_bytes(&buffer[..read], &mut frames);
         for frame in frames.drain(..) {
-            take(frame)?;
+            if let DeviceFrame::Sample(sample) = frame {
+                sets.extend(assembler.push(sample));
+            }
+        }
+        for set in sets.drain(..) {
+            let Some(time_us) = set
+                .pads
+                .iter()
+                .flatten()
+                .map(|frame| frame.timestamp_us)
+                .next()
+            else {
+                continue;
+            };
+            for (pad, frame) in set.pads.iter().enumerate() {
+                let row = PadRow {
+                    host_time_us: time_us,
+                    device,
+                    pad: u8::try_from(pad).unwrap_or(u8::MAX),
+                    sequence: set.sequence,
+                    sync_error_us: None,
+                    reading: frame.as_ref().map(PadReading::from_frame),
+                    marker: String::new(),
+                };
+                if row.reading.is_none() {
+                    summary.missing_frames += 1;
+                }
+                sink.write_row(&engine.convert(&row)?)?;
+                summary.rows_written += 1;
+            }
+        }
+        if read == 0 {
+            break;
         }
     }
-    receiver.finish();
-    Ok(receiver.statistics().clone())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn convert_text(input: &str, options: &ConvertOptions) -> (String, ConvertSummary) {
-        let mut output = Vec::new();
-        let summary = convert_csv(input.as_bytes(), &mut output, options).unwrap();
-        (String::from_utf8(output).unwrap(), summary)
-    }
-
-    #[test]
-    fn tare_row_is_not_tared_and_a_loaded_row_reads_the_curve() {
-        let input = "time_s,temp_c,c11_pf,c12_pf,c21_pf,c22_pf\n\
-                     0.0,25,4.5,4.5,4.5,4.5\n\
-                     0.1,25,4.87305,4.5,4.5,4.5\n";
-        let (text, summary) = convert_text(input, &ConvertOptions::default());
-        let lines: Vec<&str> = text.lines().collect();
-        assert_eq!(
-            lines[0],
-            "time_s,temp_c,p11_kpa,p12_kpa,p21_kpa,p22_kpa,flags11,flags12,flags21,flags22"
-        );
-        assert_eq!(
-            lines[1],
-            "0.0,25,,,,,not_tared,not_tared,not_tared,not_tared"
-        );
-        let cells: Vec<&str> = lines[2].split(',').collect();
-        let pressure_kpa: f32 = cells[2].parse().unwrap();
-        assert!((pressure_kpa - 10.0).abs() < 0.01, "{pressure_kpa}");
-        assert_eq!(&cells[3..6], ["0", "0", "0"]);
-        assert!(summary.bad_rows.is_empty());
-        assert_eq!(summary.rows_written, 2);
-    }
-
-    #[test]
-    fn missing_column_is_an_error_naming_it() {
-        let error = convert_csv(
-            "time_s,c11_pf,c12_pf,c21_pf,c22_pf\n".as_bytes(),
-            Vec::new(),
-            &ConvertOptions::default(),
-        )
-        .unwrap_err();
-        assert!(error.to_string().contains("temp_c"), "{error}");
-    }
+    anyhow::ensure!(
+        summary.rows_written > 0,
+        "the raw log holds no sample frames"
+    );
+    sink.finish()?;
+    let statistics = receiver.statistics();
+    summary.undecodable_frames = statistics.frames_rejected;
+    summary.undecodable_bytes = statistics.bytes_rejected;
+    summary.pads_without_state = engine.pads_without_state.clone();
+    summary.tare_warnings = engine.finish();
+    Ok(summary)
 }

@@ -38,6 +38,7 @@ pub mod output_file;
 pub mod pad_set;
 pub mod record;
 pub mod record_rows;
+pub mod recorder;
 pub mod recording;
 pub mod schema;
 pub mod session;

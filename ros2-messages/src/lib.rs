@@ -12,6 +12,7 @@
 pub mod cdr;
 pub mod mcap_file;
 pub mod messages;
+pub mod pad_file;
 pub mod pad_messages;
 pub mod type_hash;
 pub mod types;
@@ -22,4 +23,5 @@ pub use messages::{
     DiagnosticArray, DiagnosticLevel, DiagnosticStatus, Header, KeyValue, PointCloud2, PointField,
     PointFieldType, RosMessage, Time, Vector3, Wrench, WrenchStamped,
 };
+pub use pad_file::PadMessagesFile;
 pub use type_hash::{FieldDescription, MessageType, TypeDescription};

@@ -15,6 +15,12 @@ use crate::messages::{
 use model_core::PadGeometry;
 use wire::SampleFrame;
 
+/// The namespace of the pad topics unless the user gives another.
+pub const DEFAULT_NAMESPACE: &str = "/taxel";
+
+/// The start of each pad's frame id unless the user gives another.
+pub const DEFAULT_FRAME_PREFIX: &str = "taxel_";
+
 /// Bytes per point: x, y, z, pressure (float32) and flags (uint32).
 pub const POINT_STEP_BYTES: u32 = 20;
 

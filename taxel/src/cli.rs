@@ -36,7 +36,7 @@ pub enum Commands {
     #[command(long_about = sim::LONG_ABOUT)]
     Sim(sim::SimArgs),
     /// Re-process recorded data with another calibration or tier.
-    #[command(long_about = convert::LONG_ABOUT)]
+    #[command(long_about = convert::long_about())]
     Convert(convert::ConvertArgs),
     /// Fit a calibration from reference loads, cross-validate the tiers, write and upload it.
     #[command(long_about = calibrate::LONG_ABOUT)]
@@ -51,7 +51,7 @@ pub enum Commands {
     #[command(long_about = list::LONG_ABOUT)]
     List(list::ListArgs),
     /// Record the device's stream to CSV and a raw byte log.
-    #[command(long_about = record::LONG_ABOUT)]
+    #[command(long_about = record::long_about())]
     Record(record::RecordArgs),
     /// Live terminal view of the pad (heat map, flags, temperature, rates).
     #[command(long_about = view::LONG_ABOUT)]

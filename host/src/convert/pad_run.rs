@@ -1,16 +1,16 @@
-//! Running one pad's model over a stream of samples: the model with its calibration and tier,
-//! the baselines (a tare on the first rows, or the recorded ones installed at their sequence
-//! numbers), and what the tare said. One [`PadRun`] per pad.
+//! Running one pad's pipeline over a stream of its readings: the model with its calibration
+//! and tier, the baselines (a tare on the first rows, or the recorded ones installed at their
+//! sequence numbers), force and centre of pressure on the pad's geometry, the contact detector,
+//! and what the tare said. One [`PadRun`] per pad of each device.
 
 use model_core::{
-    BaselineRecord, PadModel, SampleInput, TareStatus, TaxelFlags, TaxelReading, TAXEL_COUNT,
-    TAXEL_NAMES,
+    pad_force, BaselineRecord, ContactConfig, ContactDetector, PadGeometry, PadModel, SampleInput,
+    TareStatus, TaxelFlags, TaxelReading, TAXEL_COUNT, TAXEL_NAMES,
 };
-use wire::SampleFrame;
 
 use super::{PadOptions, TareSource};
-use crate::csv_format::{flag_names, format_optional};
-use crate::recording::BaselineChange;
+use crate::device_state::BaselineChange;
+use crate::schema::PadReading;
 
 /// Flags a recording's sample frames carry that come from the acquisition, not the model, and
 /// so must be kept when the model runs again.
@@ -94,23 +94,6 @@ fn install_baselines(
     }
 }
 
-/// Runs one sample through the model and returns the output cells after `time_s,temp_c`.
-fn model_cells(
-    pad: &mut PadModel,
-    sample: &SampleInput,
-    tare_watch: &mut TareWatch,
-) -> Vec<String> {
-    let output = pad.process(sample);
-    tare_watch.observe(pad);
-    let mut cells: Vec<String> = output
-        .taxels
-        .iter()
-        .map(|taxel| format_optional(taxel.pressure_kpa()))
-        .collect();
-    cells.extend(output.taxels.iter().map(|taxel| flag_names(taxel.flags())));
-    cells
-}
-
 /// Notices when the tare finishes and whether every taxel got a baseline.
 #[derive(Debug, Default)]
 struct TareWatch {
@@ -150,12 +133,14 @@ impl TareWatch {
     }
 }
 
-/// One pad's model, baselines and tare watch over a stream.
+/// One pad's model, baselines, force, contact and tare watch over a stream.
 #[derive(Debug)]
 pub(super) struct PadRun {
     model: PadModel,
     baselines: RecordedBaselines,
     tare_watch: TareWatch,
+    geometry: PadGeometry,
+    contact: ContactDetector,
 }
 
 impl PadRun {
@@ -165,14 +150,30 @@ impl PadRun {
             model: new_model(options)?,
             baselines: RecordedBaselines::new(&options.tare),
             tare_watch: TareWatch::default(),
+            geometry: PadGeometry::ARTICLE,
+            contact: ContactDetector::new(ContactConfig::DEFAULT),
         })
     }
 
-    /// Runs one sample (with its sequence number, when known) and returns the pressure and
-    /// flags cells.
-    pub(super) fn cells(&mut self, sequence: Option<u32>, input: &SampleInput) -> Vec<String> {
-        self.baselines.before_sample(&mut self.model, sequence);
-        model_cells(&mut self.model, input, &mut self.tare_watch)
+    /// Runs one reading of set `sequence` through the pad's pipeline: what the device would
+    /// have sent (its capacitances and temperature kept).
+    pub(super) fn process(&mut self, sequence: u32, reading: &PadReading) -> PadReading {
+        self.baselines
+            .before_sample(&mut self.model, Some(sequence));
+        let output = self.model.process(&reading_input(reading));
+        self.tare_watch.observe(&self.model);
+        let force = pad_force(&output.taxels, &self.geometry);
+        self.contact.update(&force, reading.device_time_us);
+        let summary = device::pad_summary(&force, self.contact.in_contact());
+        PadReading {
+            pressure_kpa: output.taxels.map(|taxel| taxel.pressure_kpa()),
+            flags: output.taxels.map(|taxel| taxel.flags()),
+            force_n: summary.force_n,
+            centre_of_pressure_mm: summary.centre_of_pressure_mm,
+            partial: summary.partial,
+            contact: summary.contact,
+            ..*reading
+        }
     }
 
     /// The tare's problems, at the end.
@@ -183,20 +184,22 @@ impl PadRun {
     }
 }
 
-/// The model input of a recorded sample frame: its capacitances and temperature, the
-/// acquisition's flags kept, and a converter error read as no reading.
-pub(super) fn frame_input(sample: &SampleFrame) -> SampleInput {
+/// The model input of a recorded reading: its capacitances and temperature, the acquisition's
+/// flags kept, and a converter error (or an empty capacitance) read as no reading.
+fn reading_input(reading: &PadReading) -> SampleInput {
     let mut input = SampleInput::new(
         [TaxelReading::Unavailable; TAXEL_COUNT],
-        sample.temperature_c.filter(|value| !value.is_nan()),
+        reading.temperature_c.filter(|value| !value.is_nan()),
     )
-    .at_time_us(sample.timestamp_us);
-    for (taxel, recorded) in sample.taxels.iter().enumerate() {
-        let acquisition_flags =
-            TaxelFlags::from_bits_retain(recorded.flags).intersection(ACQUISITION_FLAGS);
+    .at_time_us(reading.device_time_us);
+    for taxel in 0..TAXEL_COUNT {
+        let acquisition_flags = reading.flags[taxel].intersection(ACQUISITION_FLAGS);
         input.reading_flags[taxel] = acquisition_flags;
-        if !acquisition_flags.contains(TaxelFlags::CONVERTER_ERROR) {
-            input.readings[taxel] = TaxelReading::CapacitancePf(recorded.capacitance_pf);
+        if let (false, Some(capacitance_pf)) = (
+            acquisition_flags.contains(TaxelFlags::CONVERTER_ERROR),
+            reading.capacitance_pf[taxel],
+        ) {
+            input.readings[taxel] = TaxelReading::CapacitancePf(capacitance_pf);
         }
     }
     input

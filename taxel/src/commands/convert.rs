@@ -1,99 +1,86 @@
-//! `taxel convert`: its arguments, and the command around the host library's conversion.
+//! `taxel convert`: a recording (or one device's raw byte log) through the host library's
+//! conversion engine again, with the devices' recorded states or other options; written in the
+//! recording schema, or as the wide export.
+
+use std::fs::File;
+use std::io::{self, BufRead, BufReader, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::OnceLock;
 
 use anyhow::{bail, Context};
 use model_core::Tier;
-use std::fs::File;
-use std::io::{self, BufReader, BufWriter, Read, Write};
-use std::path::{Path, PathBuf};
-use std::process::ExitCode;
+use taxel_host::convert::{
+    convert_raw, convert_recording, parse_tier, ConversionEngine, ConvertSettings, ConvertSummary,
+    RecordedStates, RowSink, WideWriter, EXIT_BAD_ROWS,
+};
 use taxel_host::noteln;
 use taxel_host::output_file::{refuse_same_file, OutputFile};
-
-use taxel_host::convert::*;
+use taxel_host::schema::{self, RowReader, RowWriter};
 
 /// The long help of the subcommand.
-pub const LONG_ABOUT: &str =
-    "Re-process recorded data with another calibration or inversion tier.\n\n\
-Input: a CSV file with the columns time_s,temp_c,c11_pf,c12_pf,c21_pf,c22_pf (any order, other \
-columns ignored; an empty temp_c cell means no temperature, an empty capacitance cell means no \
-reading), or with --raw the raw byte log written by `taxel record`. Files separated by ';' or \
-tabs (spreadsheet exports) are recognised from the header, with ',' decimals, and said so. \
-time_s must be a finite number of seconds.\n\n\
-Output: time_s,temp_c (as given), p11_kpa..p22_kpa, flags11..flags22; one row per input row. A \
-faulted taxel has an empty pressure cell; flags are documented flag names joined by '|'. The \
-output file is written under a temporary name and renamed when complete: a failed run never \
-touches an existing file, and the output may not be the input.\n\n\
-A recording made by `taxel record` has the device's state beside it (NAME.csv.device.json: \
-calibration, tier and baselines). It is used when present, so the pressures agree with the \
-device's; --calibration, --tier and --tare-rows replace its parts, --no-device-state ignores \
-it. Without it: the built-in default calibration (the article's curve), the monotone-cubic \
-tier, and a baseline (tare) that is the mean of the first --tare-rows readable rows (default \
-1), which are themselves reported as not_tared. Which calibration was used is said on stderr.\n\n\
-A recording of a device with several pads (header seq,pad0_time_s,pad0_temp_c,\
-pad0_c11_pf..., then pad1_..., as `taxel record` writes it) is recognised from its header: \
-each pad is converted with a model of its own (its own tare with --tare-rows), and the output \
-is seq, then for each pad N: padN_time_s,padN_temp_c,padN_p11_kpa..padN_p22_kpa,\
-padN_flags11..padN_flags22. A pad whose frame is missing from a set has every cell empty, in the \
-input and the output. The device state holds every pad's calibration, tier and baselines, and \
-each pad is converted with its own. A device-state file written before every pad's state was \
-recorded describes pad 0 only: its calibration and baselines are then used for every pad, so \
-the other pads' pressures may differ from the device's, and convert says so. A raw log of \
-several pads is converted the same way when its device-state file says how many pads there \
-are; without it, pad 0 only. A header whose pads are out of order or incomplete is an error.\n\n\
-Exit status: 0 when every row was read, 3 when some rows could not be read (each is reported \
-on stderr with its line number and written as empty cells), 1 on any other error (no data rows \
-or frames at all, a missing column, a file that cannot be read or written).\n\n\
-Example: taxel convert rec.csv --tier polynomial -o rec-polynomial.csv";
+pub fn long_about() -> &'static str {
+    static TEXT: OnceLock<String> = OnceLock::new();
+    TEXT.get_or_init(|| {
+        format!(
+            "Re-process a recording with its devices' states, or another calibration or tier.\n\n\
+Input: a recording written by `taxel record` or the live view (one row per pad per sample set, \
+of any number of devices and pads), or with --raw one device's raw byte log (FILE.dev<n>.raw). \
+Recordings of earlier versions of taxel are not read. Every pad of every device runs through \
+the pad pipeline again — the model with its calibration, tier and baselines, force and centre of \
+pressure, the contact detector — each with its own state: device n's is read from FILE.dev<n>.\
+device.json beside the recording (calibration, tier, and the baselines with the set each applies \
+from), so that converting with the defaults reproduces what the devices computed. --calibration, \
+--tier and --tare-rows replace those parts for every pad; --no-device-state ignores the states \
+(the built-in calibration, the default tier and a tare on the first readable row). Which state \
+each pad was converted with is said on stderr.\n\n\
+Output: the same rows and columns (identity, times, capacitances and temperature as recorded; \
+pressures, flags, force, centre of pressure, partial and contact computed again):\n{}\n\n\
+--wide writes the export of one row per sample set of a device instead: host_time_s,device,seq, \
+then each pad's columns prefixed pad<n>_, then marker (for spreadsheets; `taxel convert` and \
+`taxel plot` read only the recording schema). The output is written under a temporary name and \
+renamed when complete, and may not be the input.\n\n\
+Exit status: 0 when every row was read, 3 when some rows could not be read (each is reported on \
+stderr with its line number and left out), 1 on any other error.\n\n\
+Example: taxel convert rec.csv --tier table -o rec-table.csv",
+            schema::describe()
+        )
+    })
+}
 
 /// Arguments of `taxel convert`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ConvertArgs {
-    /// Input CSV file ('-' for stdin). Not used with --raw.
+    /// The recording ('-' for stdin). Not used with --raw.
     #[arg(
         value_name = "INPUT",
         required_unless_present = "raw",
         conflicts_with = "raw"
     )]
     pub input: Option<PathBuf>,
-    /// Read the raw byte log written by `taxel record` instead of a CSV file.
+    /// Read one device's raw byte log (FILE.dev<n>.raw, written by `taxel record`) instead.
     #[arg(long, value_name = "FILE")]
     pub raw: Option<PathBuf>,
-    /// Output CSV file (default: stdout).
+    /// Output file (default: stdout).
     #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,
-    /// Tare on the mean of the first N rows instead of the device's recorded baselines
-    /// (default without a device-state file: 1).
+    /// Write the wide export (one row per sample set of a device) instead of the schema.
+    #[arg(long)]
+    pub wide: bool,
+    /// Tare each pad on the mean of its first N readable rows instead of the recorded
+    /// baselines.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     pub tare_rows: Option<u16>,
-    /// Inversion tier (default: the recording's, else monotone-cubic).
+    /// Inversion tier (default: each pad's recorded one, else monotone-cubic).
     #[arg(long, value_name = "NAME", value_parser = parse_tier, help = tier_help())]
     pub tier: Option<Tier>,
-    /// Calibration file written by `taxel calibrate` or `taxel calibration pull` (default: the
-    /// recording's, else the built-in default, the article's curve).
+    /// Calibration file written by `taxel calibrate` or `taxel calibration pull`, for every pad
+    /// (default: each pad's recorded one, else the built-in default, the article's curve).
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<PathBuf>,
-    /// The device-state file of the recording (default: INPUT.device.json beside it).
-    #[arg(long, value_name = "FILE", conflicts_with = "no_device_state")]
-    pub device_state: Option<PathBuf>,
-    /// Ignore the recording's device-state file.
+    /// Ignore the devices' recorded states.
     #[arg(long)]
     pub no_device_state: bool,
-}
-
-impl ConvertArgs {
-    /// What the host library's conversion is asked.
-    pub fn settings(&self) -> ConvertSettings {
-        ConvertSettings {
-            input: self.input.clone(),
-            raw: self.raw.clone(),
-            output: self.output.clone(),
-            tare_rows: self.tare_rows,
-            tier: self.tier,
-            calibration: self.calibration.clone(),
-            device_state: self.device_state.clone(),
-            no_device_state: self.no_device_state,
-        }
-    }
 }
 
 /// The help of a `--tier` option, listing every tier.
@@ -106,16 +93,41 @@ pub fn tier_help() -> String {
     )
 }
 
-fn open_input(path: &Path) -> anyhow::Result<Box<dyn Read>> {
+fn open_input(path: &Path) -> anyhow::Result<Box<dyn BufRead>> {
     if path.as_os_str() == "-" {
-        Ok(Box::new(io::stdin().lock()))
-    } else {
-        if path.is_dir() {
-            bail!("{} is a directory, not a file", path.display());
-        }
-        let file = File::open(path).with_context(|| format!("opening {}", path.display()))?;
-        Ok(Box::new(BufReader::new(file)))
+        return Ok(Box::new(BufReader::new(io::stdin().lock())));
     }
+    if path.is_dir() {
+        bail!("{} is a directory, not a file", path.display());
+    }
+    let file = File::open(path).with_context(|| format!("opening {}", path.display()))?;
+    Ok(Box::new(BufReader::with_capacity(1 << 20, file)))
+}
+
+/// The device a raw log belongs to (`NAME.dev<n>.raw`), and its state file.
+fn raw_device(raw: &Path) -> (u32, Option<PathBuf>) {
+    let name = raw.to_string_lossy();
+    let device = name
+        .strip_suffix(".raw")
+        .and_then(|stem| stem.rsplit_once(".dev"))
+        .and_then(|(_, device)| device.parse().ok());
+    let state = name
+        .strip_suffix(".raw")
+        .map(|stem| PathBuf::from(format!("{stem}.device.json")))
+        .filter(|path| path.exists());
+    (device.unwrap_or(0), state)
+}
+
+/// The most pads of a device in a recording file (for the wide export's columns).
+fn pads_in(path: &Path) -> anyhow::Result<usize> {
+    let mut reader = RowReader::new(open_input(path)?)?;
+    let mut pads = 0;
+    while let Some(row) = reader.next_row() {
+        if let Ok(row) = row {
+            pads = pads.max(usize::from(row.pad) + 1);
+        }
+    }
+    Ok(pads.max(1))
 }
 
 /// Runs `taxel convert`.
@@ -123,17 +135,65 @@ pub fn run(args: &ConvertArgs) -> anyhow::Result<ExitCode> {
     let input = match (&args.raw, &args.input) {
         (Some(raw), _) => raw,
         (None, Some(input)) => input,
-        (None, None) => bail!("give an input CSV file or --raw FILE"),
+        (None, None) => bail!("give an input recording or --raw FILE"),
     };
     if let Some(output) = &args.output {
         refuse_same_file(input, output)?;
     }
-    let (options, source) = resolve_options(&args.settings())?;
-    noteln!("{source}");
-    let reader = open_input(input)?;
-    let convert = |output: &mut dyn Write| match &args.raw {
-        Some(_) => convert_raw(reader, output, &options),
-        None => convert_csv(reader, output, &options),
+    let calibration = match &args.calibration {
+        Some(path) => Some(
+            taxel_host::calibration_file::read(path)
+                .with_context(|| format!("reading the calibration {}", path.display()))?,
+        ),
+        None => None,
+    };
+    let settings = ConvertSettings {
+        tare_rows: args.tare_rows,
+        tier: args.tier,
+        calibration,
+        no_device_state: args.no_device_state,
+    };
+    let (states, raw_device) = match &args.raw {
+        Some(raw) => {
+            let (device, state) = raw_device(raw);
+            let states = match state.filter(|_| !args.no_device_state) {
+                Some(path) => RecordedStates::of_one_device(device, &path)?,
+                None => RecordedStates::default(),
+            };
+            (states, Some(device))
+        }
+        None if input.as_os_str() == "-" || args.no_device_state => {
+            (RecordedStates::default(), None)
+        }
+        None => (RecordedStates::beside(input)?, None),
+    };
+    for file in &states.files {
+        noteln!("converting with the device state in {}", file.display());
+    }
+    let pad_count = raw_device
+        .and_then(|device| states.device(device))
+        .map_or(1, |state| state.pad_count.max(1));
+    let wide_pads = if args.wide {
+        match (&args.raw, input.as_os_str() == "-") {
+            (Some(_), _) => usize::from(pad_count),
+            (None, false) => pads_in(input)?,
+            (None, true) => bail!("--wide reads the recording twice: give a file, not stdin"),
+        }
+    } else {
+        0
+    };
+    let engine = ConversionEngine::new(settings, states);
+    let convert = |output: &mut dyn Write| -> anyhow::Result<ConvertSummary> {
+        let mut sink: Box<dyn RowSink + '_> = if args.wide {
+            Box::new(WideWriter::new(output, wide_pads)?)
+        } else {
+            Box::new(RowWriter::new(output)?)
+        };
+        let reader = open_input(input)?;
+        match raw_device {
+            Some(device) => convert_raw(reader, device, pad_count, sink.as_mut(), engine),
+            None => convert_recording(reader, sink.as_mut(), engine),
+        }
     };
     let summary = match &args.output {
         Some(path) => {
@@ -151,8 +211,30 @@ pub fn run(args: &ConvertArgs) -> anyhow::Result<ExitCode> {
             summary
         }
     };
-    if let Some(dialect) = summary.dialect {
-        noteln!("read {} as {}", input.display(), dialect.describe());
+    report(&summary, args.raw.is_some());
+    if summary.bad_rows.is_empty() {
+        Ok(ExitCode::SUCCESS)
+    } else {
+        noteln!(
+            "{} rows could not be read (left out); {} rows converted",
+            summary.bad_rows.len(),
+            summary.rows_written
+        );
+        Ok(ExitCode::from(EXIT_BAD_ROWS))
+    }
+}
+
+fn report(summary: &ConvertSummary, raw: bool) {
+    if !summary.pads_without_state.is_empty() {
+        let pads: Vec<String> = summary
+            .pads_without_state
+            .iter()
+            .map(|(device, pad)| format!("device {device} pad {pad}"))
+            .collect();
+        noteln!(
+            "{} had no recorded state: converted with the built-in calibration, the default tier and a tare on the first readable row unless options said otherwise",
+            pads.join(", ")
+        );
     }
     for bad_row in &summary.bad_rows {
         noteln!("line {}: {}", bad_row.line, bad_row.reason);
@@ -160,39 +242,18 @@ pub fn run(args: &ConvertArgs) -> anyhow::Result<ExitCode> {
     for warning in &summary.tare_warnings {
         noteln!("warning: {warning}");
     }
-    if summary.missing_pad_frames > 0 {
+    if summary.missing_frames > 0 {
         noteln!(
-            "{} pad frames were missing from the recording's sample sets (those pads' cells are empty in their rows)",
-            summary.missing_pad_frames
+            "{} pad frames were missing from the recording's sample sets (their rows are kept as they are)",
+            summary.missing_frames
         );
     }
-    if summary.frames_of_other_pads > 0 {
+    if raw {
         noteln!(
-            "warning: {} sample frames of pads other than pad 0 were skipped: the raw log holds several pads, and without its device-state file (which says how many) only pad 0 is converted",
-            summary.frames_of_other_pads
-        );
-    }
-    if args.raw.is_some() {
-        noteln!(
-            "{} {} converted; {} undecodable frames ({} bytes) skipped",
+            "{} rows converted; {} undecodable frames ({} bytes) skipped",
             summary.rows_written,
-            if summary.pad_count > 1 {
-                "sample sets"
-            } else {
-                "sample frames"
-            },
             summary.undecodable_frames,
             summary.undecodable_bytes
         );
-    }
-    if summary.bad_rows.is_empty() {
-        Ok(ExitCode::SUCCESS)
-    } else {
-        noteln!(
-            "{} of {} rows could not be read (written as empty cells)",
-            summary.bad_rows.len(),
-            summary.rows_written
-        );
-        Ok(ExitCode::from(EXIT_BAD_ROWS))
     }
 }
