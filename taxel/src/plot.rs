@@ -17,22 +17,21 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use taxel_host::calibrate::{read_loads, reference_data, ReferenceData};
-use taxel_host::csv_format::{
-    detect_dialect, find_column, find_columns, parse_number, parse_time_s, PRESSURE_COLUMNS,
-    TAXEL_LABELS, TIME_COLUMN,
-};
+use taxel_host::csv_format::TAXEL_LABELS;
+use taxel_host::schema::{RowReader, SchemaError};
 use taxel_host::noteln;
 use taxel_host::output_file::PendingRename;
 pub use taxel_plot_style::{register_embedded_font, tier_colour, TAXEL_COLOURS};
 
 /// The long help of the subcommand.
 pub const LONG_ABOUT: &str = "Plot to SVG or PNG (chosen by the output file's extension).\n\n\
-`taxel plot recording.csv -o p.svg`: pressure per taxel over time, from a recording or a \
-`taxel convert` output (columns time_s, p11_kpa..p22_kpa; empty cells are gaps).\n\n\
+`taxel plot recording.csv -o p.svg`: pressure per taxel over time, one panel per pad of each \
+device, from a recording or a `taxel convert` output (the recording schema; time from the first \
+row's host_time_s; empty cells are gaps).\n\n\
 `taxel plot --calibration cal.json -o c.png [--loads loads.csv]`: the curve (dC/C0 against \
 pressure) of each taxel with its points; with --loads, the measured rows on the curves and each \
 tier's residual (predicted - applied pressure) per row.\n\n\
-Rows whose time_s is not a finite, plausible number of seconds are skipped and listed; a \
+Rows that cannot be read are skipped and listed; a \
 long recording is drawn as the lowest and highest value of each of 10 000 time buckets per \
 taxel, so every peak shows and the work stays bounded. The image is written under a temporary \
 name and renamed when complete. Text uses a font built into the tool, so no system fonts are \
@@ -96,67 +95,70 @@ pub const MAX_POINTS_PER_TAXEL: usize = 20_000;
 /// The largest pressure drawn, kPa; anything beyond is not a measurement and is a gap.
 const MAX_PLOTTED_KPA: f64 = 1.0e6;
 
-/// Pressures over time.
+/// One pad's pressures over time.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PadSeries {
+    /// The device.
+    pub device: u32,
+    /// The pad of the device.
+    pub pad: u8,
+    /// Time of each row, s since the recording's first row.
+    pub time_s: Vec<f64>,
+    /// Pressure per taxel per row, kPa (`None` = empty cell: faulted, or the frame is missing).
+    pub pressures_kpa: [Vec<Option<f64>>; TAXEL_COUNT],
+}
+
+/// Every pad's pressures over time, from a recording.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct PressureSeries {
-    /// Time of each row, s.
-    pub time_s: Vec<f64>,
-    /// Pressure per taxel per row, kPa (`None` = empty cell: faulted or unreadable).
-    pub pressures_kpa: [Vec<Option<f64>>; TAXEL_COUNT],
-    /// Rows skipped because their time could not be read: line number and reason.
+    /// Each pad of each device, in (device, pad) order.
+    pub pads: Vec<PadSeries>,
+    /// Rows read.
+    pub rows: usize,
+    /// Rows skipped because they could not be read: line number and reason.
     pub skipped_rows: Vec<(u64, String)>,
 }
 
-/// Reads `time_s` and `p11_kpa..p22_kpa` from a recording or a converted file. A row whose time
-/// is not a finite, plausible number of seconds is skipped and listed with its line number.
+/// Reads every pad's pressures from a recording (or a `taxel convert` output) of the recording
+/// schema, timed from its first row's host time. A row that cannot be read is skipped and
+/// listed with its line number.
 pub fn read_pressure_series<R: Read>(input: R) -> anyhow::Result<PressureSeries> {
-    let (dialect, input) =
-        detect_dialect(BufReader::new(input), TIME_COLUMN).context("reading the header row")?;
-    let mut reader = dialect.reader(input);
-    let header = reader.headers().context("reading the header row")?.clone();
-    let time_column = find_column(&header, TIME_COLUMN)
-        .with_context(|| format!("the header lacks the column {TIME_COLUMN}"))?;
-    let pressure_columns = find_columns(&header, PRESSURE_COLUMNS).map_err(|missing| {
-        anyhow::anyhow!(
-            "the header lacks the column(s) {} (convert capacitances to pressures with `taxel convert` first)",
-            missing.join(", ")
-        )
-    })?;
+    let mut reader = RowReader::new(BufReader::new(input))?;
+    let mut pads: std::collections::BTreeMap<(u32, u8), PadSeries> = Default::default();
     let mut series = PressureSeries::default();
-    let mut record = csv::StringRecord::new();
-    loop {
-        let line = reader.position().line();
-        match reader.read_record(&mut record) {
-            Ok(false) => break,
-            Ok(true) => {}
-            Err(error) if matches!(error.kind(), csv::ErrorKind::Io(_)) => {
-                return Err(error).context(format!("reading line {line}"))
-            }
-            Err(error) => {
-                series.skipped_rows.push((line, error.to_string()));
+    let mut first_us = None;
+    while let Some(row) = reader.next_row() {
+        let row = match row {
+            Ok(row) => row,
+            Err(SchemaError::Row { line, reason }) => {
+                series.skipped_rows.push((line, reason));
                 continue;
             }
-        }
-        let time_s =
-            match parse_time_s(record.get(time_column).unwrap_or(""), dialect.decimal_comma) {
-                Ok(time_s) => time_s,
-                Err(reason) => {
-                    series.skipped_rows.push((line, reason));
-                    continue;
-                }
-            };
-        series.time_s.push(time_s);
-        for (taxel, column) in pressure_columns.iter().enumerate() {
-            let pressure = parse_number(record.get(*column).unwrap_or(""), dialect.decimal_comma)
-                .ok()
-                .flatten()
+            Err(error) => return Err(error.into()),
+        };
+        series.rows += 1;
+        let origin_us = *first_us.get_or_insert(row.host_time_us);
+        let pad = pads.entry((row.device, row.pad)).or_insert_with(|| PadSeries {
+            device: row.device,
+            pad: row.pad,
+            ..PadSeries::default()
+        });
+        pad.time_s
+            .push((row.host_time_us as f64 - origin_us as f64) / 1e6);
+        for taxel in 0..TAXEL_COUNT {
+            let pressure = row
+                .reading
+                .as_ref()
+                .and_then(|reading| reading.pressure_kpa[taxel])
+                .map(f64::from)
                 .filter(|value| value.is_finite() && value.abs() <= MAX_PLOTTED_KPA);
-            series.pressures_kpa[taxel].push(pressure);
+            pad.pressures_kpa[taxel].push(pressure);
         }
     }
-    if series.time_s.is_empty() {
-        bail!("no row with a readable time_s: nothing to plot");
+    if series.rows == 0 {
+        bail!("no readable row: nothing to plot");
     }
+    series.pads = pads.into_values().collect();
     Ok(series)
 }
 
@@ -231,6 +233,23 @@ fn draw_pressures<DB: DrawingBackend>(
     series: &PressureSeries,
 ) -> DrawResult<DB> {
     root.fill(&WHITE)?;
+    let areas = root.split_evenly((series.pads.len().max(1), 1));
+    for (area, pad) in areas.iter().zip(&series.pads) {
+        let caption = if series.pads.len() == 1 {
+            "Pressure per taxel".to_owned()
+        } else {
+            format!("Device {} pad {}: pressure per taxel", pad.device, pad.pad)
+        };
+        draw_pad_pressures(area, pad, &caption)?;
+    }
+    Ok(())
+}
+
+fn draw_pad_pressures<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    series: &PadSeries,
+    caption: &str,
+) -> DrawResult<DB> {
     let time_min = series.time_s.iter().copied().fold(f64::INFINITY, f64::min);
     let time_max = series
         .time_s
@@ -255,7 +274,7 @@ fn draw_pressures<DB: DrawingBackend>(
         1.0
     };
     let mut chart = ChartBuilder::on(root)
-        .caption("Pressure per taxel", ("sans-serif", 24))
+        .caption(caption, ("sans-serif", 24))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
@@ -612,13 +631,19 @@ pub fn run(args: &PlotArgs) -> anyhow::Result<ExitCode> {
                     series.skipped_rows.len() - 10
                 );
             }
-            let size = (args.width.unwrap_or(1200), args.height.unwrap_or(600));
+            let panels = u32::try_from(series.pads.len().max(1)).unwrap_or(u32::MAX);
+            let size = (
+                args.width.unwrap_or(1200),
+                args.height.unwrap_or(600_u32.saturating_mul(panels.min(4)).max(600)),
+            );
             plot_pressures(&series, &args.output, size)?;
+            let longest = series.pads.iter().map(|pad| pad.time_s.len()).max().unwrap_or(0);
             noteln!(
-                "wrote {} ({} rows{})",
+                "wrote {} ({} rows, {} pad(s){})",
                 args.output.display(),
-                series.time_s.len(),
-                if series.time_s.len() > MAX_POINTS_PER_TAXEL {
+                series.rows,
+                series.pads.len(),
+                if longest > MAX_POINTS_PER_TAXEL {
                     format!(
                         "; drawn as the low and high of {} time buckets per taxel",
                         MAX_POINTS_PER_TAXEL / 2
