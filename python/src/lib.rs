@@ -12,6 +12,7 @@ mod convert;
 mod device;
 mod errors;
 mod memory_link;
+mod recording;
 mod sample_set;
 mod simulator;
 mod stream;
@@ -66,6 +67,9 @@ fn _taxel(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(flag_bits, module)?)?;
     module.add_function(wrap_pyfunction!(tier_names, module)?)?;
     module.add_function(wrap_pyfunction!(convert::convert_arrays, module)?)?;
+    module.add_function(wrap_pyfunction!(recording::read_recording_rows, module)?)?;
+    module.add_function(wrap_pyfunction!(recording::convert_recording_rows, module)?)?;
+    module.add_class::<recording::Recording>()?;
     module.add_class::<device::Device>()?;
     module.add_class::<simulator::Simulator>()?;
     module.add_class::<sample_set::SampleSet>()?;

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import enum
 import operator
+import os
 import warnings
 from typing import Optional, Tuple
 
@@ -36,7 +37,7 @@ from ._errors import (
     ProtocolVersionError,
     TaxelError,
 )
-from ._taxel import Buffer, Calibration, Device, SampleSet, Simulator, list_devices
+from ._taxel import Buffer, Calibration, Device, Recording, SampleSet, Simulator, list_devices
 
 __all__ = [
     "Buffer",
@@ -51,13 +52,16 @@ __all__ = [
     "Flags",
     "LinkError",
     "ProtocolVersionError",
+    "Recording",
     "SampleSet",
     "Simulator",
     "TIERS",
     "TaxelError",
     "TaxelWarning",
     "convert",
+    "convert_recording",
     "list_devices",
+    "read_recording",
 ]
 
 #: The inversion tiers of the pressure model, by name; ``"monotone-cubic"`` is the default.
@@ -165,3 +169,48 @@ def convert(
     for message in messages:
         warnings.warn(message, TaxelWarning, stacklevel=2)
     return pressure_kpa, flags
+
+
+def _warn_rows(path: "os.PathLike[str] | str", bad_rows: "list[str]", stacklevel: int) -> None:
+    for reason in bad_rows:
+        warnings.warn(f"{os.fspath(path)}: {reason} (row left out)", TaxelWarning, stacklevel=stacklevel + 1)
+
+
+def read_recording(path: "os.PathLike[str] | str") -> Recording:
+    """Reads a recording of the recording schema (what ``taxel record`` and the live view
+    write): one row per pad per sample set of every device, as arrays (see :class:`Recording`).
+    Rows that cannot be read are left out, each reported as a :class:`TaxelWarning` with its
+    line; a file of another shape raises :class:`ConvertError`."""
+    recording, bad_rows = _taxel.read_recording_rows(os.fspath(path))
+    _warn_rows(path, bad_rows, stacklevel=2)
+    return recording
+
+
+def convert_recording(
+    path: "os.PathLike[str] | str",
+    calibration: Optional[Calibration] = None,
+    tier: Optional[str] = None,
+    tare_rows: Optional[int] = None,
+    use_device_state: bool = True,
+) -> Recording:
+    """Converts a recording again exactly as ``taxel convert`` does (the same engine): every pad
+    of every device through the model, force, centre of pressure and contact, with each
+    device's recorded state (``NAME.dev<n>.device.json`` beside the file: calibration, tier,
+    baselines) unless ``use_device_state`` is false; ``calibration``, ``tier`` and
+    ``tare_rows`` replace its parts for every pad. Rows that cannot be read and tare problems
+    are reported as :class:`TaxelWarning`."""
+    if tare_rows is not None and (isinstance(tare_rows, bool) or not isinstance(tare_rows, (int, np.integer))):
+        raise ConvertError(f"tare_rows must be an integer (got {tare_rows!r})")
+    if tare_rows is not None and not 1 <= int(tare_rows) <= 65535:
+        raise ConvertError(f"tare_rows must be 1 to 65535 (got {tare_rows})")
+    recording, bad_rows, tare_warnings = _taxel.convert_recording_rows(
+        os.fspath(path),
+        calibration,
+        tier,
+        None if tare_rows is None else int(tare_rows),
+        use_device_state,
+    )
+    _warn_rows(path, bad_rows, stacklevel=2)
+    for message in tare_warnings:
+        warnings.warn(message, TaxelWarning, stacklevel=2)
+    return recording

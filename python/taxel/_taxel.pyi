@@ -240,3 +240,37 @@ class Simulator(Device):
     @property
     def scene(self) -> str:
         """The scene's name."""
+
+class Recording:
+    """A recording as arrays: one row per pad per sample set (the recording schema)."""
+
+    host_time_s: npt.NDArray[np.float64]
+    device: npt.NDArray[np.int64]
+    pad: npt.NDArray[np.int64]
+    sequence: npt.NDArray[np.int64]
+    device_time_s: npt.NDArray[np.float64]
+    sync_error_ms: npt.NDArray[np.float64]
+    temperature_c: npt.NDArray[np.float64]
+    temperature_source: List[str]
+    capacitance_pf: npt.NDArray[np.float64]
+    pressure_kpa: npt.NDArray[np.float64]
+    flags: npt.NDArray[np.uint16]
+    force_n: npt.NDArray[np.float64]
+    cop_mm: npt.NDArray[np.float64]
+    partial: npt.NDArray[np.bool_]
+    contact: npt.NDArray[np.bool_]
+    missing: npt.NDArray[np.bool_]
+    markers: List[Tuple[int, str]]
+    def __len__(self) -> int: ...
+
+def read_recording_rows(path: str) -> Tuple[Recording, List[str]]:
+    """The native half of :func:`taxel.read_recording`."""
+
+def convert_recording_rows(
+    path: str,
+    calibration: Optional[Calibration],
+    tier: Optional[str],
+    tare_rows: Optional[int],
+    use_device_state: bool,
+) -> Tuple[Recording, List[str], List[str]]:
+    """The native half of :func:`taxel.convert_recording`."""
