@@ -3,3 +3,4 @@
 
 pub mod pad_faults;
 pub mod reliability;
+pub mod soak;

@@ -40,6 +40,14 @@ fn main() -> ExitCode {
         &pad_faults::render_markdown(&pad_outcomes),
         COMMAND,
     );
+    // The soak's section (written by the soak command) is kept as it is.
+    let markdown = match std::fs::read_to_string(&output).ok().and_then(|previous| {
+        let start = previous.find("<!-- soak: start -->")?;
+        Some(previous[start..].to_owned())
+    }) {
+        Some(soak) => format!("{}\n\n{soak}", markdown.trim_end()),
+        None => markdown,
+    };
     // Through a temporary name: an interrupted run leaves the previous report, not half of one.
     let written = taxel_host::output_file::OutputFile::create(std::path::Path::new(&output))
         .and_then(|mut file| {
