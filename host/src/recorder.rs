@@ -127,8 +127,9 @@ fn writer_of(path: &Path) -> anyhow::Result<(BufWriter<File>, PendingRename)> {
 
 impl Recorder {
     /// Starts a recording of `device_count` devices into `paths` (at least one of them), whose
-    /// arrivals are on `clock`; with `sets_per_device`, each device's sets beyond it are not
-    /// recorded.
+    /// arrivals are on `clock` — the clock the worker stamps with (a copy of it: the recorder
+    /// uses its origin's Unix time); with `sets_per_device`, each device's sets beyond it (and
+    /// its events after them) are not recorded.
     pub fn create(
         paths: RecordingPaths,
         device_count: usize,
@@ -250,6 +251,8 @@ impl Recorder {
                     .push(Item::Set { set, marker }, device_us, arrival_us);
             }
             WorkerEvent::Session(SessionEvent::Device(event)) => match event.event {
+                // Events after the device's last recorded set are beyond the recording.
+                _ if limit.is_some_and(|limit| record.sets_taken >= limit) => {}
                 DeviceEvent::ContactStarted { pad } | DeviceEvent::ContactEnded { pad } => {
                     let started = matches!(event.event, DeviceEvent::ContactStarted { .. });
                     record.stamper.push(

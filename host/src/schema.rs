@@ -403,13 +403,16 @@ fn parse_source(cell: &[u8]) -> Result<TemperatureSource, String> {
 
 /// Parses one record of the schema's columns.
 pub fn parse_record(record: &csv::ByteRecord) -> Result<PadRow, String> {
-    let cells: Vec<&[u8]> = record.iter().collect();
-    if cells.len() != COLUMNS.len() + 1 {
+    if record.len() != COLUMNS.len() + 1 {
         return Err(format!(
             "{} cells where the header has {}",
-            cells.len(),
+            record.len(),
             COLUMNS.len() + 1
         ));
+    }
+    let mut cells: [&[u8]; COLUMNS.len() + 1] = [&[]; COLUMNS.len() + 1];
+    for (slot, cell) in cells.iter_mut().zip(record.iter()) {
+        *slot = cell;
     }
     let host_time_us = parse_fixed(cells[0], "host_time_s", 6)?;
     let device = parse_integer(cells[1], "device")?;
@@ -440,8 +443,12 @@ pub fn parse_record(record: &csv::ByteRecord) -> Result<PadRow, String> {
         for taxel in 0..TAXEL_COUNT {
             capacitance_pf[taxel] = parse_optional_f32(cells[8 + taxel], COLUMNS[8 + taxel].name)?;
             pressure_kpa[taxel] = parse_optional_f32(cells[12 + taxel], COLUMNS[12 + taxel].name)?;
-            flags[taxel] = parse_flag_names(text(cells[16 + taxel])?)
-                .map_err(|name| format!("{}: unknown flag '{name}'", COLUMNS[16 + taxel].name))?;
+            let cell = cells[16 + taxel];
+            if !cell.is_empty() {
+                flags[taxel] = parse_flag_names(text(cell)?).map_err(|name| {
+                    format!("{}: unknown flag '{name}'", COLUMNS[16 + taxel].name)
+                })?;
+            }
         }
         let cop_x = parse_optional_f32(cells[21], "cop_x_mm")?;
         let cop_y = parse_optional_f32(cells[22], "cop_y_mm")?;

@@ -6,8 +6,10 @@
 //! mapped onto the host clock, never later than its arrival, with the mapping's error bound.
 //! The mapper needs about 1.5 s of frames before its first estimate; until then items wait, at
 //! most [`MAX_WAIT_US`] each, and one that waited that long without an estimate is stamped
-//! with its arrival and no error bound (the files and messages say so). Nothing is dropped and
-//! the order of items is kept.
+//! with its arrival and no error bound (the files and messages say so). Nothing is dropped, the
+//! order of items is kept, and a device's stamps never go back: an item the mapping would place
+//! before the previous one (the estimate moved) is stamped with the previous stamp, the shift
+//! added to its error bound.
 
 use std::collections::VecDeque;
 
@@ -44,6 +46,7 @@ pub struct Stamper<T> {
     mapper: ClockMapper,
     waiting: VecDeque<Held<T>>,
     stamped_at_arrival: u64,
+    last_host_us: Option<u64>,
 }
 
 impl<T> Default for Stamper<T> {
@@ -59,6 +62,7 @@ impl<T> Stamper<T> {
             mapper,
             waiting: VecDeque::new(),
             stamped_at_arrival: 0,
+            last_host_us: None,
         }
     }
 
@@ -119,22 +123,30 @@ impl<T> Stamper<T> {
     }
 
     fn stamp(&mut self, held: Held<T>, estimate: Option<&ClockEstimate>) -> Stamped<T> {
-        match estimate {
-            Some(estimate) => Stamped {
-                host_us: estimate.to_host_us(held.device_us).min(held.arrival_us),
-                error_us: Some(estimate.uncertainty_at_us(held.device_us)),
-                arrival_us: held.arrival_us,
-                item: held.item,
-            },
+        let (host_us, error_us) = match estimate {
+            Some(estimate) => (
+                estimate.to_host_us(held.device_us).min(held.arrival_us),
+                Some(estimate.uncertainty_at_us(held.device_us)),
+            ),
             None => {
                 self.stamped_at_arrival += 1;
-                Stamped {
-                    host_us: held.arrival_us,
-                    error_us: None,
-                    arrival_us: held.arrival_us,
-                    item: held.item,
-                }
+                (held.arrival_us, None)
             }
+        };
+        // Never before the previous stamp: the shift joins the error bound.
+        let (host_us, error_us) = match self.last_host_us {
+            Some(last_us) if host_us < last_us => (
+                last_us,
+                error_us.map(|error_us| error_us.saturating_add(last_us - host_us)),
+            ),
+            _ => (host_us, error_us),
+        };
+        self.last_host_us = Some(host_us);
+        Stamped {
+            host_us,
+            error_us,
+            arrival_us: held.arrival_us,
+            item: held.item,
         }
     }
 }
@@ -181,6 +193,24 @@ mod tests {
                 stamped.host_us
             );
         }
+    }
+
+    #[test]
+    fn a_device_s_stamps_never_go_back_and_the_shift_joins_the_error() {
+        let mut stamper = Stamper::default();
+        // A clock estimate from exact frames, then an item whose device time maps before the
+        // previous item's stamp (its device time is earlier: a reordered event).
+        for index in 0..400u64 {
+            let device_us = 10_000 * index;
+            stamper.observe(device_us, device_us + 1_000_300);
+        }
+        stamper.push("later", 3_990_000, 5_000_000);
+        stamper.push("earlier", 3_000_000, 5_000_001);
+        let released = stamper.release(5_000_001);
+        assert_eq!(released.len(), 2);
+        assert!(released[1].host_us >= released[0].host_us);
+        let shift = released[0].host_us - (3_000_000 + 1_000_000);
+        assert!(released[1].error_us.unwrap() >= shift);
     }
 
     #[test]

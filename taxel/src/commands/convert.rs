@@ -32,8 +32,9 @@ pressure, the contact detector — each with its own state: device n's is read f
 device.json beside the recording (calibration, tier, and the baselines with the set each applies \
 from), so that converting with the defaults reproduces what the devices computed. --calibration, \
 --tier and --tare-rows replace those parts for every pad; --no-device-state ignores the states \
-(the built-in calibration, the default tier and a tare on the first readable row). Which state \
-each pad was converted with is said on stderr.\n\n\
+(the built-in calibration, the default tier and a tare on the first readable row). The state \
+files used, and every pad without a recorded state of its own (converted with those defaults), \
+are said on stderr.\n\n\
 Output: the same rows and columns (identity, times, capacitances and temperature as recorded; \
 pressures, flags, force, centre of pressure, partial and contact computed again):\n{}\n\n\
 --wide writes the export of one row per sample set of a device instead: host_time_s,device,seq, \
