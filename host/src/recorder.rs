@@ -82,6 +82,7 @@ struct DeviceRecord {
     missing_frames: u64,
     end: Option<DeviceEnd>,
     raw: Option<PendingRename>,
+    marker: Option<String>,
 }
 
 /// What a device's recording holds, for the closing words.
@@ -118,7 +119,6 @@ pub struct Recorder {
     mcap: Option<(PadMessagesFile<BufWriter<File>>, PendingRename)>,
     devices: Vec<DeviceRecord>,
     sets_per_device: Option<u64>,
-    marker: Option<String>,
 }
 
 fn writer_of(path: &Path) -> anyhow::Result<(BufWriter<File>, PendingRename)> {
@@ -166,6 +166,7 @@ impl Recorder {
                 missing_frames: 0,
                 end: None,
                 raw: None,
+                marker: None,
             })
             .collect();
         Ok(Self {
@@ -175,7 +176,6 @@ impl Recorder {
             mcap,
             devices,
             sets_per_device,
-            marker: None,
         })
     }
 
@@ -200,7 +200,9 @@ impl Recorder {
 
     /// Drops a marker: it goes into the rows of each device's next set.
     pub fn mark(&mut self, label: &str) {
-        self.marker = Some(label.to_owned());
+        for device in &mut self.devices {
+            device.marker = Some(label.to_owned());
+        }
     }
 
     /// Whether every device has recorded its sets (with a limit), or ended.
@@ -229,7 +231,6 @@ impl Recorder {
             event,
         } = arrived;
         let limit = self.sets_per_device;
-        let marker = &mut self.marker;
         let Some(record) = self.devices.get_mut(device) else {
             return Ok(());
         };
@@ -245,7 +246,7 @@ impl Recorder {
                     return Ok(());
                 }
                 record.sets_taken += 1;
-                let marker = marker.take().unwrap_or_default();
+                let marker = record.marker.take().unwrap_or_default();
                 record
                     .stamper
                     .push(Item::Set { set, marker }, device_us, arrival_us);

@@ -186,8 +186,28 @@ impl EventQueue {
     }
 }
 
+/// Something to run on a device's session.
+type SessionJob<P> = Box<dyn FnOnce(&mut DeviceSession<P>) + Send>;
+
 /// Work for a device's thread, carried out between reads.
-type Job<P> = Box<dyn FnOnce(&mut DeviceSession<P>) + Send>;
+enum Job<P> {
+    /// Runs on the session.
+    Run(SessionJob<P>),
+    /// A request whose reply the thread watches for while it goes on reading.
+    Request {
+        command: Command,
+        timeout: Duration,
+        reply: Sender<Result<ReplyPayload, RequestError>>,
+    },
+}
+
+/// A request sent and not yet answered.
+struct Pending {
+    request_id: u16,
+    deadline: Instant,
+    timeout: Duration,
+    reply: Sender<Result<ReplyPayload, RequestError>>,
+}
 
 /// A request the worker could not carry out.
 #[derive(Debug, thiserror::Error)]
@@ -276,30 +296,37 @@ impl<P: Read + Write + Send + 'static> Worker<P> {
             .ok_or(WorkerRequestError::NoDevice(device))?;
         let (result, receiver) = mpsc::channel();
         sender
-            .send(Box::new(move |session: &mut DeviceSession<P>| {
+            .send(Job::Run(Box::new(move |session: &mut DeviceSession<P>| {
                 // The caller may have given up; the result is then nobody's.
                 let _ = result.send(job(session));
-            }))
+            })))
             .map_err(|_| WorkerRequestError::Ended(device))?;
         Ok(receiver)
     }
 
-    /// Sends `command` to `device` and returns where its reply will arrive (carried out by the
-    /// device's thread between reads, waiting up to `timeout`). A reply carrying a new Info
-    /// becomes the session's.
+    /// Sends `command` to `device` and returns where its reply will arrive, within `timeout`.
+    /// The device's thread sends it and goes on reading while it waits (a tare's reply comes
+    /// when the tare is done, and the sets keep arriving meanwhile). A reply carrying a new
+    /// Info becomes the session's.
     pub fn send(
         &self,
         device: usize,
         command: Command,
         timeout: Duration,
     ) -> Result<Receiver<Result<ReplyPayload, RequestError>>, WorkerRequestError> {
-        self.run(device, move |session| {
-            let result = session.request(command, timeout);
-            if let Ok(ReplyPayload::Info(info)) = &result {
-                session.set_info(*info);
-            }
-            result
-        })
+        let sender = self
+            .jobs
+            .get(device)
+            .ok_or(WorkerRequestError::NoDevice(device))?;
+        let (reply, receiver) = mpsc::channel();
+        sender
+            .send(Job::Request {
+                command,
+                timeout,
+                reply,
+            })
+            .map_err(|_| WorkerRequestError::Ended(device))?;
+        Ok(receiver)
     }
 
     /// Sends `command` to `device` and waits for its reply.
@@ -361,19 +388,65 @@ impl<P> ThreadContext<P> {
     }
 }
 
+/// Hands out the replies that arrived, and the timeouts of those that did not (a request's
+/// reply is kept by the link for it, whoever reads the stream).
+fn answer_pending<P: Read + Write>(session: &mut DeviceSession<P>, pending: &mut Vec<Pending>) {
+    let now = Instant::now();
+    pending.retain(|request| {
+        let answer = match session.wait_reply(request.request_id, now) {
+            Ok(Some(result)) => Some(result.map_err(RequestError::Refused)),
+            Ok(None) if now >= request.deadline => {
+                Some(Err(session.no_reply_error(request.request_id, request.timeout)))
+            }
+            // A link error ends the stream; the requester sees the worker end.
+            Ok(None) | Err(_) => None,
+        };
+        match answer {
+            Some(result) => {
+                if let Ok(ReplyPayload::Info(info)) = &result {
+                    session.set_info(*info);
+                }
+                // The requester may have given up; the reply is then nobody's.
+                let _ = request.reply.send(result);
+                false
+            }
+            None => true,
+        }
+    });
+}
+
 /// A device's thread: reads its session until the worker stops or the device goes away,
 /// carrying out requests between reads; then its last set, the stop and its end.
 fn read_device<P: Read + Write>(
     mut session: DeviceSession<P>,
     context: &ThreadContext<P>,
 ) -> DeviceSession<P> {
+    let mut pending: Vec<Pending> = Vec::new();
     let reason = loop {
         if context.stop.load(Ordering::Relaxed) {
             break EndReason::Stopped;
         }
         while let Ok(job) = context.jobs.try_recv() {
-            job(&mut session);
+            match job {
+                Job::Run(job) => job(&mut session),
+                Job::Request {
+                    command,
+                    timeout,
+                    reply,
+                } => match session.send(command) {
+                    Ok(request_id) => pending.push(Pending {
+                        request_id,
+                        deadline: Instant::now() + timeout,
+                        timeout,
+                        reply,
+                    }),
+                    Err(error) => {
+                        let _ = reply.send(Err(RequestError::Link(error)));
+                    }
+                },
+            }
         }
+        answer_pending(&mut session, &mut pending);
         match session.next_event(Instant::now() + READ_SLICE) {
             Ok(Some(event)) => context.deliver(WorkerEvent::Session(event)),
             Ok(None) => {}
