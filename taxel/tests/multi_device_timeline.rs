@@ -1,23 +1,33 @@
-//! Two simulated boards on one host timeline: the same device code on each, their crystals off
-//! by +100 and -100 ppm and their clocks started at different times, frames decoded by the host's
-//! decoder and arriving after a jittery USB latency; each board's clock is mapped to the host
-//! clock by `clock_sync`, and the merged times are compared with the true instants (the
-//! simulations' own time, which the mapping never sees).
+//! Two simulated boards on one host timeline through the one stamping policy
+//! (`stamping::Stamper`, what the recorder, the live view and the bridge stamp with): the same
+//! device code on each board, their crystals off by +100 and -100 ppm and their clocks started
+//! at different times, frames decoded by the host's decoder and arriving after a jittery USB
+//! latency. Each board's frames go through a stamper of its own exactly as the recorder feeds
+//! it (every frame observed, pushed and released at its arrival), and every stamp is compared
+//! with the true sampling instant (the simulations' own time, which the stamper never sees).
 
 // Test helpers may unwrap and panic: a failure is the test failing.
 #![allow(clippy::unwrap_used, clippy::panic)]
 
 use sim_device::{ClockError, MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
-use taxel_host::clock_sync::{merge_by_host_time, ClockMapper};
+use taxel_host::stamping::{Stamped, Stamper};
 use wire::{DeviceFrame, DeviceFrameDecoder};
 
-/// One board: its device, link, decoder, mapper, and where it started on the host clock.
+/// What the test knows of a frame and the stamper does not: its true sampling instant.
+#[derive(Debug, Clone, Copy)]
+struct Truth {
+    sequence: u32,
+    true_us: u64,
+}
+
+/// One board: its device, link, decoder, stamper, and where it started on the host clock.
 struct Board {
     device: SimulatedDevice,
     link: MemoryPort,
     decoder: DeviceFrameDecoder,
-    mapper: ClockMapper,
+    stamper: Stamper<Truth>,
     host_start_us: u64,
+    clock_error: ClockError,
 }
 
 /// A small xorshift for the latency (the test's own, seeded).
@@ -54,13 +64,14 @@ fn board(seed: u64, clock_error: ClockError, host_start_us: u64) -> Board {
         device,
         link: MemoryPort::new(usize::MAX),
         decoder: DeviceFrameDecoder::new(),
-        mapper: ClockMapper::new(),
+        stamper: Stamper::default(),
         host_start_us,
+        clock_error,
     }
 }
 
 #[test]
-fn two_boards_at_plus_and_minus_100_ppm_merge_within_a_millisecond_after_10_s() {
+fn two_boards_at_plus_and_minus_100_ppm_are_stamped_within_a_millisecond_of_the_truth() {
     let mut boards = [
         board(
             1,
@@ -80,10 +91,10 @@ fn two_boards_at_plus_and_minus_100_ppm_merge_within_a_millisecond_after_10_s() 
         ),
     ];
     let mut latency = Latency(0x9E37_79B9_7F4A_7C15);
-    // Per board: (device time, true host instant) of every sample frame, and its arrival.
-    let mut frames: [Vec<(u64, u64)>; 2] = [Vec::new(), Vec::new()];
-    let mut last_arrival_us = [0u64; 2];
+    let mut stamped: [Vec<Stamped<Truth>>; 2] = [Vec::new(), Vec::new()];
+    let mut frames = [0usize; 2];
     for (index, board) in boards.iter_mut().enumerate() {
+        let mut last_arrival_us = 0;
         while board.device.simulation().now_us() < 20_000_000 {
             board.device.step(&mut board.link);
             // The frame was stamped at the end of the cycle: the simulation's time now.
@@ -91,49 +102,91 @@ fn two_boards_at_plus_and_minus_100_ppm_merge_within_a_millisecond_after_10_s() 
             for frame in board.decoder.feed(&board.link.take_for_host(usize::MAX)) {
                 if let Ok(DeviceFrame::Sample(sample)) = frame {
                     // Frames keep their order on the link.
-                    let arrival_us = (true_us + latency.next_us()).max(last_arrival_us[index]);
-                    last_arrival_us[index] = arrival_us;
-                    board.mapper.observe(sample.timestamp_us, arrival_us);
-                    frames[index].push((sample.timestamp_us, true_us));
+                    let arrival_us = (true_us + latency.next_us()).max(last_arrival_us);
+                    last_arrival_us = arrival_us;
+                    // As the recorder does: observe, push, release at the arrival.
+                    board.stamper.observe(sample.timestamp_us, arrival_us);
+                    board.stamper.push(
+                        Truth {
+                            sequence: sample.sequence,
+                            true_us,
+                        },
+                        sample.timestamp_us,
+                        arrival_us,
+                    );
+                    stamped[index].extend(board.stamper.release(arrival_us));
+                    frames[index] += 1;
                 }
             }
         }
+        stamped[index].extend(board.stamper.finish());
     }
-    // Each board's frames from its 10th second on, mapped with the estimate at the end.
-    let mut worst_us = 0i64;
-    let mut mapped: Vec<Vec<(u64, u64)>> = Vec::new();
-    for (board, frames) in boards.iter().zip(&frames) {
-        let estimate = board.mapper.estimate().unwrap();
+
+    let mut worst_us = [0i64; 2];
+    for (index, (board, stamped)) in boards.iter().zip(&stamped).enumerate() {
+        // Nothing dropped, the order kept, every item stamped with the mapping.
+        assert_eq!(stamped.len(), frames[index], "board {index}");
+        assert!(stamped.len() > 1_800, "board {index}: {}", stamped.len());
+        assert!(
+            stamped
+                .windows(2)
+                .all(|pair| pair[1].item.sequence == pair[0].item.sequence + 1),
+            "board {index}: order"
+        );
+        assert_eq!(board.stamper.stamped_at_arrival(), 0, "board {index}");
+        let estimate = board.stamper.estimate().unwrap();
+        let drift_error_ppm = estimate.drift_ppm - board.clock_error.rate_ppm;
+        assert!(drift_error_ppm.abs() < 5.0, "drift {}", estimate.drift_ppm);
         assert!(
             estimate.uncertainty_us < 1_000,
             "uncertainty {} us",
             estimate.uncertainty_us
         );
-        let mut board_mapped = Vec::new();
-        for &(device_us, true_us) in frames {
-            if true_us < board.host_start_us + 10_000_000 {
-                continue;
+        let mut covered = 0usize;
+        for item in stamped {
+            assert!(item.host_us <= item.arrival_us, "stamped after its arrival");
+            let error_bound_us = item.error_us.unwrap();
+            let error_us = item.host_us as i64 - item.item.true_us as i64;
+            if error_us.unsigned_abs() <= error_bound_us {
+                covered += 1;
             }
-            let host_us = estimate.to_host_us(device_us);
-            let error_us = host_us as i64 - true_us as i64;
+            worst_us[index] = worst_us[index].max(error_us.abs());
+            // Every item, from the first: an item waits for its board's first estimate.
             assert!(
                 error_us.abs() <= 1_000,
-                "mapped {host_us} us, true {true_us} us"
+                "board {index}: stamped {} us, true {} us",
+                item.host_us,
+                item.item.true_us
             );
             // Never fresher than it is.
-            assert!(error_us <= 0, "mapped {error_us} us after the truth");
-            worst_us = worst_us.max(error_us.abs());
-            board_mapped.push((host_us, true_us));
+            assert!(error_us <= 0, "stamped {error_us} us after the truth");
         }
-        assert!(board_mapped.len() > 900, "{}", board_mapped.len());
-        mapped.push(board_mapped);
+        eprintln!(
+            "board {index}: {} items, worst |stamp - true| {} us, error bound covers {covered}; \
+             drift {:+.2} ppm, uncertainty {} us",
+            stamped.len(),
+            worst_us[index],
+            estimate.drift_ppm,
+            estimate.uncertainty_us
+        );
+        // The error bound is a bound: it covers every item.
+        assert_eq!(covered, stamped.len(), "board {index}");
     }
-    eprintln!("worst merged-time error: {worst_us} us");
-    // On the merged timeline, samples more than 2 ms apart in truth keep their true order.
-    let merged = merge_by_host_time(mapped);
+
+    // On one timeline (every item by its stamp, ties by board), samples more than 2 ms apart in
+    // truth keep their true order.
+    let mut merged: Vec<(u64, usize, u64)> = stamped
+        .iter()
+        .enumerate()
+        .flat_map(|(index, items)| {
+            items
+                .iter()
+                .map(move |item| (item.host_us, index, item.item.true_us))
+        })
+        .collect();
+    merged.sort_by_key(|&(host_us, index, _)| (host_us, index));
     for pair in merged.windows(2) {
-        // `sample` is the true instant.
-        let (earlier, later) = (pair[0].sample, pair[1].sample);
+        let (earlier, later) = (pair[0].2, pair[1].2);
         assert!(earlier <= later + 2_000, "{earlier} then {later}");
     }
 }

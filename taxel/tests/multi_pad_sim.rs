@@ -1,17 +1,22 @@
 //! Several pads end to end through the real host path: `taxel sim` runs the simulated board
 //! (the firmware's discovery, acquisition and protocol code, a TCA9548A with one pad per
-//! channel) on a pseudo-terminal, `taxel record` records it, and the pad-prefixed columns are
-//! checked against the scene each pad plays (force = pressure x the article's 5 mm x 5 mm
-//! electrodes, computed here).
+//! channel) on a pseudo-terminal, `taxel record` records it into the recording schema (a row
+//! per pad per sample set), and every pad's rows are checked against the scene that pad plays
+//! (force = pressure x the article's 5 mm x 5 mm electrodes, computed here). `--samples N`
+//! gives N sets of every pad of every device.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod support;
 use support::SimulatorProcess;
 
-use std::collections::HashMap;
+use std::collections::BTreeMap;
+use std::io::BufReader;
+use std::path::Path;
 use std::process::Command;
 
 use sim_device::SceneFile;
+use taxel_host::device_state::RecordedDeviceState;
+use taxel_host::schema::{PadReading, PadRow, RowReader};
 
 /// Four electrodes of 25 mm², as m².
 const ELECTRODE_AREA_M2: f64 = 25e-6;
@@ -22,8 +27,18 @@ fn taxel() -> Command {
     Command::new(env!("CARGO_BIN_EXE_taxel"))
 }
 
-/// Records `sets` sample sets from a simulator started with `arguments`; the rows by column.
-fn record(arguments: &[&str], sets: u32) -> Vec<HashMap<String, String>> {
+fn read_rows(path: &Path) -> Vec<PadRow> {
+    let file = BufReader::new(std::fs::File::open(path).unwrap());
+    let mut reader = RowReader::new(file).unwrap();
+    let mut rows = Vec::new();
+    while let Some(row) = reader.next_row() {
+        rows.push(row.unwrap());
+    }
+    rows
+}
+
+/// Records `sets` sample sets from a simulator started with `arguments`; its rows.
+fn record(arguments: &[&str], sets: u32) -> Vec<PadRow> {
     let directory = tempfile::tempdir().unwrap();
     let mut simulator = SimulatorProcess::start(
         directory.path(),
@@ -40,70 +55,75 @@ fn record(arguments: &[&str], sets: u32) -> Vec<HashMap<String, String>> {
     simulator.stop();
     let messages = String::from_utf8_lossy(&output.stderr).into_owned();
     assert!(output.status.success(), "{messages}");
-    let mut reader = csv::Reader::from_path(&recording).unwrap();
-    let header: Vec<String> = reader
-        .headers()
-        .unwrap()
-        .iter()
-        .map(str::to_owned)
-        .collect();
-    reader
-        .records()
-        .map(|record| {
-            let record = record.unwrap();
-            header
-                .iter()
-                .cloned()
-                .zip(record.iter().map(str::to_owned))
-                .collect()
-        })
-        .collect()
+    read_rows(&recording)
 }
 
-/// Checks every complete pad cell group of every row against the scene: its force, and that a
-/// pad whose four taxels read is not flagged partial. Returns how many pad samples it checked.
-fn check_against_scene(rows: &[HashMap<String, String>], scene: &SceneFile, pads: usize) -> usize {
-    let mut checked = 0;
+/// The rows of each (device, pad), in file order.
+fn by_pad(rows: &[PadRow]) -> BTreeMap<(u32, u8), Vec<&PadRow>> {
+    let mut pads: BTreeMap<(u32, u8), Vec<&PadRow>> = BTreeMap::new();
     for row in rows {
-        for pad in 0..pads {
-            let cell = |name: &str| row.get(&format!("pad{pad}_{name}")).unwrap().clone();
-            let time = cell("time_s");
-            assert!(
-                !time.is_empty(),
-                "pad {pad} missing from row {:?}",
-                row.get("seq")
-            );
-            let time_s: f64 = time.parse().unwrap();
-            // The tare at boot and the press ramps: check where the pad is steady or unloaded.
-            let all_read = ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"]
-                .iter()
-                .all(|name| !cell(name).is_empty());
-            if time_s < 1.0 || !all_read {
-                continue;
+        pads.entry((row.device, row.pad)).or_default().push(row);
+    }
+    pads
+}
+
+/// Checks every pad's reading where its four taxels read against `scene`'s pad `pad`: its
+/// force, and that it is not flagged partial. Returns whether it was checked (the tare at
+/// boot and before the first second are left out).
+fn check_against_scene(reading: &PadReading, scene: &SceneFile, pad: usize, what: &str) -> bool {
+    let time_s = reading.device_time_us as f64 / 1e6;
+    if time_s < 1.0 || reading.pressure_kpa.iter().any(Option::is_none) {
+        return false;
+    }
+    let scene_time_s = if scene.repeat {
+        time_s % scene.period_s()
+    } else {
+        time_s
+    };
+    let pressures = scene
+        .pad(pad)
+        .unwrap()
+        .scene
+        .point_at_s(scene_time_s)
+        .pressure_kpa;
+    let expected_n: f64 = pressures
+        .iter()
+        .map(|kpa| f64::from(*kpa) * 1e3 * ELECTRODE_AREA_M2)
+        .sum();
+    let force_n = f64::from(reading.force_n.unwrap());
+    assert!(
+        (force_n - expected_n).abs() < FORCE_TOLERANCE_N,
+        "{what} at {time_s} s: {force_n} N recorded, scene {expected_n} N"
+    );
+    assert!(!reading.partial, "{what} at {time_s} s: partial");
+    true
+}
+
+/// Every pad of one device has exactly `sets` rows, the same consecutive sets, each with the
+/// pad's frame; checks them against the scene. Returns how many pad samples it checked.
+fn check_device(rows: &[PadRow], scene: &SceneFile, pads: usize, sets: usize) -> usize {
+    let by_pad = by_pad(rows);
+    let found: Vec<(u32, u8)> = by_pad.keys().copied().collect();
+    let expected: Vec<(u32, u8)> = (0..pads).map(|pad| (0, pad as u8)).collect();
+    assert_eq!(found, expected, "one device, pads 0 to {}", pads - 1);
+    let pad_0_sequences: Vec<u32> = by_pad[&(0, 0)].iter().map(|row| row.sequence).collect();
+    assert!(pad_0_sequences
+        .windows(2)
+        .all(|pair| pair[1] == pair[0] + 1));
+    let mut checked = 0;
+    for ((_, pad), pad_rows) in &by_pad {
+        let sequences: Vec<u32> = pad_rows.iter().map(|row| row.sequence).collect();
+        assert_eq!(pad_rows.len(), sets, "pad {pad}");
+        assert_eq!(sequences, pad_0_sequences, "pad {pad}: the same sets");
+        for row in pad_rows {
+            let reading = row
+                .reading
+                .as_ref()
+                .unwrap_or_else(|| panic!("pad {pad} missing from set {}", row.sequence));
+            let what = format!("pad {pad}");
+            if check_against_scene(reading, scene, usize::from(*pad), &what) {
+                checked += 1;
             }
-            let period_s = scene.period_s();
-            let scene_time_s = if scene.repeat {
-                time_s % period_s
-            } else {
-                time_s
-            };
-            let pressures = scene
-                .pad(pad)
-                .unwrap()
-                .scene
-                .point_at_s(scene_time_s)
-                .pressure_kpa;
-            let expected_n: f64 = pressures
-                .iter()
-                .map(|kpa| f64::from(*kpa) * 1e3 * ELECTRODE_AREA_M2)
-                .sum();
-            let force_n: f64 = cell("force_n").parse().unwrap();
-            assert!(
-                (force_n - expected_n).abs() < FORCE_TOLERANCE_N,
-                "pad {pad} at {time_s} s: {force_n} N recorded, scene {expected_n} N"
-            );
-            assert_eq!(cell("partial"), "0", "pad {pad} at {time_s} s");
-            checked += 1;
         }
     }
     checked
@@ -112,34 +132,48 @@ fn check_against_scene(rows: &[HashMap<String, String>], scene: &SceneFile, pads
 #[test]
 fn the_gripper_scene_is_recorded_pad_by_pad() {
     let rows = record(&["--scene", "gripper"], 600);
-    assert_eq!(rows.len(), 600);
+    // Two pads, and no third: a row per pad per set.
+    assert_eq!(rows.len(), 2 * 600);
     let scene = SceneFile::built_in("gripper").unwrap();
-    let checked = check_against_scene(&rows, &scene, 2);
+    let checked = check_device(&rows, &scene, 2, 600);
     assert!(checked > 800, "{checked} pad samples checked");
-    assert!(!rows[0].contains_key("pad2_time_s"));
 }
 
 #[test]
-fn eight_pads_are_recorded_in_their_columns() {
+fn eight_pads_are_recorded_in_their_rows() {
     let rows = record(&["--pads", "8"], 300);
-    assert_eq!(rows.len(), 300);
+    assert_eq!(rows.len(), 8 * 300);
     let scene = SceneFile::default_scene().unwrap();
-    let checked = check_against_scene(&rows, &scene, 8);
+    let checked = check_device(&rows, &scene, 8, 300);
     assert!(checked > 8 * 200, "{checked} pad samples checked");
-    // One sample set per row: every pad of a row carries the row's sequence number's set, read
-    // within one converter cycle (10 ms at 400 S/s).
+    // One sample set per sequence number: every pad's frame of a set was read within one
+    // converter cycle (10 ms at 400 S/s), and the set's rows share its host time.
+    let mut sets: BTreeMap<u32, Vec<&PadRow>> = BTreeMap::new();
     for row in &rows {
-        let times: Vec<f64> = (0..8)
-            .map(|pad| row[&format!("pad{pad}_time_s")].parse().unwrap())
+        sets.entry(row.sequence).or_default().push(row);
+    }
+    assert_eq!(sets.len(), 300);
+    for (sequence, set) in &sets {
+        let times: Vec<u64> = set
+            .iter()
+            .map(|row| row.reading.unwrap().device_time_us)
             .collect();
-        let spread_s = times.iter().fold(f64::MIN, |a, b| a.max(*b))
-            - times.iter().fold(f64::MAX, |a, b| a.min(*b));
-        assert!(spread_s < 0.010, "pads of one set read {spread_s} s apart");
+        let spread_us = times.iter().max().unwrap() - times.iter().min().unwrap();
+        assert!(
+            spread_us < 10_000,
+            "set {sequence}: pads read {spread_us} us apart"
+        );
+        assert!(
+            set.iter()
+                .all(|row| row.host_time_us == set[0].host_time_us),
+            "set {sequence}: one host time"
+        );
     }
 }
 
-/// Two devices with several pads each, recorded together: the long format has one row per
-/// pad frame, and every device's every pad follows its own scene.
+/// Two devices with several pads each, recorded together: a row per pad per set of each
+/// device, `--samples` sets of every pad of every device, and every device's every pad follows
+/// its own scene.
 #[test]
 fn two_devices_with_several_pads_are_recorded_on_one_timeline() {
     let directory = tempfile::tempdir().unwrap();
@@ -173,73 +207,43 @@ fn two_devices_with_several_pads_are_recorded_on_one_timeline() {
     three.stop();
     let messages = String::from_utf8_lossy(&output.stderr).into_owned();
     assert!(output.status.success(), "{messages}");
-    let mut reader = csv::Reader::from_path(&recording).unwrap();
-    let header: Vec<String> = reader
-        .headers()
-        .unwrap()
-        .iter()
-        .map(str::to_owned)
-        .collect();
-    let column = |name: &str| header.iter().position(|cell| cell == name).unwrap();
+    let rows = read_rows(&recording);
     let scenes = [
         SceneFile::built_in("gripper").unwrap(),
         SceneFile::default_scene().unwrap(),
     ];
-    let mut frames = [[0usize; 3]; 2];
+    let pad_counts = [2usize, 3];
+    let by_pad = by_pad(&rows);
+    let found: Vec<(u32, u8)> = by_pad.keys().copied().collect();
+    assert_eq!(found, [(0, 0), (0, 1), (1, 0), (1, 1), (1, 2)]);
     let mut checked = 0;
-    let mut previous_host_s = f64::MIN;
-    for record in reader.records() {
-        let record = record.unwrap();
-        let device: usize = record[column("device")].parse().unwrap();
-        let pad: usize = record[column("pad")].parse().unwrap();
-        frames[device][pad] += 1;
-        let host_s: f64 = record[column("host_time_s")].parse().unwrap();
-        assert!(host_s >= previous_host_s, "rows out of host-time order");
-        previous_host_s = host_s;
-        let all_read = ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"]
-            .iter()
-            .all(|name| !record[column(name)].is_empty());
-        let time_s: f64 = record[column("device_time_s")].parse().unwrap();
-        if time_s < 1.0 || !all_read {
-            continue;
-        }
-        let scene = &scenes[device];
-        let scene_time_s = if scene.repeat {
-            time_s % scene.period_s()
-        } else {
-            time_s
-        };
-        let pressures = scene
-            .pad(pad)
-            .unwrap()
-            .scene
-            .point_at_s(scene_time_s)
-            .pressure_kpa;
-        let expected_n: f64 = pressures
-            .iter()
-            .map(|kpa| f64::from(*kpa) * 1e3 * ELECTRODE_AREA_M2)
-            .sum();
-        let force_n: f64 = record[column("force_n")].parse().unwrap();
+    for (&(device, pad), pad_rows) in &by_pad {
+        // --samples counts sample sets of each device, however many pads it has: every pad of
+        // every device has exactly that many rows, consecutive sets in host-time order.
+        assert_eq!(pad_rows.len(), 400, "device {device} pad {pad}");
         assert!(
-            (force_n - expected_n).abs() < FORCE_TOLERANCE_N,
-            "device {device} pad {pad} at {time_s} s: {force_n} N, scene {expected_n} N"
+            pad_rows
+                .windows(2)
+                .all(|pair| pair[1].sequence == pair[0].sequence + 1
+                    && pair[0].host_time_us <= pair[1].host_time_us),
+            "device {device} pad {pad}"
         );
-        checked += 1;
+        for row in pad_rows {
+            let reading = row.reading.as_ref().unwrap();
+            let what = format!("device {device} pad {pad}");
+            if check_against_scene(reading, &scenes[device as usize], usize::from(pad), &what) {
+                checked += 1;
+            }
+        }
     }
-    // 400 sample frames per device (the limit counts each device's frames): 200 sets of the
-    // gripper's two pads; the three-pad board's frames are split between its pads.
-    assert_eq!(frames[0][2], 0);
-    // --samples counts sample sets of each device, however many pads it has.
-    for count in frames[0][..2].iter().chain(&frames[1]) {
-        assert!(count.abs_diff(400) <= 1, "{frames:?}");
-    }
+    assert_eq!(rows.len(), 400 * pad_counts.iter().sum::<usize>());
     assert!(checked > 400, "{checked} pad frames checked");
     // Each device's state holds every one of its pads' state.
     for (device, pad_count) in [(0, 2u8), (1, 3)] {
         let path = directory
             .path()
             .join(format!("both.csv.dev{device}.device.json"));
-        let state = taxel_host::recording::RecordedDeviceState::read(&path).unwrap();
+        let state = RecordedDeviceState::read(&path).unwrap();
         assert_eq!(state.pad_count, pad_count, "device {device}");
         let pads: Vec<u8> = state.other_pads.iter().map(|pad| pad.pad).collect();
         assert_eq!(pads, (1..pad_count).collect::<Vec<_>>(), "device {device}");

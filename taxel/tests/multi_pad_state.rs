@@ -1,26 +1,29 @@
 //! Every pad's own state in a recording: a device of several pads whose pad 1 runs another
-//! calibration than pad 0 is recorded, the device-state file holds each pad's calibration, tier
-//! and baselines (a tare's new baselines in the history of the pad that reported it), and
-//! `taxel convert` gives every pad's own pressures back. An older device-state file that holds
-//! pad 0's state only still converts, with pad 0's state for every pad and a warning.
+//! calibration than pad 0 is recorded, the device-state file (`NAME.csv.dev<n>.device.json`)
+//! holds each pad's calibration, tier and baselines (a tare's new baselines in the history of
+//! the pad that reported it), and `taxel convert` gives every pad's own pressures back. A
+//! device-state file that lacks a pad's state still converts, and says which pad was
+//! converted without it.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod support;
 use support::{info, FakeDevice, SimulatorProcess};
 
+use std::io::{BufReader, Write};
 use std::path::Path;
 use std::process::{Command, Output};
-use std::time::Duration;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
-use model_core::{BaselineRecord, Calibration, TAXEL_COUNT};
+use model_core::{BaselineRecord, Calibration, TaxelFlags, TAXEL_COUNT};
 use taxel_host::calibration_transfer::{pull, pull_baselines, upload_to_pads};
 use taxel_host::device_link::DeviceLink;
-use taxel_host::recording::{
-    read_device_state, BaselineChange, BaselineFollower, RecordedDeviceState, SampleSink,
-};
+use taxel_host::device_state::{BaselineChange, RecordedDeviceState};
+use taxel_host::schema::{PadReading, PadRow, RowReader, RowWriter};
+use taxel_host::session::{DeviceSession, SessionConfig, SessionEvent};
 use wire::{
     Command as WireCommand, DeviceEvent, DeviceFrame, EventFrame, PadIndex, PadInfoFrame,
-    ReplyFrame, ReplyPayload, SampleFrame, TaxelBaselineWire,
+    ReplyFrame, ReplyPayload, TaxelBaselineWire, TemperatureSource,
 };
 
 /// Largest pressure difference allowed between the device and `convert`, kPa (as in
@@ -58,66 +61,65 @@ fn another_calibration(calibration: &Calibration) -> Calibration {
     Calibration::new(&spec).unwrap()
 }
 
-/// A CSV file as its header and rows.
-fn read_rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
-    let mut reader = csv::Reader::from_path(path).unwrap();
-    let header = reader
-        .headers()
-        .unwrap()
-        .iter()
-        .map(str::to_owned)
-        .collect();
-    let rows = reader
-        .records()
-        .map(|record| record.unwrap().iter().map(str::to_owned).collect())
-        .collect();
-    (header, rows)
+/// Every row of a recording of the schema.
+fn read_rows(path: &Path) -> Vec<PadRow> {
+    let file = BufReader::new(std::fs::File::open(path).unwrap());
+    let mut reader = RowReader::new(file).unwrap();
+    let mut rows = Vec::new();
+    while let Some(row) = reader.next_row() {
+        rows.push(row.unwrap());
+    }
+    rows
 }
 
 /// Per pad: how many pressures of `converted` were compared with `recorded`'s (the device's),
-/// and the largest difference, kPa. Empty cells must be empty in both.
+/// and the largest difference, kPa. A pressure missing (faulted) must be missing in both.
 fn pad_differences(recorded: &Path, converted: &Path, pads: usize) -> Vec<(usize, f64)> {
-    let (recorded_header, recorded) = read_rows(recorded);
-    let (converted_header, converted) = read_rows(converted);
+    let recorded = read_rows(recorded);
+    let converted = read_rows(converted);
     assert_eq!(recorded.len(), converted.len());
-    let column = |header: &[String], name: &str| {
-        header
+    let mut differences = vec![(0usize, 0.0f64); pads];
+    for (device, host) in recorded.iter().zip(&converted) {
+        assert_eq!(
+            (device.device, device.pad, device.sequence),
+            (host.device, host.pad, host.sequence),
+            "the same rows in the same order"
+        );
+        let (Some(device_reading), Some(host_reading)) = (&device.reading, &host.reading) else {
+            assert_eq!(
+                device.reading, host.reading,
+                "a missing frame stays missing"
+            );
+            continue;
+        };
+        let (compared, worst_kpa) = &mut differences[usize::from(device.pad)];
+        for (taxel, (device_kpa, host_kpa)) in device_reading
+            .pressure_kpa
             .iter()
-            .position(|cell| cell == name)
-            .unwrap_or_else(|| panic!("no column {name}"))
-    };
-    (0..pads)
-        .map(|pad| {
-            let mut compared = 0;
-            let mut worst_kpa = 0.0f64;
-            for (device, host) in recorded.iter().zip(&converted) {
-                for taxel in ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"] {
-                    let name = format!("pad{pad}_{taxel}");
-                    let device_cell = &device[column(&recorded_header, &name)];
-                    let host_cell = &host[column(&converted_header, &name)];
-                    match (device_cell.parse::<f64>(), host_cell.parse::<f64>()) {
-                        (Ok(device_kpa), Ok(host_kpa)) => {
-                            worst_kpa = worst_kpa.max((device_kpa - host_kpa).abs());
-                            compared += 1;
-                        }
-                        _ => assert_eq!(
-                            device_cell.is_empty(),
-                            host_cell.is_empty(),
-                            "{name}: device '{device_cell}', host '{host_cell}'"
-                        ),
-                    }
+            .zip(&host_reading.pressure_kpa)
+            .enumerate()
+        {
+            match (device_kpa, host_kpa) {
+                (Some(device_kpa), Some(host_kpa)) => {
+                    *worst_kpa =
+                        worst_kpa.max((f64::from(*device_kpa) - f64::from(*host_kpa)).abs());
+                    *compared += 1;
                 }
+                (None, None) => {}
+                _ => panic!(
+                    "pad {} set {} taxel {taxel}: device {device_kpa:?}, host {host_kpa:?}",
+                    device.pad, device.sequence
+                ),
             }
-            (compared, worst_kpa)
-        })
-        .collect()
+        }
+    }
+    differences
 }
 
 /// Through the binaries: `calibration push --pad 1` gives pad 1 a calibration of its own,
 /// `calibration pull --pad N` reads each pad's back, `record` keeps both pads' calibrations in
 /// the device state, and `convert` gives both pads' device pressures back. Converting with
-/// pad 0's calibration for both (what `convert` did before every pad's state was recorded) does
-/// not.
+/// pad 0's calibration for both pads does not: pad 1's pressures are then more than 1 kPa off.
 #[test]
 fn a_pad_with_its_own_calibration_is_recorded_and_converted_with_it() {
     let directory = tempfile::tempdir().unwrap();
@@ -172,13 +174,18 @@ fn a_pad_with_its_own_calibration_is_recorded_and_converted_with_it() {
         .arg(&recording));
     simulator.stop();
     assert!(output.status.success(), "{messages}");
-    let state = RecordedDeviceState::read(&directory.path().join("rec.csv.device.json")).unwrap();
+    let state_path = directory.path().join("rec.csv.dev0.device.json");
+    let state = RecordedDeviceState::read(&state_path).unwrap();
     assert_eq!(state.pad_count, 2);
     assert_eq!(state.calibration.id, sim_device::FACTORY_CALIBRATION_ID);
     assert_eq!(state.other_pads.len(), 1);
     let pad_1 = &state.other_pads[0];
     assert_eq!(pad_1.pad, 1);
     assert_eq!(pad_1.calibration.id, PAD_1_CALIBRATION_ID);
+    assert_eq!(
+        pad_1.calibration().unwrap(),
+        another_calibration(&pad_0_calibration)
+    );
     assert_eq!(pad_1.tier, state.tier);
     assert_eq!(pad_1.baselines.len(), 1);
     assert!(pad_1.baselines[0].taxels.iter().all(Option::is_some));
@@ -191,15 +198,14 @@ fn a_pad_with_its_own_calibration_is_recorded_and_converted_with_it() {
         .arg("-o")
         .arg(&converted));
     assert!(output.status.success(), "{messages}");
-    assert!(!messages.contains("may differ"), "{messages}");
     assert!(
-        messages.contains("with its own recorded calibration, tier, baselines"),
+        messages.contains(&format!(
+            "converting with the device state in {}",
+            state_path.display()
+        )),
         "{messages}"
     );
-    assert!(
-        messages.contains(&format!("calibration id {PAD_1_CALIBRATION_ID}")),
-        "{messages}"
-    );
+    assert!(!messages.contains("no recorded state"), "{messages}");
     let differences = pad_differences(&recording, &converted, 2);
     for (pad, (compared, worst_kpa)) in differences.iter().enumerate() {
         eprintln!("pad {pad}: {compared} pressures, largest difference {worst_kpa:e} kPa");
@@ -222,20 +228,25 @@ fn a_pad_with_its_own_calibration_is_recorded_and_converted_with_it() {
     assert!(differences[1].1 > 1.0, "{differences:?}");
 }
 
-/// In process: a simulated device of two pads, pad 1 with a calibration of its own, tared in
-/// the middle of a recording. Each pad's TareFinished brings that pad's new baselines into that
-/// pad's history (the ones the device reports for it afterwards), and the conversion gives both
-/// pads' device pressures, before and after the tare.
+/// In process, through the host library's recording pipeline (a `DeviceSession` following the
+/// device's state, the `Worker`, the `Recorder`): a simulated device of two pads, pad 1 with a
+/// calibration of its own, tared in the middle of a recording. Each pad's TareFinished brings
+/// that pad's new baselines into that pad's history (the ones the device reports for it
+/// afterwards), and the conversion gives both pads' device pressures, before and after the
+/// tare — which it does not without the tare's change in the history.
 #[test]
 fn a_tare_during_a_recording_lands_in_each_pads_own_history() {
     use std::sync::atomic::{AtomicBool, Ordering};
-    use std::sync::Arc;
 
     use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
     use taxel_host::device_link::open_serial;
-    use taxel_host::record::record_accounted;
-    use taxel_host::recording::Recording;
-    use taxel_host::stream_accounting::StreamAccounting;
+    use taxel_host::host_clock::UnixClock;
+    use taxel_host::recorder::{Recorder, RecordingPaths};
+    use taxel_host::worker::{EventQueue, Overflow, Worker, WorkerEvent};
+
+    /// Sets recorded before the tare, and in all.
+    const BEFORE_TARE: u64 = 60;
+    const SETS: u64 = 400;
 
     let directory = tempfile::tempdir().unwrap();
     let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
@@ -253,7 +264,7 @@ fn a_tare_during_a_recording_lands_in_each_pads_own_history() {
         let stop = Arc::clone(&device_stop);
         std::thread::spawn(move || device.run(&mut port, Some(60.0), &stop))
     };
-    let mut link = DeviceLink::new(open_serial(&path, Duration::from_millis(100)).unwrap().port);
+    let mut link = DeviceLink::new(open_serial(&path, Duration::from_millis(20)).unwrap().port);
     let timeout = Duration::from_secs(2);
     let (info, _) = link.synchronise(timeout).unwrap();
     assert_eq!(info.pad_count, 2);
@@ -267,54 +278,120 @@ fn a_tare_during_a_recording_lands_in_each_pads_own_history() {
         &mut |_| {},
     )
     .unwrap();
-    let state = read_device_state(&mut link, &info, timeout).unwrap();
-    assert_eq!(state.other_pads[0].calibration.id, PAD_1_CALIBRATION_ID);
+    let config = SessionConfig {
+        request_timeout: timeout,
+        follow_state: true,
+    };
+    let mut session = DeviceSession::open(link, config).unwrap();
+    assert_eq!(
+        session.state().unwrap().other_pads[0].calibration.id,
+        PAD_1_CALIBRATION_ID
+    );
     let csv_path = directory.path().join("tare.csv");
-    let (mut recording, _) = Recording::create_with_pads(&csv_path, None, 2).unwrap();
-    recording.set_device_state(state);
-    let mut accounting = StreamAccounting::new();
-    let stop = AtomicBool::new(false);
-    let flush = Duration::from_millis(200);
-    // The demo scene is still for its first 3 s: record 60 sets, tare, record 200 more.
-    record_accounted(
-        &mut link,
-        &mut recording,
-        &mut accounting,
-        &stop,
-        Some(60),
-        flush,
-        &mut |_| {},
+    let clock = UnixClock::new();
+    let mut recorder = Recorder::create(
+        RecordingPaths {
+            csv: Some(csv_path.clone()),
+            mcap: None,
+        },
+        1,
+        clock,
+        Some(SETS),
     )
     .unwrap();
-    link.send(WireCommand::Tare { sample_sets: 8 }).unwrap();
-    record_accounted(
-        &mut link,
-        &mut recording,
-        &mut accounting,
-        &stop,
-        Some(200),
-        flush,
-        &mut |_| {},
-    )
-    .unwrap();
-    let reported: Vec<_> = [pad(0), pad(1)]
-        .into_iter()
-        .map(|pad| pull_baselines(&mut link, pad, timeout).unwrap())
-        .collect();
+    session.link_mut().set_raw_log(recorder.raw_log(0).unwrap());
+    session.start().unwrap();
+    let queue = Arc::new(EventQueue::new(100_000, Overflow::Wait));
+    let worker = Worker::start(vec![session], Arc::clone(&queue), Arc::new(clock)).unwrap();
+    // The demo scene is still for its first 3 s, then presses taxel C11: record 60 sets, tare
+    // (still), record 340 more (pressed at the end, where the tare's baselines matter).
+    let mut tare_reply = None;
+    let mut tares_finished = Vec::new();
+    let mut baseline_events = Vec::new();
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !recorder.is_complete() || tares_finished.len() < 2 {
+        assert!(Instant::now() < deadline, "{:?}", recorder.sets_taken());
+        let Some(arrived) = queue.pop_until(Instant::now() + Duration::from_millis(100)) else {
+            continue;
+        };
+        match &arrived.event {
+            WorkerEvent::Session(SessionEvent::Device(EventFrame {
+                event: DeviceEvent::TareFinished { pad, .. },
+                ..
+            })) if tare_reply.is_some() => tares_finished.push(*pad),
+            WorkerEvent::Session(SessionEvent::Baselines { pad, change }) => {
+                baseline_events.push((*pad, change.clone()));
+            }
+            WorkerEvent::Session(SessionEvent::BaselinesUnread { pad, reason }) => {
+                panic!("pad {}: {reason}", pad.get())
+            }
+            WorkerEvent::Ended(end) => panic!("the device ended: {:?}", end.reason),
+            _ => {}
+        }
+        recorder.take(arrived).unwrap();
+        if tare_reply.is_none() && recorder.sets_taken()[0] >= BEFORE_TARE {
+            tare_reply = Some(
+                worker
+                    .send(0, WireCommand::Tare { sample_sets: 8 }, timeout)
+                    .unwrap(),
+            );
+        }
+    }
+    assert!(matches!(
+        tare_reply.unwrap().recv().unwrap(),
+        Ok(ReplyPayload::Ack)
+    ));
+    tares_finished.sort_unstable();
+    assert_eq!(tares_finished, [pad(0), pad(1)]);
+    let reported: Vec<_> = worker
+        .run(0, move |session| {
+            [pad(0), pad(1)].map(|pad| pull_baselines(session.link_mut(), pad, timeout).unwrap())
+        })
+        .unwrap()
+        .recv()
+        .unwrap()
+        .to_vec();
+    for mut session in worker.finish().into_iter().flatten() {
+        if let Some(mut raw) = session.link_mut().take_raw_log() {
+            raw.flush().unwrap();
+        }
+    }
+    for arrived in queue.drain() {
+        recorder.take(arrived).unwrap();
+    }
     device_stop.store(true, Ordering::Relaxed);
     device_thread.join().unwrap();
-    let files = recording.finish(None).unwrap();
-    let state = RecordedDeviceState::read(&files.device_state.unwrap()).unwrap();
-    for (pad, reported) in (0u8..).zip(&reported) {
-        let history = state.pad_state(pad).unwrap().baselines;
+    let summary = recorder.finish().unwrap();
+    assert_eq!(summary.devices[0].sets, SETS);
+    let rows = read_rows(&csv_path);
+    assert_eq!(rows.len() as u64, 2 * SETS);
+    // The set the tare was asked after: the 60th recorded.
+    let asked_after = rows
+        .iter()
+        .filter(|row| row.pad == 0)
+        .nth(BEFORE_TARE as usize - 1)
+        .unwrap()
+        .sequence;
+    let state_path = directory.path().join("tare.csv.dev0.device.json");
+    let state = RecordedDeviceState::read(&state_path).unwrap();
+    for (pad_index, reported) in (0u8..).zip(&reported) {
+        let history = state.pad_state(pad_index).unwrap().baselines;
         // The recording may start before the boot tare ends (then that tare is a change too);
         // the commanded tare is the last change, after set 60.
-        assert!(history.len() >= 2, "pad {pad}: {history:?}");
+        assert!(history.len() >= 2, "pad {pad_index}: {history:?}");
         let last = &history[history.len() - 1];
         let before = &history[history.len() - 2];
-        assert!(last.from_sequence > before.from_sequence, "pad {pad}");
-        assert_ne!(last.taxels, before.taxels, "pad {pad}");
-        assert_eq!(&last.taxels, reported, "pad {pad}");
+        assert!(last.from_sequence > before.from_sequence, "pad {pad_index}");
+        assert!(last.from_sequence > asked_after, "pad {pad_index}");
+        assert_ne!(last.taxels, before.taxels, "pad {pad_index}");
+        assert_eq!(&last.taxels, reported, "pad {pad_index}");
+        // The change the session reported for this pad, and for no other.
+        let events: Vec<&BaselineChange> = baseline_events
+            .iter()
+            .filter(|(pad, _)| pad.get() == pad_index)
+            .map(|(_, change)| change)
+            .collect();
+        assert_eq!(events.last().copied(), Some(last), "pad {pad_index}");
     }
 
     let converted = directory.path().join("converted.csv");
@@ -329,25 +406,55 @@ fn a_tare_during_a_recording_lands_in_each_pads_own_history() {
         assert!(*compared > 4 * 180, "pad {pad}: {compared} compared");
         assert!(*worst_kpa <= AGREEMENT_KPA, "pad {pad}: {worst_kpa} kPa");
     }
+
+    // Without the tare's change in the history, the pressed sets after it are not the
+    // device's: the test can tell.
+    let without_tare = directory.path().join("without-tare.csv");
+    std::fs::copy(&csv_path, &without_tare).unwrap();
+    let mut truncated = state.clone();
+    truncated.baselines.pop();
+    for other in &mut truncated.other_pads {
+        other.baselines.pop();
+    }
+    truncated
+        .write(&directory.path().join("without-tare.csv.dev0.device.json"))
+        .unwrap();
+    let converted = directory.path().join("converted-without-tare.csv");
+    let (output, messages) = run(taxel()
+        .arg("convert")
+        .arg(&without_tare)
+        .arg("-o")
+        .arg(&converted));
+    assert!(output.status.success(), "{messages}");
+    let differences = pad_differences(&without_tare, &converted, 2);
+    assert!(
+        differences
+            .iter()
+            .all(|(_, worst_kpa)| *worst_kpa > AGREEMENT_KPA),
+        "{differences:?}"
+    );
 }
 
-/// A baseline record whose capacitance tells the pad and taxel apart.
-fn baseline(pad: u8, taxel: u8) -> BaselineRecord {
+/// A baseline record whose capacitance tells the pad, the taxel and the tare apart.
+fn baseline(pad: u8, taxel: u8, tare: u8) -> BaselineRecord {
     device::baseline_record(&wire::BaselineWire {
         offset_pf: 4.0 + f32::from(pad),
-        fine_pf: 0.1 * f32::from(taxel),
+        fine_pf: 0.1 * f32::from(taxel) + 0.01 * f32::from(tare),
         temperature_c: 25.0,
     })
 }
 
-/// Answers what `read_device_state` and the baseline follower ask of a device of two pads:
-/// pad 1 with calibration id 9, set by the host, tier linear.
+/// Answers what a session following the state asks of a device of two pads: its Info, every
+/// pad's calibration and PadInfo (pad 1 with calibration id 9, set by the host, tier linear),
+/// and baselines — each pad's own, a new one after each time its four taxels were read.
 fn two_pad_device() -> FakeDevice {
     let mut spec = Calibration::default().to_spec();
     spec.id = 9;
     let pad_1_calibration = Calibration::new(&spec).unwrap();
+    let mut baseline_reads = [0u32; 2];
     FakeDevice::new(Box::new(move |request| {
         let payload = match request.command {
+            WireCommand::Info => ReplyPayload::Info(info(2)),
             WireCommand::ReadCalibration { pad, taxel_index } => {
                 let calibration = if pad.get() == 1 {
                     pad_1_calibration.clone()
@@ -359,10 +466,17 @@ fn two_pad_device() -> FakeDevice {
                 )
             }
             WireCommand::ReadBaseline { pad, taxel_index } => {
+                let reads = &mut baseline_reads[usize::from(pad.get())];
+                let tare = (*reads / TAXEL_COUNT as u32) as u8;
+                *reads += 1;
                 ReplyPayload::Baseline(TaxelBaselineWire {
                     pad,
                     taxel_index,
-                    baseline: Some(device::baseline_wire(&baseline(pad.get(), taxel_index))),
+                    baseline: Some(device::baseline_wire(&baseline(
+                        pad.get(),
+                        taxel_index,
+                        tare,
+                    ))),
                 })
             }
             WireCommand::PadInfo { pad } => ReplyPayload::PadInfo(PadInfoFrame {
@@ -382,122 +496,186 @@ fn two_pad_device() -> FakeDevice {
     }))
 }
 
-/// Collects the baseline changes given to it, with their pads.
-#[derive(Default)]
-struct ChangeLog(Vec<(PadIndex, BaselineChange)>);
-
-impl SampleSink for ChangeLog {
-    fn write_sample(&mut self, _: &SampleFrame) -> anyhow::Result<()> {
-        Ok(())
+/// The session's events until nothing more comes.
+fn events(session: &mut DeviceSession<FakeDevice>) -> Vec<SessionEvent> {
+    let mut events = Vec::new();
+    while let Some(event) = session
+        .next_event(Instant::now() + Duration::from_millis(50))
+        .unwrap()
+    {
+        events.push(event);
     }
-
-    fn flush(&mut self) -> anyhow::Result<()> {
-        Ok(())
-    }
-
-    fn baselines_changed(&mut self, pad: PadIndex, change: BaselineChange) {
-        self.0.push((pad, change));
-    }
+    events
 }
 
-/// The requests per pad: PadInfo for the pads after pad 0, and each pad's calibration and
-/// baselines; a TareFinished of pad 1 reads pad 1's baselines, which apply from pad 1's next
-/// frame (not pad 0's).
+fn baseline_changes(events: &[SessionEvent]) -> Vec<(PadIndex, BaselineChange)> {
+    events
+        .iter()
+        .filter_map(|event| match event {
+            SessionEvent::Baselines { pad, change } => Some((*pad, change.clone())),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The requests per pad, through the one stream loop (`DeviceSession` following the state):
+/// PadInfo for the pads after pad 0, and each pad's calibration and baselines; a TareFinished
+/// of pad 1 reads pad 1's baselines, which apply from pad 1's next frame (not pad 0's), once,
+/// in pad 1's history only.
 #[test]
 fn every_pads_state_is_read_and_a_tare_is_followed_on_its_own_pad() {
-    let mut link = DeviceLink::new(two_pad_device());
-    let timeout = Duration::from_secs(2);
-    let state = read_device_state(&mut link, &info(2), timeout).unwrap();
+    let link = DeviceLink::new(two_pad_device());
+    let config = SessionConfig {
+        request_timeout: Duration::from_secs(2),
+        follow_state: true,
+    };
+    let mut session = DeviceSession::open(link, config).unwrap();
+    let state = session.state().unwrap().clone();
     assert_eq!(state.calibration.id, 0);
     assert_eq!(state.tier, "monotone-cubic");
     let pad_1 = state.pad_state(1).unwrap();
     assert_eq!(pad_1.calibration.id, 9);
     assert_eq!(pad_1.tier, "linear");
+    let first_baselines = |pad: u8| -> [Option<BaselineRecord>; TAXEL_COUNT] {
+        std::array::from_fn(|taxel| Some(baseline(pad, taxel as u8, 0)))
+    };
     for pad in 0..2u8 {
-        let expected: [Option<BaselineRecord>; TAXEL_COUNT] =
-            std::array::from_fn(|taxel| Some(baseline(pad, taxel as u8)));
         assert_eq!(
             state.pad_state(pad).unwrap().baselines,
             [BaselineChange {
                 from_sequence: 0,
-                taxels: expected
+                taxels: first_baselines(pad)
             }]
         );
     }
+    session.start().unwrap();
 
-    let mut follower = BaselineFollower::default();
-    let event = EventFrame {
-        timestamp_us: 5,
-        event: DeviceEvent::TareFinished {
-            pad: pad(1),
-            tared_mask: 0b1111,
-        },
-    };
-    follower.on_event(&mut link, &event, timeout).unwrap();
-    let requests: Vec<WireCommand> = link
-        .port()
-        .requests
+    let requests_before = session.link_mut().port().requests.len();
+    session
+        .link_mut()
+        .port_mut()
+        .send(&DeviceFrame::Event(EventFrame {
+            timestamp_us: 5,
+            event: DeviceEvent::TareFinished {
+                pad: pad(1),
+                tared_mask: 0b1111,
+            },
+        }));
+    let seen = events(&mut session);
+    assert!(
+        matches!(
+            seen.as_slice(),
+            [SessionEvent::Device(EventFrame {
+                event: DeviceEvent::TareFinished { .. },
+                ..
+            })]
+        ),
+        "{seen:?}"
+    );
+    let after_event: Vec<WireCommand> = session.link_mut().port().requests[requests_before..]
         .iter()
         .map(|request| request.command.clone())
         .collect();
-    let after_event = &requests[requests.len() - TAXEL_COUNT..];
+    assert_eq!(after_event.len(), TAXEL_COUNT, "{after_event:?}");
     assert!(after_event.iter().all(|command| matches!(
         command,
         WireCommand::ReadBaseline { pad, .. } if pad.get() == 1
     )));
-    let mut log = ChangeLog::default();
+
+    // Pad 0's frame of set 7 takes no pad 1 baselines; pad 1's does.
     let mut frame = support::sample(7, 70, [(Some(0.0), 4.5, 0); 4]);
-    follower.before_sample(&mut log, &frame);
-    assert!(log.0.is_empty(), "pad 0's frame takes no pad 1 baselines");
+    session
+        .link_mut()
+        .port_mut()
+        .send(&DeviceFrame::Sample(frame));
+    assert!(baseline_changes(&events(&mut session)).is_empty());
     frame.pad = pad(1);
-    follower.before_sample(&mut log, &frame);
-    follower.before_sample(&mut log, &frame);
-    assert_eq!(log.0.len(), 1);
-    let (changed_pad, change) = &log.0[0];
-    assert_eq!(*changed_pad, pad(1));
-    assert_eq!(change.from_sequence, 7);
-    assert_eq!(change.taxels[2], Some(baseline(1, 2)));
+    session
+        .link_mut()
+        .port_mut()
+        .send(&DeviceFrame::Sample(frame));
+    let changes = baseline_changes(&events(&mut session));
+    let expected = BaselineChange {
+        from_sequence: 7,
+        taxels: std::array::from_fn(|taxel| Some(baseline(1, taxel as u8, 1))),
+    };
+    assert_eq!(changes, [(pad(1), expected.clone())]);
+    // Once: the next set takes none.
+    for pad_index in 0..2 {
+        let mut next = support::sample(8, 80, [(Some(0.0), 4.5, 0); 4]);
+        next.pad = pad(pad_index);
+        session
+            .link_mut()
+            .port_mut()
+            .send(&DeviceFrame::Sample(next));
+    }
+    assert!(baseline_changes(&events(&mut session)).is_empty());
+    let state = session.state().unwrap();
+    assert_eq!(
+        state.pad_state(0).unwrap().baselines,
+        [BaselineChange {
+            from_sequence: 0,
+            taxels: first_baselines(0)
+        }],
+        "pad 0's history is untouched"
+    );
+    assert_eq!(
+        state.pad_state(1).unwrap().baselines,
+        [
+            BaselineChange {
+                from_sequence: 0,
+                taxels: first_baselines(1)
+            },
+            expected
+        ]
+    );
 }
 
-/// A device-state file of two pads as `taxel record` wrote it before every pad's state was
-/// recorded (pad 0's state and `pad_count`, no `other_pads`): it still converts, with pad 0's
-/// calibration and tare for pad 1, and says pad 1's pressures may differ from the device's.
+/// A device-state file that describes pad 0 only (`pad_count` 2 and no `other_pads`, as
+/// `taxel record` wrote before every pad's state was recorded) beside a recording of two pads:
+/// it converts, pad 0 with its recorded calibration, pad 1 (which has no recorded state) with
+/// the built-in one and a tare on its first row, and stderr names pad 1 as converted without
+/// a state of its own.
 #[test]
-fn an_older_device_state_of_two_pads_converts_with_pad_0s_state_and_says_so() {
+fn a_pad_without_a_recorded_state_converts_with_the_defaults_and_says_so() {
     let directory = tempfile::tempdir().unwrap();
-    let csv_path = directory.path().join("old.csv");
-    let pad_columns = |pad: usize| {
-        ["time_s", "temp_c", "c11_pf", "c12_pf", "c21_pf", "c22_pf"]
-            .map(|name| format!("pad{pad}_{name}"))
-            .join(",")
-    };
-    let mut text = format!("seq,{},{}\n", pad_columns(0), pad_columns(1));
-    for sequence in 0..5 {
+    let csv_path = directory.path().join("rec.csv");
+    let mut writer = RowWriter::new(std::fs::File::create(&csv_path).unwrap()).unwrap();
+    for sequence in 0..5u32 {
+        // Unloaded on the first set, then dC/C0 = 0.0829: 10 kPa on the article's curve.
         let capacitance_pf = if sequence == 0 { 4.5 } else { 4.87305 };
-        text.push_str(&format!(
-            "{sequence},0.{sequence},25,{c},4.5,4.5,4.5,0.{sequence},25,{c},4.5,4.5,4.5\n",
-            c = capacitance_pf
-        ));
+        for pad in 0..2u8 {
+            writer
+                .write(&PadRow {
+                    host_time_us: 1_700_000_000_000_000 + u64::from(sequence) * 10_000,
+                    device: 0,
+                    pad,
+                    sequence,
+                    sync_error_us: Some(500),
+                    reading: Some(PadReading {
+                        device_time_us: 100_000 * u64::from(sequence),
+                        temperature_c: Some(25.0),
+                        temperature_source: TemperatureSource::Tmp117,
+                        capacitance_pf: [Some(capacitance_pf), Some(4.5), Some(4.5), Some(4.5)],
+                        pressure_kpa: [None; TAXEL_COUNT],
+                        flags: [TaxelFlags::empty(); TAXEL_COUNT],
+                        force_n: None,
+                        centre_of_pressure_mm: None,
+                        partial: false,
+                        contact: false,
+                    }),
+                    marker: String::new(),
+                })
+                .unwrap();
+        }
     }
-    std::fs::write(&csv_path, text).unwrap();
-    let old_state = serde_json::json!({
-        "format": "taxel-recording-device-state",
-        "version": 1,
-        "firmware": "3.0.0",
-        "protocol_version": 3,
-        "board_serial": "070707070707070707070707",
-        "calibration_source": "built-in defaults",
-        "tier": "monotone-cubic",
-        "converter_rate_sps": 400,
-        "calibration": Calibration::default().to_spec(),
-        "baselines": [],
-        "pad_count": 2
-    });
-    std::fs::write(
-        directory.path().join("old.csv.device.json"),
-        serde_json::to_string_pretty(&old_state).unwrap(),
-    )
-    .unwrap();
+    writer.into_inner().flush().unwrap();
+    // Pad 0's state only, with a calibration of its own (20 % lower pressures).
+    let state = RecordedDeviceState::new(&info(2), &another_calibration(&Calibration::default()));
+    assert_eq!(state.pads_without_state(), [1]);
+    state
+        .write(&directory.path().join("rec.csv.dev0.device.json"))
+        .unwrap();
     let converted = directory.path().join("converted.csv");
     let (output, messages) = run(taxel()
         .arg("convert")
@@ -505,19 +683,21 @@ fn an_older_device_state_of_two_pads_converts_with_pad_0s_state_and_says_so() {
         .arg("-o")
         .arg(&converted));
     assert_eq!(output.status.code(), Some(0), "{messages}");
-    assert!(messages.contains("for each of the 2 pads"), "{messages}");
     assert!(
-        messages.contains(
-            "pad 0's calibration, tier and baselines are used for pad 1, whose pressures may differ from the device's"
-        ),
+        messages.contains("device 0 pad 1 had no recorded state"),
         "{messages}"
     );
-    let (header, rows) = read_rows(&converted);
-    let column = |name: &str| header.iter().position(|cell| cell == name).unwrap();
-    assert_eq!(rows.len(), 5);
-    for row in &rows[1..] {
-        let pad_0: f64 = row[column("pad0_p11_kpa")].parse().unwrap();
-        assert!((pad_0 - 10.0).abs() < 0.01, "{pad_0}");
-        assert_eq!(row[column("pad1_p11_kpa")], row[column("pad0_p11_kpa")]);
+    assert!(!messages.contains("pad 0 had"), "{messages}");
+    let rows = read_rows(&converted);
+    assert_eq!(rows.len(), 10);
+    for row in rows.iter().filter(|row| row.sequence > 0) {
+        let kpa = row.reading.unwrap().pressure_kpa[0].unwrap();
+        let expected = if row.pad == 0 { 8.0 } else { 10.0 };
+        assert!(
+            (kpa - expected).abs() < 0.01,
+            "pad {} set {}: {kpa} kPa, not {expected}",
+            row.pad,
+            row.sequence
+        );
     }
 }

@@ -1,20 +1,26 @@
-//! `taxel record --format mcap` of a simulated two-pad device: the file opens with the MCAP
-//! library's reader, has the ROS 2 profile, one channel per pad topic with the standard type's
-//! schema, consecutive sample-set sequence numbers, stamps no later than arrival, and pressures
-//! (read from the CDR bytes by their layout, not with this workspace's encoder) equal to the
-//! scene's plateau.
+//! `taxel record --mcap` of a simulated two-pad device: the file opens with the MCAP library's
+//! reader, has the ROS 2 profile, one channel per pad topic with the standard type's schema,
+//! exactly `--samples` sets of every pad with consecutive sequence numbers, stamps (the header's
+//! and the message's publish time alike) never later than arrival and equal to the CSV's
+//! `host_time_s` of the same set (one stamping policy for both files), and pressures (read
+//! from the CDR bytes by their layout, not with this workspace's encoder) equal to the scene's
+//! plateau.
 
 // Test helpers may unwrap and panic: a failure is the test failing.
 #![allow(clippy::unwrap_used, clippy::panic)]
 
 mod support;
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::process::Command;
 
 use support::SimulatorProcess;
+use taxel_host::schema::RowReader;
 
 const PLATEAU_KPA: [[f32; 4]; 2] = [[10.0, 20.0, 30.0, 40.0], [5.0, 15.0, 25.0, 35.0]];
+
+/// Sample sets recorded.
+const SETS: usize = 500;
 
 fn scene() -> String {
     let mut text = String::from("name = \"plateau\"\nrepeat = false\n");
@@ -44,6 +50,14 @@ fn pressures_kpa(cdr: &[u8]) -> [f32; 4] {
     })
 }
 
+/// The header stamp of a message that starts with a `std_msgs/Header` (after the 4-byte CDR
+/// encapsulation: `sec` as i32, `nanosec` as u32, little-endian), ns since the Unix epoch.
+fn header_stamp_ns(cdr: &[u8]) -> u64 {
+    let sec = i32::from_le_bytes(cdr[4..8].try_into().unwrap());
+    let nanosec = u32::from_le_bytes(cdr[8..12].try_into().unwrap());
+    u64::try_from(sec).unwrap() * 1_000_000_000 + u64::from(nanosec)
+}
+
 #[test]
 fn an_mcap_recording_holds_every_pads_messages_as_ros_2_types() {
     let directory = tempfile::tempdir().unwrap();
@@ -55,23 +69,36 @@ fn an_mcap_recording_holds_every_pads_messages_as_ros_2_types() {
         &["--speed", "4", "--scene", scene_path.to_str().unwrap()],
     );
     let recording = directory.path().join("rec.mcap");
+    let csv = directory.path().join("rec.csv");
     let output = Command::new(support::taxel_binary())
-        .args([
-            "record",
-            &simulator.port,
-            "--format",
-            "mcap",
-            "--samples",
-            "500",
-            "-o",
-        ])
+        .args(["record", &simulator.port, "--samples", &SETS.to_string()])
+        .arg("--mcap")
         .arg(&recording)
+        .arg("-o")
+        .arg(&csv)
         .output()
         .unwrap();
     simulator.stop();
     let messages = String::from_utf8_lossy(&output.stderr).into_owned();
     assert!(output.status.success(), "{messages}");
+
+    // The CSV written with it: (pad, seq) -> host_time_s in µs.
+    let mut csv_stamps_us: HashMap<(u8, u32), u64> = HashMap::new();
+    let mut reader =
+        RowReader::new(std::io::BufReader::new(std::fs::File::open(&csv).unwrap())).unwrap();
+    while let Some(row) = reader.next_row() {
+        let row = row.unwrap();
+        assert_eq!(row.device, 0);
+        csv_stamps_us.insert((row.pad, row.sequence), row.host_time_us);
+    }
+    assert_eq!(csv_stamps_us.len(), 2 * SETS);
+
     let bytes = std::fs::read(&recording).unwrap();
+    let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+    assert_eq!(summary.stats.unwrap().message_count, {
+        // A cloud and a wrench per pad per set, and one contact start per pad.
+        2 * 2 * SETS as u64 + 2
+    });
     let mut topics: BTreeMap<String, Vec<mcap::Message>> = BTreeMap::new();
     for message in mcap::MessageStream::new(&bytes).unwrap() {
         let message = message.unwrap();
@@ -89,6 +116,12 @@ fn an_mcap_recording_holds_every_pads_messages_as_ros_2_types() {
             message.publish_time <= message.log_time,
             "stamped after its arrival"
         );
+        assert_eq!(
+            header_stamp_ns(&message.data),
+            message.publish_time,
+            "{}: the header's stamp is the publish time",
+            message.channel.topic
+        );
         topics
             .entry(message.channel.topic.clone())
             .or_default()
@@ -98,7 +131,8 @@ fn an_mcap_recording_holds_every_pads_messages_as_ros_2_types() {
         let base = format!("/taxel/device0/pad{pad}");
         let clouds = &topics[&format!("{base}/pressure")];
         let wrenches = &topics[&format!("{base}/wrench")];
-        assert!(clouds.len().abs_diff(500) <= 1, "{base}: {}", clouds.len());
+        // --samples N: N sets of every pad, in the MCAP file as in the CSV.
+        assert_eq!(clouds.len(), SETS, "{base}");
         let sequences: Vec<u32> = clouds.iter().map(|message| message.sequence).collect();
         assert!(
             sequences.windows(2).all(|pair| pair[1] == pair[0] + 1),
@@ -111,6 +145,15 @@ fn an_mcap_recording_holds_every_pads_messages_as_ros_2_types() {
                 .collect::<Vec<_>>(),
             sequences
         );
+        for message in clouds.iter().chain(wrenches) {
+            let csv_us = csv_stamps_us[&(pad as u8, message.sequence)];
+            assert_eq!(
+                message.publish_time,
+                csv_us * 1_000,
+                "{base} set {}: the MCAP and CSV stamps differ",
+                message.sequence
+            );
+        }
         let first = sequences[0];
         let steady: Vec<_> = clouds
             .iter()

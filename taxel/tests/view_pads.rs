@@ -9,11 +9,9 @@
 mod support;
 use support::info;
 
-use std::time::{Duration, Instant};
-
 use taxel::layout::{Layout, LayoutProblem};
 use taxel::view::{render_to_string, PadFreshness, ViewState, CENTRE_MARKER};
-use wire::{DeviceFrame, PadIndex, PadSummary, SampleFrame, TaxelSample, TemperatureSource};
+use wire::{PadIndex, PadSummary, SampleFrame, TaxelSample, TemperatureSource};
 
 /// SHORTED: a fault (the taxel has no pressure).
 const SHORTED: u16 = 0x0004;
@@ -45,8 +43,8 @@ impl PadReading {
     }
 }
 
-fn frame(pad: u8, sequence: u32, reading: PadReading) -> DeviceFrame {
-    DeviceFrame::Sample(SampleFrame {
+fn frame(pad: u8, sequence: u32, reading: PadReading) -> SampleFrame {
+    SampleFrame {
         pad: PadIndex::new(pad).unwrap(),
         sequence,
         // 10 ms sets, the pads of one set 300 µs apart.
@@ -64,7 +62,7 @@ fn frame(pad: u8, sequence: u32, reading: PadReading) -> DeviceFrame {
             partial: reading.pressures_kpa.iter().any(Option::is_none),
             contact: reading.contact,
         },
-    })
+    }
 }
 
 fn state_on_device(pad_count: u8, layout: Option<Layout>) -> ViewState {
@@ -131,8 +129,8 @@ fn gripper_state() -> ViewState {
         contact: false,
     };
     for sequence in 1..=3 {
-        state.apply_frame(&frame(0, sequence, left));
-        state.apply_frame(&frame(1, sequence, right));
+        state.apply_sample(&frame(0, sequence, left), 0);
+        state.apply_sample(&frame(1, sequence, right), 0);
     }
     state
 }
@@ -195,8 +193,8 @@ fn a_faulted_taxel_never_shows_a_pressure() {
         centre_mm: None,
         contact: false,
     };
-    state.apply_frame(&frame(0, 1, faulted));
-    state.apply_frame(&frame(1, 1, PadReading::even(0.0)));
+    state.apply_sample(&frame(0, 1, faulted), 0);
+    state.apply_sample(&frame(1, 1, PadReading::even(0.0)), 0);
     let text = render_to_string(&state, 160, 48);
     println!("{text}");
     // Pad 0 has three taxels at 0.0 kPa and C11 faulted; pad 1 has four at 0.0 kPa.
@@ -218,7 +216,7 @@ fn the_glove_places_a_right_hand_seen_from_the_palm() {
         let mut reading = PadReading::even(5.0 * f32::from(pad + 1));
         reading.force_n = Some(f32::from(pad) + 0.25);
         reading.contact = pad == 1;
-        state.apply_frame(&frame(pad, 1, reading));
+        state.apply_sample(&frame(pad, 1, reading), 0);
     }
     for (width, height) in [(80, 24), (160, 48)] {
         let text = render_to_string(&state, width, height);
@@ -274,7 +272,7 @@ fn eight_pads_fit_80x24_and_40x12() {
             reading.pressures_kpa[2] = None;
             reading.flags[2] = SHORTED;
         }
-        state.apply_frame(&frame(pad, 1, reading));
+        state.apply_sample(&frame(pad, 1, reading), 0);
     }
     assert!(state.shows_every_pad());
     let text = render_to_string(&state, 80, 24);
@@ -308,19 +306,20 @@ fn eight_pads_fit_80x24_and_40x12() {
 
 #[test]
 fn a_pad_whose_frames_stop_is_stale_and_its_last_values_hidden() {
-    let start = Instant::now();
+    // Arrivals in µs on the host clock.
+    let start = 5_000_000u64;
     let mut state = state_on_device(2, Some(gripper()));
     let mut right = PadReading::even(20.0);
     right.force_n = Some(3.33);
     right.contact = true;
-    state.apply_frame_at(&frame(0, 1, PadReading::even(1.0)), start);
-    state.apply_frame_at(&frame(1, 1, right), start);
+    state.apply_sample(&frame(0, 1, PadReading::even(1.0)), start);
+    state.apply_sample(&frame(1, 1, right), start);
     assert_eq!(state.pad_freshness(1), PadFreshness::Live);
     assert!(render_to_string(&state, 100, 30).contains("3.33 N"));
     // The right finger is unplugged: the device goes on sending the left finger for 1 s.
     for sequence in 2..=101 {
-        let at = start + Duration::from_millis(10 * u64::from(sequence - 1));
-        state.apply_frame_at(&frame(0, sequence, PadReading::even(1.0)), at);
+        let at = start + 10_000 * u64::from(sequence - 1);
+        state.apply_sample(&frame(0, sequence, PadReading::even(1.0)), at);
     }
     assert!(matches!(state.pad_freshness(1), PadFreshness::Stale { age_s } if age_s > 0.9));
     assert_eq!(state.pad_freshness(0), PadFreshness::Live);
@@ -343,7 +342,7 @@ fn a_pad_whose_frames_stop_is_stale_and_its_last_values_hidden() {
         );
     }
     // Nothing at all for 0.6 s on the host clock: the device stalled; every pad is stale.
-    state.refresh(start + Duration::from_millis(1600));
+    state.refresh(start + 1_600_000);
     assert!(
         matches!(state.pad_freshness(0), PadFreshness::Stale { age_s } if (age_s - 0.6).abs() < 1e-6)
     );
@@ -351,7 +350,7 @@ fn a_pad_whose_frames_stop_is_stale_and_its_last_values_hidden() {
     assert_eq!(text.matches("STALE").count(), 2, "{text}");
     assert!(!text.contains("0.10 N"), "{text}");
     // It comes back.
-    state.apply_frame_at(&frame(1, 170, right), start + Duration::from_millis(1700));
+    state.apply_sample(&frame(1, 170, right), start + 1_700_000);
     assert_eq!(state.pad_freshness(1), PadFreshness::Live);
     assert!(render_to_string(&state, 100, 30).contains("3.33 N"));
 }
@@ -359,8 +358,8 @@ fn a_pad_whose_frames_stop_is_stale_and_its_last_values_hidden() {
 #[test]
 fn a_disconnected_device_shows_every_pad_stale_and_a_silent_pad_as_no_data() {
     let mut state = state_on_device(3, None);
-    state.apply_frame(&frame(0, 1, PadReading::even(1.0)));
-    state.apply_frame(&frame(1, 1, PadReading::even(1.0)));
+    state.apply_sample(&frame(0, 1, PadReading::even(1.0)), 0);
+    state.apply_sample(&frame(1, 1, PadReading::even(1.0)), 0);
     let text = render_to_string(&state, 100, 30);
     println!("{text}");
     assert!(
@@ -379,8 +378,8 @@ fn a_disconnected_device_shows_every_pad_stale_and_a_silent_pad_as_no_data() {
 fn a_layout_naming_pads_the_device_lacks_marks_them_and_unnamed_pads_are_added() {
     // The glove on a two-pad device: thumb and index live, the rest not on this device.
     let mut state = state_on_device(2, Some(glove()));
-    state.apply_frame(&frame(0, 1, PadReading::even(1.0)));
-    state.apply_frame(&frame(1, 1, PadReading::even(2.0)));
+    state.apply_sample(&frame(0, 1, PadReading::even(1.0)), 0);
+    state.apply_sample(&frame(1, 1, PadReading::even(2.0)), 0);
     let text = render_to_string(&state, 100, 30);
     println!("{text}");
     assert_eq!(text.matches("not on this device").count(), 5, "{text}");
@@ -398,7 +397,7 @@ fn a_layout_naming_pads_the_device_lacks_marks_them_and_unnamed_pads_are_added()
     for pad in 0..4 {
         let mut reading = PadReading::even(1.0);
         reading.force_n = Some(f32::from(pad) + 0.75);
-        state.apply_frame(&frame(pad, 1, reading));
+        state.apply_sample(&frame(pad, 1, reading), 0);
     }
     let text = render_to_string(&state, 100, 30);
     println!("{text}");
@@ -414,7 +413,7 @@ fn a_layout_naming_pads_the_device_lacks_marks_them_and_unnamed_pads_are_added()
 
     // A one-pad device with a layout gets the tiles too: the layout asked for them.
     let mut state = state_on_device(1, Some(gripper()));
-    state.apply_frame(&frame(0, 1, PadReading::even(1.0)));
+    state.apply_sample(&frame(0, 1, PadReading::even(1.0)), 0);
     let text = render_to_string(&state, 80, 24);
     assert!(
         text.contains("left finger") && text.contains("not on this device"),
@@ -447,7 +446,7 @@ fn one_pad_of_several_in_the_detailed_view() {
     assert!(render_to_string(&state, 100, 30).contains("left finger"));
     // A single-pad device without a layout keeps today's view.
     let mut single = state_on_device(1, None);
-    single.apply_frame(&frame(0, 1, PadReading::even(12.5)));
+    single.apply_sample(&frame(0, 1, PadReading::even(12.5)), 0);
     assert!(!single.shows_every_pad());
     let text = render_to_string(&single, 80, 24);
     assert!(

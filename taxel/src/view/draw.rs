@@ -1,8 +1,12 @@
-//! Drawing the view: three layouts chosen by the terminal's size, every number with its unit.
+//! Drawing one device's view: three layouts chosen by the terminal's size, every number with
+//! its unit.
 //!
-//! - wide (at least [`WIDE_WIDTH`] x [`WIDE_HEIGHT`]): the 2x2 heat map and its colour scale on
-//!   the left, each taxel's pressure over the last seconds on the right;
-//! - normal (at least 80 x 24): the heat map, the colour scale, the time series below it;
+//! - side by side (at least [`WIDE_WIDTH`] x [`WIDE_HEIGHT`], and from 80 x 24 whenever the
+//!   time series below the heat map would get fewer than [`CHART_MIN_ROWS`] rows): the 2x2
+//!   heat map and its colour scale on the left, each taxel's pressure over the last seconds on
+//!   the right, as tall as the heat map (16 rows at 80 x 24);
+//! - stacked (at least 80 x 24 with room): the heat map, the colour scale, the time series
+//!   below it;
 //! - compact (at least [`MIN_WIDTH`] x [`MIN_HEIGHT`]): one line per taxel with its pressure,
 //!   flags and faults, for small terminals;
 //! - smaller than that: a notice saying how much room the view needs.
@@ -14,7 +18,9 @@ use ratatui::layout::{Alignment, Constraint, Layout, Rect};
 use ratatui::style::{Color, Modifier, Style};
 use ratatui::symbols::Marker;
 use ratatui::text::{Line, Span};
-use ratatui::widgets::{Axis, Block, Borders, Chart, Dataset, GraphType, Paragraph, Wrap};
+use ratatui::widgets::{
+    Axis, Block, Borders, Chart, Dataset, GraphType, LegendPosition, Paragraph, Wrap,
+};
 use ratatui::Frame;
 use wire::TaxelSample;
 
@@ -30,6 +36,12 @@ pub const MIN_HEIGHT: u16 = 12;
 pub const WIDE_WIDTH: u16 = 120;
 /// From this size on, the heat map and the time series sit side by side.
 pub const WIDE_HEIGHT: u16 = 32;
+/// The fewest rows the time series gets, its border included (six rows of points, the axis and
+/// its labels): below the heat map when that leaves it this many, else beside it.
+pub const CHART_MIN_ROWS: u16 = 10;
+/// Rows of the heat map when it sits above the time series: five per taxel, its border and
+/// three lines (pressure, capacitance, flags).
+const STACKED_MAP_ROWS: u16 = 10;
 
 /// The line of keys.
 pub const KEYS_LINE: &str = "keys: t tare  p pause  r record  m marker  q quit";
@@ -37,6 +49,11 @@ pub const KEYS_LINE: &str = "keys: t tare  p pause  r record  m marker  q quit";
 /// The line of keys when one of several pads is shown in detail.
 pub const KEYS_LINE_ONE_OF_SEVERAL: &str =
     "keys: t tare  p pause  r record  m marker  q quit  a all pads  0-7 pad";
+
+/// The line of keys in the view of several devices (`d` chooses the device the number keys
+/// show a pad of).
+pub const KEYS_LINE_DEVICES: &str =
+    "keys: t tare  p pause  r record  m marker  q quit  d device  0-7 pad  a all";
 
 /// Colours of the four taxels in the time series.
 const TAXEL_COLOURS: [Color; 4] = [Color::Cyan, Color::Yellow, Color::Magenta, Color::Green];
@@ -218,6 +235,8 @@ fn draw_time_series(frame: &mut Frame, area: Rect, state: &ViewState) {
             format!("{:.0}", full_scale_kpa / 2.0),
             format!("{full_scale_kpa:.0}"),
         ]))
+        // Top left: the newest points are on the right.
+        .legend_position(Some(LegendPosition::TopLeft))
         .hidden_legend_constraints((Constraint::Ratio(1, 2), Constraint::Ratio(1, 2)));
     frame.render_widget(chart, area);
 }
@@ -295,6 +314,12 @@ pub(super) fn accounting_line(state: &ViewState) -> String {
     if accounting.stale_frames() > 0 {
         line.push_str(&format!(", {} stale", accounting.stale_frames()));
     }
+    if state.view_dropped_sets > 0 {
+        line.push_str(&format!(
+            ", {} sets skipped by the view",
+            state.view_dropped_sets
+        ));
+    }
     line
 }
 
@@ -330,8 +355,8 @@ pub(super) fn status_line(state: &ViewState) -> Line<'static> {
         spans.push(Span::raw(" | "));
         spans.push(Span::styled(
             format!(
-                "● REC {} ({} samples, {} markers)",
-                recording.file, recording.samples, recording.markers
+                "● REC {} ({} sets, {} markers)",
+                recording.file, recording.sets, recording.markers
             ),
             Style::default().fg(Color::Red).add_modifier(Modifier::BOLD),
         ));
@@ -361,12 +386,19 @@ fn text_lines(state: &ViewState, wide: bool) -> Vec<Line<'static>> {
         Line::from(accounting_line(state)),
         Line::from(device_line(state, wide)),
         status_line(state),
-        Line::from(if state.several_pads() {
-            KEYS_LINE_ONE_OF_SEVERAL
-        } else {
-            KEYS_LINE
-        }),
+        Line::from(keys_line(state)),
     ]
+}
+
+/// The keys of the detailed view: with several devices, with several pads, or of one pad.
+fn keys_line(state: &ViewState) -> &'static str {
+    if state.device_label.is_some() {
+        KEYS_LINE_DEVICES
+    } else if state.several_pads() {
+        KEYS_LINE_ONE_OF_SEVERAL
+    } else {
+        KEYS_LINE
+    }
 }
 
 /// One line per taxel for small terminals: label, pressure (or FAULT) in its colour, flags.
@@ -411,7 +443,9 @@ fn compact_lines(state: &ViewState) -> Vec<Line<'static>> {
         state.accounting.device_dropped()
     )));
     lines.push(status_line(state));
-    lines.push(Line::from(if state.several_pads() {
+    lines.push(Line::from(if state.device_label.is_some() {
+        "t tare p pause r rec m mark q quit a all d dev"
+    } else if state.several_pads() {
         "t tare p pause r rec m mark q quit a all"
     } else {
         "t tare p pause r rec m mark q quit"
@@ -422,8 +456,11 @@ fn compact_lines(state: &ViewState) -> Vec<Line<'static>> {
 /// The title: the source, and on a device with several pads the pad shown and whether it is
 /// live.
 fn title(state: &ViewState) -> String {
-    if !state.several_pads() {
-        return format!(" taxel view: {} ", state.source);
+    if !state.several_pads() && state.detail_pad.unwrap_or(0) == 0 {
+        return match &state.device_label {
+            Some(label) => format!(" taxel view: {label}: {} ", state.source),
+            None => format!(" taxel view: {} ", state.source),
+        };
     }
     let pad = state.detail_pad.unwrap_or(0);
     let freshness = match state.pad_freshness(pad) {
@@ -439,17 +476,27 @@ fn title(state: &ViewState) -> String {
     )
 }
 
-/// Draws the whole view in the layout the terminal's size allows.
-pub fn draw(frame: &mut Frame, state: &ViewState) {
+/// Draws a notice instead of the view when the terminal is smaller than [`MIN_WIDTH`] x
+/// [`MIN_HEIGHT`]; says whether it did.
+pub(super) fn too_small(frame: &mut Frame) -> bool {
     let area = frame.area();
-    if area.width < MIN_WIDTH || area.height < MIN_HEIGHT {
-        let notice = format!(
-            "terminal too small: the view needs at least {MIN_WIDTH}x{MIN_HEIGHT}, this one is {}x{}",
-            area.width, area.height
-        );
-        frame.render_widget(Paragraph::new(notice).wrap(Wrap { trim: true }), area);
+    if area.width >= MIN_WIDTH && area.height >= MIN_HEIGHT {
+        return false;
+    }
+    let notice = format!(
+        "terminal too small: the view needs at least {MIN_WIDTH}x{MIN_HEIGHT}, this one is {}x{}",
+        area.width, area.height
+    );
+    frame.render_widget(Paragraph::new(notice).wrap(Wrap { trim: true }), area);
+    true
+}
+
+/// Draws one device's view in the layout the terminal's size allows.
+pub fn draw(frame: &mut Frame, state: &ViewState) {
+    if too_small(frame) {
         return;
     }
+    let area = frame.area();
     if state.shows_every_pad() {
         super::pads::draw_every_pad(frame, area, state);
         return;
@@ -477,7 +524,21 @@ pub fn draw(frame: &mut Frame, state: &ViewState) {
         Paragraph::new(text)
     };
     frame.render_widget(paragraph, text_area);
-    if wide {
+    let stacked = !wide && main_area.height >= STACKED_MAP_ROWS + 1 + CHART_MIN_ROWS;
+    if stacked {
+        let [map_area, scale_area, series_area] = Layout::vertical([
+            Constraint::Length(STACKED_MAP_ROWS),
+            Constraint::Length(1),
+            Constraint::Min(CHART_MIN_ROWS),
+        ])
+        .areas(main_area);
+        draw_heat_map(frame, map_area, state);
+        frame.render_widget(
+            Paragraph::new(colour_scale(state, scale_area.width)),
+            scale_area,
+        );
+        draw_time_series(frame, series_area, state);
+    } else {
         let [left, right] =
             Layout::horizontal([Constraint::Ratio(1, 2), Constraint::Ratio(1, 2)]).areas(main_area);
         let [map_area, scale_area] =
@@ -488,19 +549,5 @@ pub fn draw(frame: &mut Frame, state: &ViewState) {
             scale_area,
         );
         draw_time_series(frame, right, state);
-    } else {
-        // Five rows per taxel: its border and three lines (pressure, capacitance, flags).
-        let [map_area, scale_area, series_area] = Layout::vertical([
-            Constraint::Length(10),
-            Constraint::Length(1),
-            Constraint::Min(5),
-        ])
-        .areas(main_area);
-        draw_heat_map(frame, map_area, state);
-        frame.render_widget(
-            Paragraph::new(colour_scale(state, scale_area.width)),
-            scale_area,
-        );
-        draw_time_series(frame, series_area, state);
     }
 }

@@ -19,6 +19,7 @@ use wire::SampleFrame;
 
 use super::draw::{
     accounting_line, device_line, pressure_style, rate_text, status_line, taxel_flag_words,
+    KEYS_LINE_DEVICES,
 };
 use super::state::{PadFreshness, ViewState};
 use crate::layout::{Arrangement, PadTile};
@@ -30,6 +31,9 @@ pub const KEYS_LINE_EVERY_PAD: &str =
 
 /// The keys in the one-line-per-pad view.
 const COMPACT_KEYS_LINE: &str = "t tare p pause r rec m mark q quit 0-7";
+
+/// The keys in the one-line-per-pad view of one of several devices.
+const COMPACT_KEYS_LINE_DEVICES: &str = "t tare p pause r rec m mark q quit 0-7 d dev";
 
 /// Where the centre of pressure is in a tile's heat map.
 pub const CENTRE_MARKER: char = '◆';
@@ -48,8 +52,12 @@ const COMPACT_NAME_WIDTH: usize = 14;
 /// Draws every pad in `area` (at least [`super::MIN_WIDTH`] x [`super::MIN_HEIGHT`]).
 pub(super) fn draw_every_pad(frame: &mut Frame, area: Rect, state: &ViewState) {
     let arrangement = state.arrangement();
+    let device = state
+        .device_label
+        .as_ref()
+        .map_or_else(String::new, |label| format!("{label}: "));
     let outer = Block::default().borders(Borders::ALL).title(format!(
-        " taxel view: {} | layout {} ",
+        " taxel view: {device}{} | layout {} ",
         state.source, arrangement.name
     ));
     let inner = outer.inner(area);
@@ -538,7 +546,11 @@ fn summary_lines(state: &ViewState, arrangement: &Arrangement) -> Vec<Line<'stat
         Line::from(accounting_line(state)),
         Line::from(device_line(state, false)),
         status_line(state),
-        Line::from(KEYS_LINE_EVERY_PAD),
+        Line::from(if state.device_label.is_some() {
+            KEYS_LINE_DEVICES
+        } else {
+            KEYS_LINE_EVERY_PAD
+        }),
     ]
 }
 
@@ -643,7 +655,11 @@ fn compact_lines(state: &ViewState, arrangement: &Arrangement, height: u16) -> V
     ];
     lines.extend(optional.into_iter().take(spare));
     lines.push(status_line(state));
-    lines.push(Line::from(COMPACT_KEYS_LINE));
+    lines.push(Line::from(if state.device_label.is_some() {
+        COMPACT_KEYS_LINE_DEVICES
+    } else {
+        COMPACT_KEYS_LINE
+    }));
     lines
 }
 

@@ -3,6 +3,11 @@
 //! layout, whether each pad is live or stale, the device's identity and counters, the honest
 //! accounting of sample sets, and the recording in progress.
 //!
+//! It is fed with the device session's events ([`ViewState::apply_event`]), each with its
+//! arrival in µs on the view's host clock (the worker's), and with the session's accounting
+//! as the view last read it ([`ViewState::set_accounting`]): the view never counts sample sets
+//! itself, so sets it skipped because it fell behind are not taken for losses on the link.
+//!
 //! Staleness: a pad is stale when its last frame is more than [`STALE_AFTER`] old, measured on
 //! the host clock (nothing arrived from it: the device stalled or was unplugged) or on the
 //! device clock against the newest frame of any pad (the device sends other pads' sets but not
@@ -10,14 +15,15 @@
 //! last values are never drawn as if live.
 
 use std::collections::VecDeque;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use model_core::TAXEL_COUNT;
-use wire::{CountersFrame, DeviceFrame, InfoFrame, ReplyPayload, SampleFrame};
+use taxel_host::device_words::event_words;
+use taxel_host::session::SessionEvent;
+use taxel_host::stream_accounting::StreamAccounting;
+use wire::{CountersFrame, InfoFrame, SampleFrame};
 
 use crate::layout::{Arrangement, Layout, MAX_PADS};
-use taxel_host::device_words::event_words;
-use taxel_host::stream_accounting::StreamAccounting;
 
 /// Sample timestamps kept for the sample-set rate.
 const RATE_WINDOW: usize = 128;
@@ -48,8 +54,8 @@ pub enum PadFreshness {
 struct PadView {
     /// The last sample shown (frozen while paused).
     sample: Option<SampleFrame>,
-    /// When the last frame arrived, host clock (also while paused).
-    received_at: Option<Instant>,
+    /// When the last frame arrived, µs on the host clock (also while paused).
+    arrival_us: Option<u64>,
     /// The device timestamp of the last frame, µs.
     device_time_us: Option<u64>,
     /// (device timestamp µs, pressures kPa) over the last `history_s`.
@@ -61,8 +67,8 @@ struct PadView {
 pub struct RecordingStatus {
     /// The CSV file being written (it gets this name when the recording stops).
     pub file: String,
-    /// Sample rows written.
-    pub samples: u64,
+    /// Sample sets recorded, every device's together.
+    pub sets: u64,
     /// Markers dropped.
     pub markers: u64,
 }
@@ -85,10 +91,14 @@ pub struct ViewState {
     pub info: Option<InfoFrame>,
     /// The device's last counters (since its boot), when known.
     pub counters: Option<CountersFrame>,
-    /// Where this connection's sample sets went.
+    /// Where this connection's sample sets went, as the device's session counts them (the view
+    /// reads it every half second, see [`ViewState::set_accounting`]).
     pub accounting: StreamAccounting,
     /// Frames that could not be decoded on this connection.
     pub frames_rejected: u64,
+    /// Sample sets of this connection the view skipped because it fell behind (its queue
+    /// dropped the oldest); they were received and are counted by the accounting.
+    pub view_dropped_sets: u64,
     /// Pressure drawn in the hottest colour and at the top of the time series, kPa.
     pub full_scale_kpa: f32,
     /// Seconds of history the time series shows.
@@ -105,8 +115,10 @@ pub struct ViewState {
     pub device_label: Option<String>,
     pads: [PadView; MAX_PADS as usize],
     newest_device_time_us: Option<u64>,
-    now: Option<Instant>,
+    now_us: Option<u64>,
     recent_timestamps_us: VecDeque<u64>,
+    sets_received: u64,
+    highest_pad_seen: Option<u8>,
 }
 
 impl ViewState {
@@ -122,6 +134,7 @@ impl ViewState {
             counters: None,
             accounting: StreamAccounting::new(),
             frames_rejected: 0,
+            view_dropped_sets: 0,
             full_scale_kpa: 50.0,
             history_s: 10.0,
             recording: None,
@@ -130,40 +143,55 @@ impl ViewState {
             device_label: None,
             pads: std::array::from_fn(|_| PadView::default()),
             newest_device_time_us: None,
-            now: None,
+            now_us: None,
             recent_timestamps_us: VecDeque::new(),
+            sets_received: 0,
+            highest_pad_seen: None,
         }
     }
 
-    /// Takes one frame from the device, received now.
-    pub fn apply_frame(&mut self, frame: &DeviceFrame) {
-        self.apply_frame_at(frame, Instant::now());
-    }
-
-    /// Takes one frame from the device, received at `received_at` (host clock).
-    pub fn apply_frame_at(&mut self, frame: &DeviceFrame, received_at: Instant) {
-        match frame {
-            DeviceFrame::Sample(sample) => self.apply_sample(sample, received_at),
-            DeviceFrame::Info(info) => self.info = Some(*info),
-            DeviceFrame::Counters(counters) => self.apply_counters(counters),
-            DeviceFrame::Reply(reply) => match &reply.result {
-                Ok(ReplyPayload::Info(info)) => self.info = Some(*info),
-                Ok(ReplyPayload::Counters(counters)) => self.apply_counters(counters),
-                _ => {}
-            },
-            DeviceFrame::Event(event) => self.status = event_words(event),
+    /// Takes one event of the device's session that arrived at `arrival_us` (host clock).
+    pub fn apply_event(&mut self, event: &SessionEvent, arrival_us: u64) {
+        match event {
+            SessionEvent::Set { set, .. } => {
+                self.sets_received += 1;
+                for frame in set.pads.iter().flatten() {
+                    self.apply_sample(frame, arrival_us);
+                }
+            }
+            SessionEvent::Device(event) => self.status = event_words(event),
+            SessionEvent::Info(info) => self.info = Some(*info),
+            SessionEvent::Counters(counters) => self.counters = Some(*counters),
+            SessionEvent::Baselines { .. } => {}
+            SessionEvent::Refused { request_id, code } => {
+                self.status = format!("the device refused request {request_id}: {code:?}");
+            }
+            SessionEvent::BaselinesUnread { pad, reason } => {
+                self.status = format!(
+                    "pad {}: its new baselines could not be read ({reason})",
+                    pad.get()
+                );
+            }
         }
     }
 
-    fn apply_counters(&mut self, counters: &CountersFrame) {
-        self.accounting.counters(counters);
-        self.counters = Some(*counters);
+    /// Takes the session's accounting and the link's count of undecodable frames.
+    pub fn set_accounting(&mut self, accounting: StreamAccounting, frames_rejected: u64) {
+        self.accounting = accounting;
+        self.frames_rejected = frames_rejected;
     }
 
-    fn apply_sample(&mut self, sample: &SampleFrame, received_at: Instant) {
-        self.accounting.sample(sample);
-        self.refresh(received_at);
+    /// Sample sets the view took on this connection (not the accounting's: see the module
+    /// documentation).
+    pub fn sets_received(&self) -> u64 {
+        self.sets_received
+    }
+
+    /// Takes one pad's sample frame that arrived at `arrival_us` (host clock).
+    pub fn apply_sample(&mut self, sample: &SampleFrame, arrival_us: u64) {
+        self.refresh(arrival_us);
         let pad = sample.pad.get();
+        self.highest_pad_seen = Some(self.highest_pad_seen.map_or(pad, |seen| seen.max(pad)));
         let Some(view) = self.pads.get_mut(usize::from(pad)) else {
             return;
         };
@@ -183,7 +211,7 @@ impl ViewState {
             return;
         };
         view.device_time_us = Some(sample.timestamp_us);
-        view.received_at = Some(received_at);
+        view.arrival_us = Some(arrival_us);
         self.newest_device_time_us = Some(
             self.newest_device_time_us
                 .map_or(sample.timestamp_us, |newest| {
@@ -218,10 +246,10 @@ impl ViewState {
         }
     }
 
-    /// The host clock moved on to `now` (the live loop calls it before drawing): pads that sent
-    /// nothing since [`STALE_AFTER`] become stale.
-    pub fn refresh(&mut self, now: Instant) {
-        self.now = Some(self.now.map_or(now, |before| before.max(now)));
+    /// The host clock moved on to `now_us` (the live loop calls it before drawing): pads that
+    /// sent nothing since [`STALE_AFTER`] become stale.
+    pub fn refresh(&mut self, now_us: u64) {
+        self.now_us = Some(self.now_us.map_or(now_us, |before| before.max(now_us)));
     }
 
     /// Shows one pad in the detailed view (`None`: back to every pad).
@@ -243,9 +271,9 @@ impl ViewState {
     pub fn pad_count(&self) -> u8 {
         match &self.info {
             Some(info) => info.pad_count,
-            None => u8::try_from(self.accounting.pads_seen())
-                .unwrap_or(MAX_PADS)
-                .max(1),
+            None => self
+                .highest_pad_seen
+                .map_or(1, |pad| pad.saturating_add(1).min(MAX_PADS)),
         }
     }
 
@@ -309,12 +337,13 @@ impl ViewState {
         let Some(view) = self.pads.get(usize::from(pad)) else {
             return PadFreshness::NotOnDevice;
         };
-        let (Some(received_at), Some(_)) = (view.received_at, view.sample) else {
+        let (Some(arrival_us), Some(_)) = (view.arrival_us, view.sample) else {
             return PadFreshness::NoData;
         };
-        let host_age = self.now.map_or(Duration::ZERO, |now| {
-            now.saturating_duration_since(received_at)
-        });
+        let host_age = Duration::from_micros(
+            self.now_us
+                .map_or(0, |now_us| now_us.saturating_sub(arrival_us)),
+        );
         let device_lag = match (self.newest_device_time_us, view.device_time_us) {
             (Some(newest_us), Some(last_us)) => {
                 Duration::from_micros(newest_us.saturating_sub(last_us))
@@ -369,12 +398,15 @@ impl ViewState {
         self.status.clear();
         self.accounting = StreamAccounting::new();
         self.frames_rejected = 0;
+        self.view_dropped_sets = 0;
+        self.sets_received = 0;
         self.recent_timestamps_us.clear();
-        // The new connection's device clock may have restarted; the host clock judges the pads
-        // until they send again.
+        // The new connection's device clock may have restarted: the host clock judges the pads
+        // until they send again, and the time series (on the device clock) starts over.
         self.newest_device_time_us = None;
         for view in &mut self.pads {
             view.device_time_us = None;
+            view.history.clear();
         }
     }
 
