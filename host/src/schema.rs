@@ -156,18 +156,43 @@ impl PadRow {
 }
 
 fn push_f32(line: &mut Vec<u8>, value: Option<f32>) {
-    if let Some(value) = value.filter(|value| !value.is_nan()) {
-        // The shortest text that reads back as the same f32, never in exponent form.
+    if let Some(value) = value.filter(|value| value.is_finite()) {
+        // The shortest text that reads back as the same f32, never in exponent form: ryu's
+        // digits, or Rust's own formatting for the rare values ryu writes with an exponent.
+        let mut buffer = ryu::Buffer::new();
+        let text = buffer.format_finite(value);
+        if text.contains(['e', 'E']) {
+            let _ = write!(line, "{value}");
+        } else {
+            line.extend_from_slice(text.strip_suffix(".0").unwrap_or(text).as_bytes());
+        }
+    } else if let Some(value) = value.filter(|value| !value.is_nan()) {
         let _ = write!(line, "{value}");
     }
 }
 
+fn push_integer(line: &mut Vec<u8>, value: u64) {
+    line.extend_from_slice(itoa::Buffer::new().format(value).as_bytes());
+}
+
+/// `value` in units of 10^-`decimals`, written with exactly `decimals` decimals.
+fn push_fixed(line: &mut Vec<u8>, value: u64, decimals: u32) {
+    let scale = 10u64.pow(decimals);
+    push_integer(line, value / scale);
+    line.push(b'.');
+    let fraction = value % scale;
+    let mut buffer = itoa::Buffer::new();
+    let digits = buffer.format(fraction);
+    line.extend(std::iter::repeat_n(b'0', decimals as usize - digits.len()));
+    line.extend_from_slice(digits.as_bytes());
+}
+
 fn push_micros(line: &mut Vec<u8>, value_us: u64) {
-    let _ = write!(line, "{}.{:06}", value_us / 1_000_000, value_us % 1_000_000);
+    push_fixed(line, value_us, 6);
 }
 
 fn push_milliseconds(line: &mut Vec<u8>, value_us: u64) {
-    let _ = write!(line, "{}.{:03}", value_us / 1_000, value_us % 1_000);
+    push_fixed(line, value_us, 3);
 }
 
 fn push_flags(line: &mut Vec<u8>, flags: TaxelFlags) {
@@ -204,7 +229,13 @@ fn push_text(line: &mut Vec<u8>, text: &str) {
 /// Appends `row` as one CSV line (with its newline) to `line`.
 pub fn format_row(row: &PadRow, line: &mut Vec<u8>) {
     push_micros(line, row.host_time_us);
-    let _ = write!(line, ",{},{},{},", row.device, row.pad, row.sequence);
+    line.push(b',');
+    push_integer(line, u64::from(row.device));
+    line.push(b',');
+    push_integer(line, u64::from(row.pad));
+    line.push(b',');
+    push_integer(line, u64::from(row.sequence));
+    line.push(b',');
     if let Some(reading) = &row.reading {
         push_micros(line, reading.device_time_us);
     }
@@ -326,6 +357,18 @@ pub struct RowReader<R: BufRead> {
     line: u64,
 }
 
+/// At most `limit` characters of `text` for a message, "..." and its length marking a cut (a
+/// megabyte cell must not make a megabyte message).
+fn shown(text: &str, limit: usize) -> String {
+    match text.char_indices().nth(limit) {
+        Some((end, _)) => format!("{}... ({} bytes)", &text[..end], text.len()),
+        None => text.to_owned(),
+    }
+}
+
+/// The longest cell a message quotes whole.
+const SHOWN_CELL: usize = 40;
+
 fn text(cell: &[u8]) -> Result<&str, String> {
     std::str::from_utf8(cell).map_err(|_| "a cell is not UTF-8 text".to_owned())
 }
@@ -341,13 +384,14 @@ fn parse_fixed(cell: &[u8], name: &str, decimals: u32) -> Result<u64, String> {
         || fraction.len() > decimals as usize
     {
         return Err(format!(
-            "{name} '{cell}' is not a non-negative number with at most {decimals} decimals"
+            "{name} '{}' is not a non-negative number with at most {decimals} decimals",
+            shown(cell, SHOWN_CELL)
         ));
     }
     let scale = 10u64.pow(decimals);
     let whole: u64 = whole
         .parse()
-        .map_err(|_| format!("{name} '{cell}' is out of range"))?;
+        .map_err(|_| format!("{name} '{}' is out of range", shown(cell, SHOWN_CELL)))?;
     let fraction_units: u64 = fraction
         .bytes()
         .chain(std::iter::repeat(b'0'))
@@ -356,7 +400,7 @@ fn parse_fixed(cell: &[u8], name: &str, decimals: u32) -> Result<u64, String> {
     whole
         .checked_mul(scale)
         .and_then(|value| value.checked_add(fraction_units))
-        .ok_or_else(|| format!("{name} '{cell}' is out of range"))
+        .ok_or_else(|| format!("{name} '{}' is out of range", shown(cell, SHOWN_CELL)))
 }
 
 fn parse_optional_f32(cell: &[u8], name: &str) -> Result<Option<f32>, String> {
@@ -364,16 +408,25 @@ fn parse_optional_f32(cell: &[u8], name: &str) -> Result<Option<f32>, String> {
         return Ok(None);
     }
     let cell = text(cell)?;
+    // An infinite value is written as `inf` and read back (a converter can report one); NaN is
+    // never written: absent values are empty cells.
     match cell.parse::<f32>() {
-        Ok(value) if value.is_finite() => Ok(Some(value)),
-        _ => Err(format!("{name} '{cell}' is not a finite number")),
+        Ok(value) if !value.is_nan() => Ok(Some(value)),
+        _ => Err(format!(
+            "{name} '{}' is not a number",
+            shown(cell, SHOWN_CELL)
+        )),
     }
 }
 
 fn parse_integer<T: std::str::FromStr>(cell: &[u8], name: &str) -> Result<T, String> {
     let cell = text(cell)?;
-    cell.parse()
-        .map_err(|_| format!("{name} '{cell}' is not a whole number in range"))
+    cell.parse().map_err(|_| {
+        format!(
+            "{name} '{}' is not a whole number in range",
+            shown(cell, SHOWN_CELL)
+        )
+    })
 }
 
 fn parse_bool(cell: &[u8], name: &str) -> Result<bool, String> {
@@ -396,7 +449,7 @@ fn parse_source(cell: &[u8]) -> Result<TemperatureSource, String> {
     .ok_or_else(|| {
         format!(
             "temp_source '{}' is not tmp117, mcu_internal, last_known or none",
-            String::from_utf8_lossy(cell)
+            shown(&String::from_utf8_lossy(cell), SHOWN_CELL)
         )
     })
 }
@@ -446,7 +499,11 @@ pub fn parse_record(record: &csv::ByteRecord) -> Result<PadRow, String> {
             let cell = cells[16 + taxel];
             if !cell.is_empty() {
                 flags[taxel] = parse_flag_names(text(cell)?).map_err(|name| {
-                    format!("{}: unknown flag '{name}'", COLUMNS[16 + taxel].name)
+                    format!(
+                        "{}: unknown flag '{}'",
+                        COLUMNS[16 + taxel].name,
+                        shown(&name, SHOWN_CELL)
+                    )
                 })?;
             }
         }
@@ -509,7 +566,8 @@ impl<R: BufRead> RowReader<R> {
             return Err(SchemaError::Header {
                 expected,
                 found: format!(
-                    "found {found} (recordings of earlier versions are not read; record again)"
+                    "found {} (recordings of earlier versions are not read; record again)",
+                    shown(&found, 300)
                 ),
             });
         }

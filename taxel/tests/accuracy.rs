@@ -9,13 +9,14 @@
 //!    capacitances, `temp_c`), and the host tool's own command line fits the calibration.
 //! 3. Another scene — presses between the calibration points on all four taxels, at 25 °C and
 //!    again after the pad warmed to 45 °C — is recorded the same way and converted with that
-//!    calibration by `taxel convert` (the default tier).
+//!    calibration by `taxel convert` (the default tier), from a recording of the recording schema
+//!    (`taxel_host::schema`) as `taxel record` writes it.
 //! 4. Every pressure in the holds is compared with the scene, which is the simulator's truth:
 //!    its physics (sensor-sim's `physics`) is written without the pressure model, so a model
 //!    error shows here. The device's own pressures in the same frames, computed with the
 //!    simulated pad's factory calibration, are compared too.
 //!
-//! `cargo test -p taxel-tests --test accuracy -- --nocapture` prints the numbers.
+//! `cargo test -p taxel --test accuracy -- --nocapture` prints the numbers.
 
 // Test helpers may unwrap and panic: a failure is the test failing.
 #![allow(clippy::unwrap_used, clippy::panic, clippy::expect_used)]
@@ -27,6 +28,7 @@ use clap::Parser;
 use sensor_sim::{Fault, Keyframe, ScriptedScene, Window};
 use sim_device::{MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 use taxel::cli::{run, Cli};
+use taxel_host::schema::{PadReading, PadRow, RowReader, RowWriter};
 use wire::{flags, DeviceFrame, DeviceFrameDecoder, SampleFrame};
 
 /// Length of each calibration hold, s; rows are taken from its last `CALIBRATION_ROWS_S`.
@@ -224,25 +226,26 @@ fn loads_csv(frames: &[SampleFrame], holds: &[(f64, f64, f32)]) -> String {
     text
 }
 
-/// The recording as `taxel convert` reads it.
-fn convert_input_csv(frames: &[SampleFrame]) -> String {
-    let mut text = String::from("time_s,temp_c,c11_pf,c12_pf,c21_pf,c22_pf\n");
+/// The recording as `taxel record` writes it (the recording schema): one row per sample set of
+/// the one pad (device 0, pad 0), stamped with the device time as the host time (a perfect
+/// clock mapping, no sync error) and numbered with the frames' sequence numbers.
+fn write_recording(path: &Path, frames: &[SampleFrame]) {
+    let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
+    let mut writer = RowWriter::new(file).unwrap();
     for frame in frames {
-        let taxels = frame.taxels;
-        let _ = writeln!(
-            text,
-            "{:.6},{},{},{},{},{}",
-            time_s(frame),
-            frame
-                .temperature_c
-                .map_or(String::new(), |celsius| celsius.to_string()),
-            taxels[0].capacitance_pf,
-            taxels[1].capacitance_pf,
-            taxels[2].capacitance_pf,
-            taxels[3].capacitance_pf
-        );
+        writer
+            .write(&PadRow {
+                host_time_us: frame.timestamp_us,
+                device: 0,
+                pad: 0,
+                sequence: frame.sequence,
+                sync_error_us: None,
+                reading: Some(PadReading::from_frame(frame)),
+                marker: String::new(),
+            })
+            .unwrap();
     }
-    text
+    writer.flush().unwrap();
 }
 
 /// Runs the host tool's command line as the binary does.
@@ -253,27 +256,24 @@ fn taxel(arguments: &[&str]) {
     assert_eq!(code, std::process::ExitCode::SUCCESS, "{arguments:?}");
 }
 
-/// Pressures of the converted file: (time s, four pressures).
+/// Pressures of the converted file (the recording schema): (time s, four pressures), the time
+/// being the row's host time, which is the device time here.
 fn read_converted(path: &Path) -> Vec<(f64, [Option<f64>; 4])> {
-    let mut reader = csv::Reader::from_path(path).unwrap();
-    let header = reader.headers().unwrap().clone();
-    let column = |name: &str| header.iter().position(|cell| cell == name).unwrap();
-    let time = column("time_s");
-    let pressures = ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"].map(column);
-    reader
-        .records()
-        .map(|record| {
-            let record = record.unwrap();
-            let pressure = |index: usize| {
-                let cell = &record[pressures[index]];
-                (!cell.is_empty()).then(|| cell.parse::<f64>().unwrap())
-            };
-            (
-                record[time].parse().unwrap(),
-                core::array::from_fn(pressure),
-            )
-        })
-        .collect()
+    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    let mut reader = RowReader::new(file).unwrap();
+    let mut rows = Vec::new();
+    while let Some(row) = reader.next_row() {
+        let row = row.unwrap();
+        assert_eq!((row.device, row.pad), (0, 0), "{row:?}");
+        let reading = row
+            .reading
+            .unwrap_or_else(|| panic!("set {} has no reading", row.sequence));
+        rows.push((
+            row.host_time_us as f64 / 1e6,
+            reading.pressure_kpa.map(|pressure| pressure.map(f64::from)),
+        ));
+    }
+    rows
 }
 
 /// Errors of one way of converting, over the loaded holds at one temperature.
@@ -368,7 +368,7 @@ fn a_user_calibration_converts_other_presses_to_the_true_pressures() {
         .into_iter()
         .filter(|frame| time_s(frame) >= 0.5)
         .collect();
-    std::fs::write(path("recording.csv"), convert_input_csv(&frames)).unwrap();
+    write_recording(Path::new(&path("recording.csv")), &frames);
     taxel(&[
         "convert",
         &path("recording.csv"),

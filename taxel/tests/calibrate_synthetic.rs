@@ -1,6 +1,8 @@
 //! `taxel calibrate` on synthetic reference loads with a known truth: the written curve points
 //! and C0, the leave-one-out numbers, the calibration file round trip, a tare far from the
-//! calibrated C0 flagged by `taxel convert`, and refused data sets.
+//! calibrated C0 flagged by `taxel convert`, and refused data sets. The reference loads are
+//! `taxel calibrate`'s own table; the recordings converted are of the recording schema
+//! (`taxel_host::schema`), written with its row writer and read back with its reader.
 // Helpers outside #[test] functions unwrap too: a failure there is a test failure.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -11,12 +13,13 @@ use std::path::Path;
 use std::process::{Command, Output};
 use std::time::Duration;
 
-use model_core::{CalibrationCurve, TaxelInverses, TemperatureLaw};
+use model_core::{CalibrationCurve, TaxelFlags, TaxelInverses, TemperatureLaw};
 use support::{ack, taxel_binary, FakeDevice, SplitMix64};
 use taxel_host::calibration_file;
 use taxel_host::calibration_transfer::upload;
 use taxel_host::device_link::DeviceLink;
-use wire::Command as WireCommand;
+use taxel_host::schema::{header, PadReading, PadRow, RowReader, RowWriter};
+use wire::{Command as WireCommand, TemperatureSource};
 
 const GAINS: [f64; 4] = [1.0, 0.92, 1.08, 1.15];
 const UNLOADED_SENSOR_PF: [f64; 4] = [4.5, 4.3, 4.7, 4.4];
@@ -75,6 +78,74 @@ fn calibrate(directory: &Path, loads: &str, extra_arguments: &[&str]) -> Output 
         .args(extra_arguments)
         .output()
         .unwrap()
+}
+
+/// One sample set of a recording: device time s, temperature °C, the four capacitances pF.
+type RecordedSet = (u64, f64, [f64; 4]);
+
+/// A recording of the recording schema as `taxel record` writes it for one pad (device 0, pad 0):
+/// one row per set, the host time the device time (no sync error), sequence numbers from 0, and
+/// the capacitances and temperature of each set (the pressures are what `taxel convert`
+/// computes).
+fn recording(sets: &[RecordedSet]) -> Vec<u8> {
+    let mut writer = RowWriter::new(Vec::new()).unwrap();
+    for (sequence, &(time_s, temperature_c, capacitance_pf)) in sets.iter().enumerate() {
+        let time_us = time_s * 1_000_000;
+        writer
+            .write(&PadRow {
+                host_time_us: time_us,
+                device: 0,
+                pad: 0,
+                sequence: u32::try_from(sequence).unwrap(),
+                sync_error_us: None,
+                reading: Some(PadReading {
+                    device_time_us: time_us,
+                    temperature_c: Some(temperature_c as f32),
+                    temperature_source: TemperatureSource::Tmp117,
+                    capacitance_pf: capacitance_pf.map(|value| Some(value as f32)),
+                    pressure_kpa: [None; 4],
+                    flags: [TaxelFlags::empty(); 4],
+                    force_n: None,
+                    centre_of_pressure_mm: None,
+                    partial: false,
+                    contact: false,
+                }),
+                marker: String::new(),
+            })
+            .unwrap();
+    }
+    writer.into_inner()
+}
+
+/// Reads `taxel convert`'s output: it has the schema's header, and every row (one pad, a reading
+/// in each) is returned.
+fn converted_rows(output: &[u8]) -> Vec<PadRow> {
+    let text = std::str::from_utf8(output).unwrap();
+    assert_eq!(text.lines().next(), Some(header().join(",").as_str()));
+    let mut reader = RowReader::new(output).unwrap();
+    let mut rows = Vec::new();
+    while let Some(row) = reader.next_row() {
+        let row = row.unwrap();
+        assert_eq!((row.device, row.pad), (0, 0), "{row:?}");
+        assert!(row.reading.is_some(), "{row:?}");
+        rows.push(row);
+    }
+    rows
+}
+
+/// The converted pressure of `taxel` in `row`, kPa (`None`: empty).
+fn pressure_kpa_of(row: &PadRow, taxel: usize) -> Option<f64> {
+    row.reading
+        .as_ref()
+        .and_then(|reading| reading.pressure_kpa[taxel])
+        .map(f64::from)
+}
+
+/// The converted flags of `taxel` in `row`.
+fn flags(row: &PadRow, taxel: usize) -> TaxelFlags {
+    row.reading
+        .as_ref()
+        .map_or(TaxelFlags::empty(), |reading| reading.flags[taxel])
 }
 
 /// The table row of one taxel and tier: fit max, loo max, loo rms, folds.
@@ -175,25 +246,26 @@ fn calibration_converts_recordings_back_to_the_true_pressure() {
         &["--parasitic-pf", "0.8"],
     );
     assert!(output.status.success());
-    let mut recording = String::from("time_s,temp_c,c11_pf,c12_pf,c21_pf,c22_pf\n");
     let pressures_kpa = [0.0, 12.5, 27.0, 44.0];
-    for (row, pressure_kpa) in pressures_kpa.iter().enumerate() {
-        let temperature_c = [25.0, 40.0, 18.0, 33.0][row];
-        // Rows a minute apart: the pad can change by 22 °C in that time (a jump of 15 °C from
-        // one row to the next would be flagged implausible).
-        let _ = write!(recording, "{},{temperature_c}", row * 60);
-        for taxel in 0..4 {
-            let capacitance_pf = measured_pf(
-                taxel,
-                true_relative_change(taxel, *pressure_kpa),
-                temperature_c,
-            );
-            let _ = write!(recording, ",{capacitance_pf:.7}");
-        }
-        recording.push('\n');
-    }
+    let sets: Vec<RecordedSet> = pressures_kpa
+        .iter()
+        .enumerate()
+        .map(|(row, pressure_kpa)| {
+            let temperature_c = [25.0, 40.0, 18.0, 33.0][row];
+            // Rows a minute apart: the pad can change by 22 °C in that time (a jump of 15 °C
+            // from one row to the next would be flagged implausible).
+            let capacitance_pf = std::array::from_fn(|taxel| {
+                measured_pf(
+                    taxel,
+                    true_relative_change(taxel, *pressure_kpa),
+                    temperature_c,
+                )
+            });
+            (row as u64 * 60, temperature_c, capacitance_pf)
+        })
+        .collect();
     let recording_path = directory.path().join("recording.csv");
-    std::fs::write(&recording_path, recording).unwrap();
+    std::fs::write(&recording_path, recording(&sets)).unwrap();
     let output = Command::new(taxel_binary())
         .arg("convert")
         .arg(&recording_path)
@@ -201,12 +273,23 @@ fn calibration_converts_recordings_back_to_the_true_pressure() {
         .arg(directory.path().join("calibration.json"))
         .output()
         .unwrap();
-    assert!(output.status.success());
-    let text = String::from_utf8(output.stdout).unwrap();
-    let rows: Vec<Vec<&str>> = text.lines().map(|line| line.split(',').collect()).collect();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let rows = converted_rows(&output.stdout);
+    assert_eq!(rows.len(), pressures_kpa.len());
+    // The first row is the tare (a recording without a device state is tared on its first
+    // readable row).
     for (row, pressure_kpa) in pressures_kpa.iter().enumerate().skip(1) {
         for taxel in 0..4 {
-            let converted: f64 = rows[row + 1][2 + taxel].parse().unwrap();
+            let converted = pressure_kpa_of(&rows[row], taxel).unwrap_or_else(|| {
+                panic!(
+                    "taxel {taxel} at {pressure_kpa} kPa has no pressure: {:?}",
+                    rows[row]
+                )
+            });
             assert!(
                 (converted - pressure_kpa).abs() < 0.1,
                 "taxel {taxel} at {pressure_kpa} kPa read {converted}"
@@ -215,9 +298,9 @@ fn calibration_converts_recordings_back_to_the_true_pressure() {
     }
 }
 
-/// Runs `taxel convert` on `recording` (CSV text) with the calibration in `directory`, tared on
-/// its first `tare_rows` rows; returns the output rows split into cells.
-fn convert(directory: &Path, recording: &str, tare_rows: usize) -> Vec<Vec<String>> {
+/// Runs `taxel convert` on `recording` (a recording of the schema) with the calibration in
+/// `directory`, tared on its first `tare_rows` rows; returns its output (the schema's CSV).
+fn convert(directory: &Path, recording: &[u8], tare_rows: usize) -> Vec<u8> {
     let recording_path = directory.join("recording.csv");
     std::fs::write(&recording_path, recording).unwrap();
     let output = Command::new(taxel_binary())
@@ -234,32 +317,29 @@ fn convert(directory: &Path, recording: &str, tare_rows: usize) -> Vec<Vec<Strin
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
-    String::from_utf8(output.stdout)
-        .unwrap()
-        .lines()
-        .map(|line| line.split(',').map(str::to_owned).collect())
-        .collect()
+    output.stdout
 }
 
 /// A recording of the calibrated pad whose sensor capacitance is `scale` times the true C0: two
 /// unloaded rows (the tare) and two loaded ones, at 25 and 31 °C.
-fn recording_with_c0_scaled(scale: f64) -> String {
-    let mut recording = String::from("time_s,temp_c,c11_pf,c12_pf,c21_pf,c22_pf\n");
-    for (row, (pressure_kpa, temperature_c)) in
-        [(0.0, 25.0), (0.0, 25.0), (20.0, 25.0), (35.0, 31.0)]
-            .into_iter()
-            .enumerate()
-    {
-        let _ = write!(recording, "{},{temperature_c}", row * 60);
-        let ratio =
-            f64::from(TemperatureLaw::article_default().permittivity_ratio(temperature_c as f32));
-        for (taxel, unloaded_pf) in UNLOADED_SENSOR_PF.iter().enumerate() {
-            let sensor_pf = scale * unloaded_pf * (1.0 + true_relative_change(taxel, pressure_kpa));
-            let _ = write!(recording, ",{:.7}", PARASITIC_PF + ratio * sensor_pf);
-        }
-        recording.push('\n');
-    }
-    recording
+fn recording_with_c0_scaled(scale: f64) -> Vec<u8> {
+    let sets: Vec<RecordedSet> = [(0.0, 25.0), (0.0, 25.0), (20.0, 25.0), (35.0, 31.0)]
+        .into_iter()
+        .enumerate()
+        .map(|(row, (pressure_kpa, temperature_c))| {
+            let ratio = f64::from(
+                TemperatureLaw::article_default().permittivity_ratio(temperature_c as f32),
+            );
+            let capacitance_pf = std::array::from_fn(|taxel| {
+                let sensor_pf = scale
+                    * UNLOADED_SENSOR_PF[taxel]
+                    * (1.0 + true_relative_change(taxel, pressure_kpa));
+                PARASITIC_PF + ratio * sensor_pf
+            });
+            (row as u64 * 60, temperature_c, capacitance_pf)
+        })
+        .collect();
+    recording(&sets)
 }
 
 /// The C0 - Cp that `taxel calibrate` measures at 25 °C goes into the file, per taxel; a
@@ -320,38 +400,55 @@ fn the_calibrated_c0_is_written_and_a_tare_far_from_it_is_flagged() {
         );
     }
 
-    let far = convert(directory.path(), &recording_with_c0_scaled(1.1), 2);
-    let at = convert(directory.path(), &recording_with_c0_scaled(1.0), 2);
-    let flag_cells = 6..10;
-    assert_eq!(
-        &far[0][flag_cells.clone()],
-        ["flags11", "flags12", "flags21", "flags22"]
-    );
-    for (far_row, at_row) in far.iter().zip(&at).skip(3) {
-        for cell in &far_row[flag_cells.clone()] {
+    let far_output = convert(directory.path(), &recording_with_c0_scaled(1.1), 2);
+    let far = converted_rows(&far_output);
+    let at = converted_rows(&convert(
+        directory.path(),
+        &recording_with_c0_scaled(1.0),
+        2,
+    ));
+    assert_eq!((far.len(), at.len()), (4, 4));
+    // The flag is written by its documented name in the schema's flags columns (after the
+    // header and the two tare rows).
+    let far_text = String::from_utf8(far_output).unwrap();
+    let flag_columns: Vec<usize> = ["flags11", "flags12", "flags21", "flags22"]
+        .iter()
+        .map(|name| header().iter().position(|column| column == name).unwrap())
+        .collect();
+    for line in far_text.lines().skip(1 + 2) {
+        let cells: Vec<&str> = line.split(',').collect();
+        for &column in &flag_columns {
             assert!(
-                cell.split('|')
+                cells[column]
+                    .split('|')
                     .any(|name| name == "baseline_far_from_calibration"),
-                "{far_row:?}"
+                "{line}"
             );
         }
-        for cell in &at_row[flag_cells.clone()] {
+    }
+    // The two tare rows come first; every tared row after them is compared.
+    for (far_row, at_row) in far.iter().zip(&at).skip(2) {
+        for taxel in 0..4 {
             assert!(
-                !cell.contains("baseline_far_from_calibration"),
+                flags(far_row, taxel).contains(TaxelFlags::BASELINE_FAR_FROM_CALIBRATION),
+                "{far_row:?}"
+            );
+            assert!(
+                !flags(at_row, taxel).contains(TaxelFlags::BASELINE_FAR_FROM_CALIBRATION),
                 "{at_row:?}"
             );
         }
         // The pressures are still reported, and without the flag they are the true ones.
-        for (taxel, cell) in at_row[2..6].iter().enumerate() {
-            let truth = [20.0, 35.0][usize::from(at_row[0] == "180")];
-            let read: f64 = cell.parse().unwrap();
+        let truth = [20.0, 35.0][usize::from(at_row.host_time_us == 180_000_000)];
+        for taxel in 0..4 {
+            let read = pressure_kpa_of(at_row, taxel).unwrap();
             assert!(
                 (read - truth).abs() < 0.1,
                 "taxel {taxel}: {read} vs {truth}"
             );
         }
         assert!(
-            far_row[2..6].iter().all(|cell| !cell.is_empty()),
+            (0..4).all(|taxel| pressure_kpa_of(far_row, taxel).is_some()),
             "{far_row:?}"
         );
     }

@@ -1,6 +1,8 @@
 //! End to end, as a user meets it: the simulated device (the firmware's acquisition, model and
 //! protocol code over the simulated converter) on a pseudo-terminal, opened by the host tool's
-//! real serial code path, recorded to CSV, and the CSV compared with the scripted scene.
+//! real serial code path, streamed by the host library's session (the one stream loop every
+//! consumer builds on), recorded in the recording schema, read back, and the recording compared
+//! with the scripted scene.
 
 // Test helpers may unwrap and panic: a failure is the test failing.
 #![allow(clippy::unwrap_used, clippy::panic)]
@@ -8,11 +10,13 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread;
-use std::time::Duration;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use model_core::TaxelFlags;
 use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 use taxel_host::device_link::{open_serial, DeviceLink};
-use taxel_host::record::{record_header, record_link};
+use taxel_host::schema::{header, PadReading, PadRow, RowReader, RowWriter};
+use taxel_host::session::{DeviceSession, SessionConfig, SessionEvent};
 
 /// Largest difference between a recorded pressure and the scene, kPa. The scene is the
 /// simulator's own truth: its physics does not use the pressure model, and the device converts
@@ -24,6 +28,88 @@ use taxel_host::record::{record_header, record_link};
 const SAMPLE_TOLERANCE_KPA: f64 = 0.5;
 /// Largest RMS difference over the whole recording, kPa (measured: 0.076 kPa with seed 3).
 const RMS_TOLERANCE_KPA: f64 = 0.1;
+/// However the stream ends, the recording ends by then (the scene lasts a few seconds at the
+/// simulator's speed).
+const RECORDING_DEADLINE: Duration = Duration::from_secs(120);
+
+fn unix_now_us() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |since| {
+            u64::try_from(since.as_micros()).unwrap_or(u64::MAX)
+        })
+}
+
+/// What the session's stream gave, besides the rows.
+#[derive(Debug, Default)]
+struct Streamed {
+    sets: u64,
+    sets_missing: u64,
+    missing_frames: u64,
+    ended_by: String,
+}
+
+/// Records one device from `path` until it goes away: a session over the serial link, every
+/// sample set it closes written as the schema's rows (one per pad), stamped with its arrival on
+/// the host clock (no clock mapping here: `sync_error_ms` stays empty).
+fn record(path: &str) -> (Vec<u8>, Streamed) {
+    let opened = open_serial(path, Duration::from_millis(100)).unwrap();
+    let mut session =
+        DeviceSession::open(DeviceLink::new(opened.port), SessionConfig::default()).unwrap();
+    assert_eq!(session.pad_count(), 1);
+    session.start().unwrap();
+    let mut rows = RowWriter::new(Vec::new()).unwrap();
+    let mut streamed = Streamed::default();
+    let mut write_set = |event: SessionEvent, rows: &mut RowWriter<Vec<u8>>| {
+        let SessionEvent::Set {
+            set,
+            sets_missing_before,
+        } = event
+        else {
+            return;
+        };
+        streamed.sets += 1;
+        streamed.sets_missing += sets_missing_before;
+        let host_time_us = unix_now_us();
+        for (pad, frame) in set.pads.iter().enumerate() {
+            streamed.missing_frames += u64::from(frame.is_none());
+            let row = PadRow {
+                host_time_us,
+                device: 0,
+                pad: u8::try_from(pad).unwrap(),
+                sequence: set.sequence,
+                sync_error_us: None,
+                reading: frame.as_ref().map(PadReading::from_frame),
+                marker: String::new(),
+            };
+            rows.write(&row).unwrap();
+        }
+    };
+    let deadline = Instant::now() + RECORDING_DEADLINE;
+    // Recording ends when the device goes away at the end of the scene (as an unplug would).
+    let ended_by = loop {
+        assert!(
+            Instant::now() < deadline,
+            "the stream did not end; {} sets so far",
+            rows.rows()
+        );
+        match session.next_event(Instant::now() + Duration::from_millis(200)) {
+            Ok(Some(event)) => write_set(event, &mut rows),
+            Ok(None) => {}
+            Err(error) => break error.to_string(),
+        }
+    };
+    if let Some(event) = session.close_open_set() {
+        write_set(event, &mut rows);
+    }
+    assert_eq!(
+        streamed.sets_missing,
+        session.accounting().sequence_gap_sets(),
+        "the sets the session says are missing are the accounting's"
+    );
+    streamed.ended_by = ended_by;
+    (rows.into_inner(), streamed)
+}
 
 #[test]
 fn a_recording_of_the_simulated_device_matches_its_scene() {
@@ -46,75 +132,66 @@ fn a_recording_of_the_simulated_device_matches_its_scene() {
         thread::spawn(move || device.run(&mut port, Some(period_s), &stop))
     };
 
-    let opened = open_serial(&path, Duration::from_millis(100)).unwrap();
-    let mut link = DeviceLink::new(opened.port);
-    let mut csv_writer = csv::Writer::from_writer(Vec::new());
-    csv_writer.write_record(record_header()).unwrap();
-    let record_stop = AtomicBool::new(false);
-    // Recording ends when the device goes away at the end of the scene (as an unplug would).
-    let summary = record_link(
-        &mut link,
-        &mut csv_writer,
-        &record_stop,
-        None,
-        Duration::from_millis(200),
-        &mut |_| {},
-    );
+    let recorded = std::panic::catch_unwind(|| record(&path));
     device_stop.store(true, Ordering::Relaxed);
     device_thread.join().unwrap();
-    let summary = summary.unwrap();
-    let bytes = csv_writer.into_inner().unwrap();
+    let (bytes, streamed) = recorded.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
 
-    let mut reader = csv::Reader::from_reader(bytes.as_slice());
-    let header = reader.headers().unwrap().clone();
-    let column = |name: &str| header.iter().position(|h| h == name).unwrap();
-    let (time, seq) = (column("time_s"), column("seq"));
-    let pressure_columns = ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"].map(column);
-    let flag_columns = ["flags11", "flags12", "flags21", "flags22"].map(column);
-
+    // The recording is read back through the schema's reader: every row must be readable.
+    let first_line = bytes.split(|&byte| byte == b'\n').next().unwrap();
+    assert_eq!(first_line, header().join(",").as_bytes());
+    let mut reader = RowReader::new(bytes.as_slice()).unwrap();
     let (mut rows, mut compared, mut squared) = (0u64, 0u64, 0.0f64);
     let mut shorted_rows = 0u64;
-    let mut previous_sequence: Option<u64> = None;
+    let mut previous_sequence: Option<u32> = None;
     let mut gaps = 0u64;
-    for record in reader.records() {
-        let record = record.unwrap();
+    let mut previous_host_us = 0u64;
+    while let Some(row) = reader.next_row() {
+        let row = row.unwrap();
         rows += 1;
-        let sequence: u64 = record[seq].parse().unwrap();
+        assert_eq!((row.device, row.pad), (0, 0));
+        assert!(
+            row.host_time_us >= previous_host_us,
+            "host times go forward"
+        );
+        previous_host_us = row.host_time_us;
         if let Some(previous) = previous_sequence {
-            gaps += sequence - previous - 1;
+            assert!(row.sequence > previous, "sets in order");
+            gaps += u64::from(row.sequence - previous - 1);
         }
-        previous_sequence = Some(sequence);
-        let time_s: f64 = record[time].parse().unwrap();
+        previous_sequence = Some(row.sequence);
+        let reading = row
+            .reading
+            .unwrap_or_else(|| panic!("set {}: the pad's frame is missing", row.sequence));
+        let time_s = reading.device_time_us as f64 / 1e6;
         // The device tares on its first 16 sets; those carry no pressure.
         if time_s < 0.3 {
             continue;
         }
         let expected = truth.point_at_s(time_s);
         for taxel in 0..4 {
-            let flags = &record[flag_columns[taxel]];
-            let cell = &record[pressure_columns[taxel]];
+            let flags = reading.flags[taxel];
+            let pressure = reading.pressure_kpa[taxel];
             let in_short = taxel == 1 && (68.05..70.95).contains(&time_s);
             if in_short {
                 assert!(
-                    cell.is_empty(),
-                    "t {time_s}: a shorted taxel must carry no pressure: {cell}"
+                    pressure.is_none(),
+                    "t {time_s}: a shorted taxel must carry no pressure: {pressure:?}"
                 );
-                assert!(flags.contains("shorted"), "t {time_s}: {flags}");
+                assert!(flags.contains(TaxelFlags::SHORTED), "t {time_s}: {flags:?}");
                 shorted_rows += 1;
                 continue;
             }
             if (67.95..71.1).contains(&time_s) && taxel == 1 {
                 continue;
             }
-            assert!(
-                !cell.is_empty(),
-                "t {time_s} taxel {taxel}: no pressure, flags {flags}"
-            );
-            let pressure: f64 = cell.parse().unwrap();
-            let error = pressure - f64::from(expected.pressure_kpa[taxel]);
+            let Some(pressure) = pressure else {
+                panic!("t {time_s} taxel {taxel}: no pressure, flags {flags:?}");
+            };
+            let error = f64::from(pressure) - f64::from(expected.pressure_kpa[taxel]);
             assert!(
                 error.abs() < SAMPLE_TOLERANCE_KPA,
-                "t {time_s} taxel {taxel}: {pressure} kPa vs scene {} kPa ({flags})",
+                "t {time_s} taxel {taxel}: {pressure} kPa vs scene {} kPa ({flags:?})",
                 expected.pressure_kpa[taxel]
             );
             squared += error * error;
@@ -122,7 +199,13 @@ fn a_recording_of_the_simulated_device_matches_its_scene() {
         }
     }
     let rms = (squared / compared.max(1) as f64).sqrt();
-    println!("{rows} rows, {compared} pressures compared, RMS {rms:.4} kPa, {shorted_rows} shorted cells, {gaps} sets missing, summary {summary:?}");
+    println!("{rows} rows, {compared} pressures compared, RMS {rms:.4} kPa, {shorted_rows} shorted cells, {gaps} sets missing, {streamed:?}");
+    assert_eq!(rows, streamed.sets, "one row per set of the one pad");
+    assert_eq!(streamed.missing_frames, 0);
+    assert_eq!(
+        gaps, streamed.sets_missing,
+        "the recording's gaps are the stream's"
+    );
     // One pass of the scene at about 100 sets per second.
     assert!(rows as f64 > 0.95 * period_s * 100.0, "{rows} rows");
     assert!(gaps as f64 <= 0.01 * rows as f64, "{gaps} sets missing");
