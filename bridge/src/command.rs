@@ -4,23 +4,31 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::sync_channel;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::Parser;
-use sim_device::SimulatedDeviceConfig;
-use sim_device::{load_scene, SimulatorThread};
-use taxel_args::MultiBoardArgs;
-use taxel_host::device_link::open_serial;
+use sim_device::{scene_config, SimulatorThread};
+use taxel_args::{LinkArgs, MultiBoardArgs};
+use taxel_host::console::error_message;
+use taxel_host::device_link::{open_serial, DeviceLink};
+use taxel_host::host_clock::UnixClock;
 use taxel_host::noteln;
 use taxel_host::output_file::PendingRename;
+use taxel_host::session::{DeviceSession, SessionConfig};
+use taxel_host::worker::{EventQueue, Overflow, Worker};
+use taxel_ros2::pad_messages::{DEFAULT_FRAME_PREFIX, DEFAULT_NAMESPACE};
+use wire::{Command, PadIndex, PadInfoFrame, ReplyPayload};
 use zenoh::Wait;
 
-use crate::device_reader::{lock, read_device, BridgeClock, DeviceHealth, ReaderState};
+use crate::health::{DeviceHealth, ReaderState, STOPPED_WORDS};
 use crate::plain::PlainPublisher;
-use crate::publisher::{publish_loop, FramePublisher, Naming, RosPublisher, TimingLog};
+use crate::publisher::{FramePublisher, Naming, RosPublisher, TimingLog};
+use crate::relay::{relay_events, Publication, Relay};
+
+/// How long one read of a device's port waits (the worker's threads read in slices of 20 ms).
+const PORT_READ_TIMEOUT: Duration = Duration::from_millis(20);
 
 /// Long help of `taxel bridge`.
 pub const LONG_ABOUT: &str = "Publish the pads of one or more devices into Zenoh, in the form \
@@ -30,7 +38,8 @@ graph. Per pad: <namespace>/device<d>/pad<p>/pressure (sensor_msgs/msg/PointClou
 and flags per taxel), .../wrench (geometry_msgs/msg/WrenchStamped: the force at the centre of \
 pressure), .../contact_started and .../contact_ended (std_msgs/msg/Header); per device, its health \
 on /diagnostics (diagnostic_msgs/msg/DiagnosticArray). Stamps are the device time mapped onto the \
-host clock; the attachment's sequence number is the device's. See docs/BRIDGE.md.\n\n\
+host clock (a frame or event that waited 3 s for its device's first clock estimate is stamped with \
+its arrival); the attachment's sequence number is the device's. See docs/BRIDGE.md.\n\n\
 Examples:\n  taxel bridge --sim 2\n  taxel bridge /dev/ttyACM0 --connect tcp/localhost:7447\n  \
 taxel bridge --serial 0123ABCD --domain-id 3";
 
@@ -67,10 +76,10 @@ pub struct BridgeArgs {
     #[arg(long, value_name = "ID", env = "ROS_DOMAIN_ID", default_value_t = 0)]
     pub domain_id: u32,
     /// Namespace of the pad topics.
-    #[arg(long, value_name = "NAMESPACE", default_value = "/taxel")]
+    #[arg(long, value_name = "NAMESPACE", default_value = DEFAULT_NAMESPACE)]
     pub namespace: String,
     /// Start of each pad's frame id, followed by device<d>_pad<p>.
-    #[arg(long, value_name = "PREFIX", default_value = "taxel_")]
+    #[arg(long, value_name = "PREFIX", default_value = DEFAULT_FRAME_PREFIX)]
     pub frame_prefix: String,
     /// The ROS 2 node the publishers belong to.
     #[arg(long, value_name = "NAME", default_value = "taxel_bridge")]
@@ -93,9 +102,9 @@ pub struct BridgeArgs {
     /// Stop after this many seconds (default: run until Ctrl-C).
     #[arg(long, value_name = "SECONDS")]
     pub duration: Option<f64>,
-    /// Frames the queue between the device readers and the publisher holds; beyond it frames
-    /// are dropped and counted in the health.
-    #[arg(long, value_name = "FRAMES", default_value_t = 4096)]
+    /// Events (sample sets, device events) the queue between the device readers and the
+    /// publisher holds; beyond it the oldest sample sets are dropped and counted in the health.
+    #[arg(long, value_name = "EVENTS", default_value_t = 4096)]
     pub queue_capacity: usize,
     /// Write one line per published sample frame (device,pad,sequence,arrival_ns,published_ns).
     #[arg(long, value_name = "FILE")]
@@ -104,9 +113,9 @@ pub struct BridgeArgs {
     /// `ros2 bag` open it).
     #[arg(long, value_name = "FILE")]
     pub mcap: Option<PathBuf>,
-    /// How long to wait for each reply from a device, ms.
-    #[arg(long, value_name = "MS", default_value_t = 2000)]
-    pub timeout_ms: u64,
+    /// How long to wait for the devices.
+    #[command(flatten)]
+    pub link: LinkArgs,
 }
 
 fn zenoh_config(args: &BridgeArgs) -> anyhow::Result<zenoh::Config> {
@@ -142,6 +151,10 @@ fn zenoh_config(args: &BridgeArgs) -> anyhow::Result<zenoh::Config> {
 
 /// Runs `taxel bridge` until Ctrl-C, `--duration`, or every device stopped.
 pub fn run(args: &BridgeArgs) -> anyhow::Result<ExitCode> {
+    // The host clock's origin comes before anything a device does: a stamp before the origin
+    // would be the origin. (A simulated device is paced from its boot; its first sets map back
+    // to it.)
+    let clock = UnixClock::new();
     let stop = Arc::new(AtomicBool::new(false));
     let handler_stop = Arc::clone(&stop);
     ctrlc::set_handler(move || handler_stop.store(true, Ordering::Relaxed))
@@ -149,20 +162,14 @@ pub fn run(args: &BridgeArgs) -> anyhow::Result<ExitCode> {
     let mut simulators = Vec::new();
     let ports = match args.sim {
         Some(count) => {
-            let scene = load_scene(args.sim_scene.as_deref())?;
-            let pads = args.sim_pads.map_or(scene.pads.len(), usize::from);
             for device in 0..count {
-                let simulator = SimulatorThread::start(
-                    SimulatedDeviceConfig {
-                        scene: scene.clone(),
-                        seed: u64::from(device) + 1,
-                        speed: Some(1.0),
-                        topology: sim_device::pads_topology(pads),
-                        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-                    },
-                    None,
+                let config = scene_config(
+                    args.sim_scene.as_deref(),
+                    args.sim_pads,
+                    Some(1.0),
+                    u64::from(device) + 1,
                 )?;
-                simulators.push(simulator);
+                simulators.push(SimulatorThread::start(config, None)?);
             }
             simulators
                 .iter()
@@ -171,22 +178,138 @@ pub fn run(args: &BridgeArgs) -> anyhow::Result<ExitCode> {
         }
         None => args.board.select_ports()?,
     };
-    let result = bridge_ports(args, &ports, &stop);
+    let result = bridge_ports(args, &ports, clock, &stop);
     for simulator in simulators {
         simulator.stop();
     }
     result
 }
 
+/// A device's session over its serial port.
+type PortSession = DeviceSession<Box<dyn serialport::SerialPort>>;
+
+/// A device's port opened, identified and its pads described (its stream not started yet).
+fn open_device(port: &str, timeout: Duration) -> anyhow::Result<(PortSession, Vec<PadInfoFrame>)> {
+    let opened = open_serial(port, PORT_READ_TIMEOUT)?;
+    let config = SessionConfig {
+        request_timeout: timeout,
+        follow_state: false,
+    };
+    let mut session = DeviceSession::open(DeviceLink::new(opened.port), config)?;
+    let mut pads = Vec::new();
+    for pad in 0..session.info().pad_count {
+        let Some(pad) = PadIndex::new(pad) else {
+            break;
+        };
+        if let Ok(ReplyPayload::PadInfo(pad_info)) =
+            session.request(Command::PadInfo { pad }, timeout)
+        {
+            pads.push(pad_info);
+        }
+    }
+    Ok((session, pads))
+}
+
+/// The devices of a run: each one's health in the bridge's numbering, and the sessions of
+/// those that answered, the worker's device n being the bridge's `worker_devices[n]`.
+struct OpenedDevices {
+    healths: Vec<DeviceHealth>,
+    sessions: Vec<PortSession>,
+    worker_devices: Vec<usize>,
+}
+
+/// Opens every device; one that does not answer is reported and stays stopped in its health.
+/// Fails when none answers.
+fn open_devices(ports: &[String], timeout: Duration) -> anyhow::Result<OpenedDevices> {
+    let mut devices = OpenedDevices {
+        healths: Vec::new(),
+        sessions: Vec::new(),
+        worker_devices: Vec::new(),
+    };
+    for (device, port) in ports.iter().enumerate() {
+        let mut health = DeviceHealth {
+            name: port.clone(),
+            ..DeviceHealth::default()
+        };
+        match open_device(port, timeout) {
+            Ok((session, pads)) => {
+                health.info = Some(*session.info());
+                health.pads = pads;
+                health.temperature_sources = vec![None; usize::from(session.info().pad_count)];
+                health.state = ReaderState::Streaming;
+                devices.sessions.push(session);
+                devices.worker_devices.push(device);
+            }
+            Err(error) => {
+                let message = error_message(&error);
+                noteln!("device {device} ({port}): {message}");
+                health.state = ReaderState::Stopped(message);
+            }
+        }
+        devices.healths.push(health);
+    }
+    anyhow::ensure!(!devices.sessions.is_empty(), "no device could be read");
+    Ok(devices)
+}
+
+impl OpenedDevices {
+    /// Starts every stream; a device that refuses is reported and dropped from the sessions.
+    /// Fails when none starts.
+    fn start(&mut self) -> anyhow::Result<()> {
+        let sessions = std::mem::take(&mut self.sessions);
+        let worker_devices = std::mem::take(&mut self.worker_devices);
+        for (mut session, device) in sessions.into_iter().zip(worker_devices) {
+            match session.start() {
+                Ok(()) => {
+                    self.sessions.push(session);
+                    self.worker_devices.push(device);
+                }
+                Err(error) => {
+                    let message = error_message(&error);
+                    if let Some(health) = self.healths.get_mut(device) {
+                        noteln!("device {device} ({}): {message}", health.name);
+                        health.state = ReaderState::Stopped(message);
+                    }
+                }
+            }
+        }
+        anyhow::ensure!(!self.sessions.is_empty(), "no device could be read");
+        Ok(())
+    }
+}
+
+/// A device's closing line, after its name.
+fn closing_words(health: &DeviceHealth) -> String {
+    let mut words = format!(
+        "{}; {} frames published",
+        health.accounting.summary(),
+        health.frames_published
+    );
+    if health.stamped_at_arrival > 0 {
+        words.push_str(&format!(
+            "; {} frames or events stamped with their arrival (no clock estimate)",
+            health.stamped_at_arrival
+        ));
+    }
+    if let ReaderState::Stopped(reason) = &health.state {
+        if *reason != STOPPED_WORDS {
+            words.push_str(&format!("; {reason}"));
+        }
+    }
+    words
+}
+
 fn bridge_ports(
     args: &BridgeArgs,
     ports: &[String],
+    clock: UnixClock,
     stop: &AtomicBool,
 ) -> anyhow::Result<ExitCode> {
-    let mut opened = Vec::new();
-    for port in ports {
-        opened.push(open_serial(port, Duration::from_millis(100))?.port);
-    }
+    anyhow::ensure!(
+        args.mcap.is_none() || args.mode == Mode::Ros2,
+        "--mcap records the ROS 2 messages: it needs --mode ros2"
+    );
+    let mut devices = open_devices(ports, args.link.timeout())?;
     let session = zenoh::open(zenoh_config(args)?)
         .wait()
         .map_err(|error| anyhow::anyhow!("opening the Zenoh session: {error}"))?;
@@ -204,10 +327,6 @@ fn bridge_ports(
         naming.node_name,
         naming.domain_id,
         session.zid()
-    );
-    anyhow::ensure!(
-        args.mcap.is_none() || args.mode == Mode::Ros2,
-        "--mcap records the ROS 2 messages: it needs --mode ros2"
     );
     // The MCAP file is written under a temporary name and renamed once complete.
     let mut mcap_file = None;
@@ -235,74 +354,57 @@ fn bridge_ports(
         ))),
         None => None,
     };
-    let clock = BridgeClock::new();
-    let healths: Vec<Arc<Mutex<DeviceHealth>>> = ports
-        .iter()
-        .map(|port| {
-            Arc::new(Mutex::new(DeviceHealth {
-                name: port.clone(),
-                ..DeviceHealth::default()
-            }))
-        })
-        .collect();
-    let (sender, receiver) = sync_channel(args.queue_capacity.max(1));
-    let timeout = Duration::from_millis(args.timeout_ms);
+    // The streams start last, just before their threads read them, so that few sets wait in
+    // a port.
+    devices.start()?;
+    let queue = Arc::new(EventQueue::new(
+        args.queue_capacity,
+        Overflow::DropOldestSet,
+    ));
+    let worker = Worker::start(devices.sessions, Arc::clone(&queue), Arc::new(clock))
+        .context("starting the devices' reader threads")?;
+    let mut relay = Relay::new(clock, devices.healths, devices.worker_devices);
+    let mut publication = Publication::new(publisher, timing_log);
     let deadline = args
         .duration
         .map(|seconds| Instant::now() + Duration::from_secs_f64(seconds.max(0.0)));
-    let counts = std::thread::scope(|scope| {
-        for (device, port) in opened.into_iter().enumerate() {
-            let sender = sender.clone();
-            let health = Arc::clone(&healths[device]);
-            let clock = &clock;
-            scope.spawn(move || {
-                if let Err(error) = read_device(device, port, clock, sender, &health, stop, timeout)
-                {
-                    let message = taxel_host::console::error_message(&error);
-                    noteln!("device {device}: {message}");
-                    lock(&health).state = ReaderState::Stopped(message);
-                }
-            });
-        }
-        drop(sender);
-        if let Some(deadline) = deadline {
-            scope.spawn(move || {
-                while !stop.load(Ordering::Relaxed) && Instant::now() < deadline {
-                    std::thread::sleep(Duration::from_millis(20));
-                }
-                stop.store(true, Ordering::Relaxed);
-            });
-        }
-        let counts = publish_loop(
-            publisher,
-            &receiver,
-            &healths,
-            stop,
-            Duration::from_secs(1),
-            timing_log,
-        );
-        stop.store(true, Ordering::Relaxed);
-        counts
-    })?;
+    let result = relay_events(
+        &worker,
+        &mut relay,
+        &mut publication,
+        stop,
+        deadline,
+        Duration::from_secs(1),
+    );
+    // Every device's last set and its end are in the queue once the worker has finished.
+    drop(worker.finish());
+    result?;
+    for arrived in queue.drain() {
+        let messages = relay.take(arrived);
+        publication.send(messages, &relay)?;
+    }
+    let messages = relay.finish();
+    publication.send(messages, &relay)?;
+    publication.health(&relay, &queue)?;
+    let counts = publication.finish()?;
     if let Some(ros) = ros {
         if let (Some(file), Some(pending)) = (ros.finish()?, mcap_file) {
             pending.commit_file(file)?;
         }
     }
-    for (device, health) in healths.iter().enumerate() {
-        let health = lock(health);
+    for (device, health) in relay.healths(queue.dropped_sets()).iter().enumerate() {
         noteln!(
-            "device {device} ({}): {}; {} dropped by the bridge",
+            "device {device} ({}): {}",
             health.name,
-            health.accounting.summary(),
-            health.queue_dropped + health.waiting_dropped
+            closing_words(health)
         );
     }
     noteln!(
-        "published {} sample frames, {} contact events, {} health reports",
+        "published {} sample frames, {} contact events, {} health reports; {} sample sets dropped by the bridge (queue full)",
         counts.samples,
         counts.contacts,
-        counts.diagnostics
+        counts.diagnostics,
+        queue.dropped_sets()
     );
     Ok(ExitCode::SUCCESS)
 }

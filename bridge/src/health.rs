@@ -1,13 +1,73 @@
 //! Each device's health as a `diagnostic_msgs/msg/DiagnosticStatus`: the device's counters, its
 //! pads' temperature sources and calibrations, what the link lost, what the bridge dropped, and
 //! the clock mapping. Level: ERROR when the device stopped, WARN when anything was lost or
-//! dropped or a pad runs on a fallback temperature or a default calibration, else OK.
+//! dropped, an item was stamped with its arrival for want of a clock estimate, or a pad runs on
+//! a fallback temperature or a default calibration, else OK.
 
+use taxel_host::clock_sync::ClockEstimate;
 use taxel_host::device_words::{board_serial_hex, calibration_source_words};
+use taxel_host::stream_accounting::StreamAccounting;
+use taxel_host::worker::EndReason;
 use taxel_ros2::{DiagnosticLevel, DiagnosticStatus, KeyValue};
-use wire::{CalibrationSource, TemperatureSensor, TemperatureSource};
+use wire::{
+    CalibrationSource, CountersFrame, InfoFrame, PadInfoFrame, TemperatureSensor, TemperatureSource,
+};
 
-use crate::device_reader::{DeviceHealth, ReaderState};
+/// Where a device's reading stands.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum ReaderState {
+    /// Not open yet.
+    #[default]
+    Connecting,
+    /// Streaming.
+    Streaming,
+    /// Stopped: asked to, or the device went away or never answered (the reason).
+    Stopped(String),
+}
+
+/// The reason of [`ReaderState::Stopped`] when the bridge stopped the device.
+pub const STOPPED_WORDS: &str = "stopped";
+
+impl ReaderState {
+    /// The state after the device's stream ended for `reason`.
+    pub fn ended(reason: &EndReason) -> Self {
+        Self::Stopped(match reason {
+            EndReason::Stopped => STOPPED_WORDS.to_owned(),
+            EndReason::Disconnected(message) => format!("the device went away: {message}"),
+            EndReason::Failed(message) => message.clone(),
+        })
+    }
+}
+
+/// One device's health as the bridge reports it.
+#[derive(Debug, Clone, Default)]
+pub struct DeviceHealth {
+    /// The device's name (its port).
+    pub name: String,
+    /// Where reading stands.
+    pub state: ReaderState,
+    /// Its identity.
+    pub info: Option<InfoFrame>,
+    /// Each pad's place, temperature sensor and calibration.
+    pub pads: Vec<PadInfoFrame>,
+    /// The device's counters, as last sent.
+    pub counters: Option<CountersFrame>,
+    /// Sample frames received, lost on the link, dropped by the device: the session's
+    /// accounting, as last read from the device's thread.
+    pub accounting: StreamAccounting,
+    /// Each pad's temperature source in its last sample, by pad index.
+    pub temperature_sources: Vec<Option<TemperatureSource>>,
+    /// The device's clock mapping now.
+    pub clock: Option<ClockEstimate>,
+    /// Sample frames published (each as a pressure cloud and a wrench, or a plain record).
+    pub frames_published: u64,
+    /// Sample frames and contact events stamped with their arrival because the device's clock
+    /// had no estimate after the longest wait (`taxel_host::stamping::MAX_WAIT_US`).
+    pub stamped_at_arrival: u64,
+    /// Sample sets the bridge dropped because its queue was full: one queue for every device,
+    /// so this is the count of all devices.
+    pub sets_dropped_by_bridge: u64,
+}
 
 fn temperature_source_words(source: Option<TemperatureSource>) -> &'static str {
     match source {
@@ -29,6 +89,10 @@ fn temperature_sensor_words(sensor: TemperatureSensor) -> String {
     }
 }
 
+/// The key of the sample sets the bridge dropped (queue full, every device's together).
+pub const SETS_DROPPED_BY_BRIDGE_KEY: &str =
+    "sample sets dropped by the bridge (queue full, all devices)";
+
 /// The status of device `device` (named `taxel_bridge: device<d>` in the array).
 pub fn device_status(device: usize, health: &DeviceHealth) -> DiagnosticStatus {
     let mut values = vec![
@@ -39,14 +103,11 @@ pub fn device_status(device: usize, health: &DeviceHealth) -> DiagnosticStatus {
             "sample sets dropped by the device",
             health.accounting.device_dropped(),
         ),
-        KeyValue::new("frames published or queued", health.queued),
+        KeyValue::new("frames published", health.frames_published),
+        KeyValue::new(SETS_DROPPED_BY_BRIDGE_KEY, health.sets_dropped_by_bridge),
         KeyValue::new(
-            "frames dropped by the bridge (queue full)",
-            health.queue_dropped,
-        ),
-        KeyValue::new(
-            "frames dropped by the bridge (waiting for the clock)",
-            health.waiting_dropped,
+            "frames and events stamped with their arrival (no clock estimate)",
+            health.stamped_at_arrival,
         ),
     ];
     let mut warnings = Vec::new();
@@ -125,12 +186,21 @@ pub fn device_status(device: usize, health: &DeviceHealth) -> DiagnosticStatus {
         ]),
         None => values.push(KeyValue::new("clock", "estimating")),
     }
-    let lost = health.accounting.lost_on_link()
-        + health.accounting.device_dropped()
-        + health.queue_dropped
-        + health.waiting_dropped;
-    if lost > 0 {
-        warnings.push(format!("{lost} frames lost or dropped"));
+    let lost_frames = health.accounting.lost_on_link() + health.accounting.device_dropped();
+    if lost_frames > 0 {
+        warnings.push(format!("{lost_frames} frames lost or dropped"));
+    }
+    if health.sets_dropped_by_bridge > 0 {
+        warnings.push(format!(
+            "{} sample sets dropped by the bridge",
+            health.sets_dropped_by_bridge
+        ));
+    }
+    if health.stamped_at_arrival > 0 {
+        warnings.push(format!(
+            "{} stamped with their arrival (no clock estimate)",
+            health.stamped_at_arrival
+        ));
     }
     let (level, message) = match &health.state {
         ReaderState::Stopped(reason) => (DiagnosticLevel::Error, reason.clone()),

@@ -2,20 +2,24 @@
 //! rmw_zenoh uses, so ROS 2 nodes (and plain Zenoh subscribers) receive them. The design, the
 //! message types and the names are in docs/BRIDGE.md.
 //!
-//! - [`device_reader`]: one thread per device, stamping frames with the mapped device time and
-//!   queueing them without ever blocking;
+//! The devices are read by the host library (`taxel_host`): each by a `DeviceSession` on a
+//! thread of the `Worker`, into one queue; their frames are stamped by its one policy
+//! (`taxel_host::stamping`).
+//!
+//! - [`relay`]: the worker's events to stamped messages, each device's health, the publishing
+//!   loop;
 //! - [`health`]: a device's state as a ROS 2 diagnostic status (a pad's frames become messages
 //!   in `taxel_ros2::pad_messages`);
 //! - [`names`]: rmw_zenoh's key expressions, liveliness tokens and attachment;
-//! - [`publisher`]: the Zenoh session and the publishing loop in the ROS 2 form;
+//! - [`publisher`]: the Zenoh session and the publishers in the ROS 2 form;
 //! - [`plain`]: the plain mode, for Zenoh users without ROS;
 //! - [`command`]: the command line and the run.
 #![deny(missing_docs)]
 #![deny(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod command;
-pub mod device_reader;
 pub mod health;
 pub mod names;
 pub mod plain;
 pub mod publisher;
+pub mod relay;

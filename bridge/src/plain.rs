@@ -17,9 +17,9 @@ use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 use zenoh::{Session, Wait};
 
-use crate::device_reader::{DeviceHealth, Outgoing};
-use crate::health::device_status;
+use crate::health::{device_status, DeviceHealth};
 use crate::publisher::FramePublisher;
+use crate::relay::Outgoing;
 
 /// Bytes of one sample record.
 pub const SAMPLE_BYTES: usize = 60;
@@ -179,6 +179,7 @@ impl FramePublisher for PlainPublisher {
                 pad,
                 started,
                 stamp_ns,
+                ..
             } => {
                 let key = format!("{}/device{device}/pad{pad}/contact", self.prefix);
                 self.put(

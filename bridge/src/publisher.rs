@@ -1,29 +1,27 @@
-//! The Zenoh side: one session, the node's and every publisher's liveliness token, one Zenoh
-//! publisher per topic (declared when the topic's first message comes), and the loop that takes
-//! the readers' frames off the queue and puts them, with each device's health on the
-//! diagnostics topic once a second.
+//! The Zenoh side in the ROS 2 form: one session, the node's and every publisher's liveliness
+//! token, one Zenoh publisher per topic (declared when the topic's first message comes), and
+//! each device's health on the diagnostics topic; with `--mcap`, every message put is also
+//! written, with the same bytes and sequence number, to an MCAP file.
 //!
 //! Publishers wait when the network is congested (`CongestionControl::Block`, as rmw_zenoh's
 //! reliable keep-all publishers do) rather than drop silently: Zenoh does not tell a publisher
-//! what it dropped, so the one place frames are dropped is the readers' bounded queue in front
-//! of this loop, where each drop is counted and reported in the device's health. The readers
-//! never wait for this loop, so a slow subscriber never slows the devices. (Zenoh closes a link
-//! that stays blocked longer than its `wait_before_close`, so one stuck subscriber cannot hold
-//! the loop for ever.) Messages are not `express`: Zenoh's automatic batching sends at once when
-//! the link is idle and packs a burst into few writes.
+//! what it dropped, so the one place sample sets are dropped is the worker's bounded queue in
+//! front of the publishing loop ([`crate::relay`]), where each drop is counted and reported in
+//! the health. The device readers never wait for this loop, so a slow subscriber never slows
+//! the devices. (Zenoh closes a link that stays blocked longer than its `wait_before_close`, so
+//! one stuck subscriber cannot hold the loop for ever.) Messages are not `express`: Zenoh's
+//! automatic batching sends at once when the link is idle and packs a burst into few writes.
 
 use std::collections::HashMap;
 use std::fs::File;
 use std::hash::{DefaultHasher, Hash, Hasher};
 use std::io::{BufWriter, Write};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{Receiver, RecvTimeoutError};
-use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
 
 use model_core::PadGeometry;
 use taxel_ros2::mcap_file::TopicId;
-use taxel_ros2::pad_messages::{pad_wrench, pressure_cloud, PadTopics};
+use taxel_ros2::pad_messages::{
+    pad_wrench, pressure_cloud, PadTopics, DEFAULT_FRAME_PREFIX, DEFAULT_NAMESPACE,
+};
 use taxel_ros2::types::{
     DIAGNOSTIC_ARRAY_MESSAGE, HEADER_MESSAGE, POINT_CLOUD2_MESSAGE, WRENCH_STAMPED_MESSAGE,
 };
@@ -33,9 +31,9 @@ use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 use zenoh::{Session, Wait};
 
-use crate::device_reader::{lock, DeviceHealth, Outgoing};
-use crate::health::device_status;
+use crate::health::{device_status, DeviceHealth};
 use crate::names::{attachment, data_key_expression, GraphNode};
+use crate::relay::Outgoing;
 
 /// How the bridge names things.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -56,8 +54,8 @@ impl Default for Naming {
     fn default() -> Self {
         Self {
             domain_id: 0,
-            namespace: "/taxel".to_owned(),
-            frame_prefix: "taxel_".to_owned(),
+            namespace: DEFAULT_NAMESPACE.to_owned(),
+            frame_prefix: DEFAULT_FRAME_PREFIX.to_owned(),
             node_name: "taxel_bridge".to_owned(),
             diagnostics_topic: "/diagnostics".to_owned(),
         }
@@ -125,7 +123,7 @@ pub struct PublishCounts {
 /// Where the publishing loop puts frames and health: the ROS 2 form ([`RosPublisher`]) or the
 /// plain one ([`crate::plain::PlainPublisher`]).
 pub trait FramePublisher {
-    /// Publishes one frame from a reader.
+    /// Publishes one stamped sample frame or contact event.
     fn publish(&mut self, outgoing: &Outgoing) -> anyhow::Result<()>;
     /// Publishes every device's health, stamped `stamp_ns` (ns since the Unix epoch).
     fn publish_health(&mut self, healths: &[DeviceHealth], stamp_ns: u64) -> anyhow::Result<()>;
@@ -300,7 +298,10 @@ impl FramePublisher for RosPublisher {
                     .put(recorder, sequence, *stamp_ns, *arrival_ns, wrench)
             }
             Outgoing::Contact {
-                started, stamp_ns, ..
+                started,
+                stamp_ns,
+                arrival_ns,
+                ..
             } => {
                 let header = Header {
                     stamp: Time::from_unix_ns(*stamp_ns),
@@ -311,7 +312,7 @@ impl FramePublisher for RosPublisher {
                 } else {
                     &mut publishers.contact_ended
                 };
-                publisher.put(recorder, None, *stamp_ns, unix_now_ns(), header.to_cdr())
+                publisher.put(recorder, None, *stamp_ns, *arrival_ns, header.to_cdr())
             }
         }
     }
@@ -345,68 +346,3 @@ impl FramePublisher for RosPublisher {
 /// Where `--timing-log` writes one line per published sample frame: device, pad, sequence,
 /// arrival and publication (ns since the Unix epoch), for the latency table.
 pub type TimingLog = Box<dyn Write + Send>;
-
-pub(crate) fn unix_now_ns() -> u64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::SystemTime::UNIX_EPOCH)
-        .map_or(0, |since| {
-            u64::try_from(since.as_nanos()).unwrap_or(u64::MAX)
-        })
-}
-
-/// Publishes what the readers send until every reader is gone or `stop` is set, and the
-/// devices' health every `health_period`.
-pub fn publish_loop(
-    publisher: &mut dyn FramePublisher,
-    receiver: &Receiver<Outgoing>,
-    healths: &[Arc<Mutex<DeviceHealth>>],
-    stop: &AtomicBool,
-    health_period: Duration,
-    mut timing_log: Option<TimingLog>,
-) -> anyhow::Result<PublishCounts> {
-    let mut counts = PublishCounts::default();
-    let mut last_health = Instant::now();
-    while !stop.load(Ordering::Relaxed) {
-        match receiver.recv_timeout(Duration::from_millis(50)) {
-            Ok(outgoing) => {
-                publisher.publish(&outgoing)?;
-                match &outgoing {
-                    Outgoing::Sample {
-                        device,
-                        sample,
-                        arrival_ns,
-                        ..
-                    } => {
-                        counts.samples += 1;
-                        if let Some(log) = timing_log.as_mut() {
-                            writeln!(
-                                log,
-                                "{device},{},{},{arrival_ns},{}",
-                                sample.pad.get(),
-                                sample.sequence,
-                                unix_now_ns()
-                            )?;
-                        }
-                    }
-                    Outgoing::Contact { .. } => counts.contacts += 1,
-                }
-            }
-            Err(RecvTimeoutError::Timeout) => {}
-            Err(RecvTimeoutError::Disconnected) => break,
-        }
-        if last_health.elapsed() >= health_period {
-            let snapshot: Vec<DeviceHealth> =
-                healths.iter().map(|health| lock(health).clone()).collect();
-            publisher.publish_health(&snapshot, unix_now_ns())?;
-            counts.diagnostics += 1;
-            last_health = Instant::now();
-        }
-    }
-    let snapshot: Vec<DeviceHealth> = healths.iter().map(|health| lock(health).clone()).collect();
-    publisher.publish_health(&snapshot, unix_now_ns())?;
-    counts.diagnostics += 1;
-    if let Some(log) = timing_log.as_mut() {
-        log.flush()?;
-    }
-    Ok(counts)
-}

@@ -3,7 +3,7 @@
 //! (bridge/tests/python/read_mcap.py), and a plain-mode subscriber with nothing but `struct`
 //! (bridge/tests/python/subscribe_plain.py), each against `taxel-bridge --sim` playing
 //! bridge/tests/python/plateau.toml; and the Python MCAP readers again on what
-//! `taxel record --format mcap` wrote of a simulated device playing the same scene.
+//! `taxel record --mcap` wrote of a simulated device playing the same scene.
 //!
 //! The Python interpreter is `$TAXEL_PYTHON`, a virtual environment with the packages of
 //! bridge/tests/python/requirements.txt (`.ci/run` makes it). Without it the tests say so and
@@ -92,19 +92,9 @@ fn the_python_mcap_readers_decode_a_taxel_record_mcap_file() {
         return;
     };
     let directory = tempfile::tempdir().unwrap();
-    let scene_text = std::fs::read_to_string(script("plateau.toml")).unwrap();
-    let scene = sim_device::SceneFile::parse(&scene_text).unwrap();
-    let simulator = sim_device::SimulatorThread::start(
-        sim_device::SimulatedDeviceConfig {
-            topology: sim_device::pads_topology(scene.pads.len()),
-            scene,
-            seed: 3,
-            speed: Some(2.0),
-            bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-        },
-        Some(60.0),
-    )
-    .unwrap();
+    let scene = script("plateau.toml");
+    let config = sim_device::scene_config(Some(&scene), None, Some(2.0), 3).unwrap();
+    let simulator = sim_device::SimulatorThread::start(config, Some(60.0)).unwrap();
     let recording = directory.path().join("rec.mcap");
     let port = simulator.path().display().to_string();
     let recording_arg = recording.display().to_string();
@@ -112,11 +102,9 @@ fn the_python_mcap_readers_decode_a_taxel_record_mcap_file() {
         .args([
             "record",
             port.as_str(),
-            "--format",
-            "mcap",
             "--samples",
             "700",
-            "-o",
+            "--mcap",
             recording_arg.as_str(),
         ])
         .output()

@@ -35,17 +35,20 @@ fn peak_kib() -> u64 {
         .unwrap_or(0)
 }
 
-/// A recording of one device of four pads: presses that come and go on every taxel.
+/// A recording of one device of four pads, as `taxel record` writes it: presses that come and
+/// go on every taxel, with the pressures, force and centre the device sent.
 fn write_recording(path: &Path) -> std::io::Result<()> {
     let mut rows = RowWriter::new(BufWriter::new(File::create(path)?))?;
     for index in 0..ROWS {
         let set = index / PADS;
         let pad = (index % PADS) as u8;
         let phase = set as f32 * 0.01 + f32::from(pad);
-        let capacitance_pf = std::array::from_fn(|taxel| {
-            let load = (phase + taxel as f32).sin().max(0.0);
-            Some(4.5 + 1.5 * load)
-        });
+        let load: [f32; TAXEL_COUNT] =
+            std::array::from_fn(|taxel| (phase + taxel as f32).sin().max(0.0));
+        let capacitance_pf = load.map(|load| Some(4.5 + 1.5 * load));
+        // What the device sent with them: a pressure per taxel, the force and its centre.
+        let pressure_kpa = load.map(|load| Some(45.0 * load));
+        let force_n = load.iter().sum::<f32>() * 0.25;
         let row = PadRow {
             host_time_us: 1_700_000_000_000_000 + set * 10_000,
             device: 0,
@@ -57,12 +60,12 @@ fn write_recording(path: &Path) -> std::io::Result<()> {
                 temperature_c: Some(25.0 + (phase * 0.1).sin()),
                 temperature_source: TemperatureSource::Tmp117,
                 capacitance_pf,
-                pressure_kpa: [None; TAXEL_COUNT],
+                pressure_kpa,
                 flags: [TaxelFlags::empty(); TAXEL_COUNT],
-                force_n: None,
-                centre_of_pressure_mm: None,
+                force_n: Some(force_n),
+                centre_of_pressure_mm: (force_n > 0.0).then_some([0.4 * force_n, -0.3 * force_n]),
                 partial: false,
-                contact: false,
+                contact: force_n > 0.05,
             }),
             marker: String::new(),
         };
@@ -73,14 +76,18 @@ fn write_recording(path: &Path) -> std::io::Result<()> {
 
 /// Reads every record, parses every number, writes every record back.
 fn reference(input: &Path, output: &Path) -> anyhow::Result<u64> {
-    let mut reader = csv::Reader::from_reader(BufReader::with_capacity(1 << 20, File::open(input)?));
+    let mut reader =
+        csv::Reader::from_reader(BufReader::with_capacity(1 << 20, File::open(input)?));
     let mut writer = csv::Writer::from_writer(BufWriter::new(File::create(output)?));
     writer.write_byte_record(reader.byte_headers()?)?;
     let mut record = csv::ByteRecord::new();
     let mut checksum = 0.0f64;
     while reader.read_byte_record(&mut record)? {
         for cell in record.iter() {
-            if let Some(value) = std::str::from_utf8(cell).ok().and_then(|text| text.parse::<f64>().ok()) {
+            if let Some(value) = std::str::from_utf8(cell)
+                .ok()
+                .and_then(|text| text.parse::<f64>().ok())
+            {
                 checksum += value;
             }
         }
@@ -93,7 +100,11 @@ fn reference(input: &Path, output: &Path) -> anyhow::Result<u64> {
 fn engine(input: &Path, output: &Path) -> anyhow::Result<u64> {
     let mut rows = RowWriter::new(BufWriter::new(File::create(output)?))?;
     let engine = ConversionEngine::new(ConvertSettings::default(), RecordedStates::default());
-    let summary = convert_recording(BufReader::with_capacity(1 << 20, File::open(input)?), &mut rows, engine)?;
+    let summary = convert_recording(
+        BufReader::with_capacity(1 << 20, File::open(input)?),
+        &mut rows,
+        engine,
+    )?;
     Ok(summary.rows_written)
 }
 
@@ -106,7 +117,10 @@ fn measure(run: impl Fn() -> anyhow::Result<u64>) -> anyhow::Result<(f64, u64)> 
         let started = Instant::now();
         run()?;
         let cpu_s = start.elapsed().as_secs_f64();
-        eprintln!("  {cpu_s:.3} s CPU, {:.3} s wall", started.elapsed().as_secs_f64());
+        eprintln!(
+            "  {cpu_s:.3} s CPU, {:.3} s wall",
+            started.elapsed().as_secs_f64()
+        );
         best = best.min(cpu_s);
     }
     Ok((best, peak_kib().saturating_sub(before)))

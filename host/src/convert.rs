@@ -198,17 +198,13 @@ impl ConversionEngine {
             .context("the pad's pipeline was just made")
     }
 
-    /// The row with its pad's outputs computed again (a missing frame stays missing).
-    pub fn convert(&mut self, row: &PadRow) -> anyhow::Result<PadRow> {
-        let Some(reading) = &row.reading else {
-            return Ok(row.clone());
-        };
-        let run = self.run(row.device, row.pad)?;
-        let reading = run.process(row.sequence, reading);
-        Ok(PadRow {
-            reading: Some(reading),
-            ..row.clone()
-        })
+    /// Computes the row's pad outputs again, in place (a missing frame stays missing).
+    pub fn convert(&mut self, row: &mut PadRow) -> anyhow::Result<()> {
+        let (device, pad, sequence) = (row.device, row.pad, row.sequence);
+        if let Some(reading) = &mut row.reading {
+            *reading = self.run(device, pad)?.process(sequence, reading);
+        }
+        Ok(())
     }
 
     /// The problems with the tares, pad by pad, at the end.
@@ -383,11 +379,12 @@ pub fn convert_recording<R: BufRead>(
     let mut summary = ConvertSummary::default();
     while let Some(row) = reader.next_row() {
         match row {
-            Ok(row) => {
+            Ok(mut row) => {
                 if row.reading.is_none() {
                     summary.missing_frames += 1;
                 }
-                sink.write_row(&engine.convert(&row)?)?;
+                engine.convert(&mut row)?;
+                sink.write_row(&row)?;
                 summary.rows_written += 1;
             }
             Err(SchemaError::Row { line, reason }) => {
@@ -451,7 +448,7 @@ pub fn convert_raw<R: Read>(
                 continue;
             };
             for (pad, frame) in set.pads.iter().enumerate() {
-                let row = PadRow {
+                let mut row = PadRow {
                     host_time_us: time_us,
                     device,
                     pad: u8::try_from(pad).unwrap_or(u8::MAX),
@@ -463,7 +460,8 @@ pub fn convert_raw<R: Read>(
                 if row.reading.is_none() {
                     summary.missing_frames += 1;
                 }
-                sink.write_row(&engine.convert(&row)?)?;
+                engine.convert(&mut row)?;
+                sink.write_row(&row)?;
                 summary.rows_written += 1;
             }
         }

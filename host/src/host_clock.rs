@@ -39,7 +39,9 @@ impl HostClock for MonotonicClock {
 
 /// The monotonic clock with the Unix time of its origin: arrivals are stamped on the monotonic
 /// clock (it never goes back), and turned into Unix time for files and messages with the wall
-/// clock read once, at the origin.
+/// clock read once, at the origin. Make it before opening any device: host times are µs since
+/// the origin, so an instant before it (a set taken before the stream started) would be
+/// clamped to the origin.
 #[derive(Debug, Clone, Copy)]
 pub struct UnixClock {
     monotonic: MonotonicClock,

@@ -161,7 +161,7 @@ fn push_f32(line: &mut Vec<u8>, value: Option<f32>) {
         // digits, or Rust's own formatting for the rare values ryu writes with an exponent.
         let mut buffer = ryu::Buffer::new();
         let text = buffer.format_finite(value);
-        if text.contains(['e', 'E']) {
+        if text.as_bytes().contains(&b'e') {
             let _ = write!(line, "{value}");
         } else {
             line.extend_from_slice(text.strip_suffix(".0").unwrap_or(text).as_bytes());

@@ -395,9 +395,9 @@ fn answer_pending<P: Read + Write>(session: &mut DeviceSession<P>, pending: &mut
     pending.retain(|request| {
         let answer = match session.wait_reply(request.request_id, now) {
             Ok(Some(result)) => Some(result.map_err(RequestError::Refused)),
-            Ok(None) if now >= request.deadline => {
-                Some(Err(session.no_reply_error(request.request_id, request.timeout)))
-            }
+            Ok(None) if now >= request.deadline => Some(Err(
+                session.no_reply_error(request.request_id, request.timeout)
+            )),
             // A link error ends the stream; the requester sees the worker end.
             Ok(None) | Err(_) => None,
         };

@@ -82,6 +82,8 @@ pub fn resident_kib() -> u64 {
 
 /// Runs the soak in `directory` (the recording stays there).
 pub fn run_soak(config: SoakConfig, directory: &Path) -> anyhow::Result<SoakOutcome> {
+    // The host clock starts first: no set is taken before its origin.
+    let clock = UnixClock::new();
     let mut simulators = Vec::new();
     for device in 0..config.devices {
         let scene = scene_config(None, Some(config.pads), Some(config.speed), device as u64 + 1)?;
@@ -92,7 +94,6 @@ pub fn run_soak(config: SoakConfig, directory: &Path) -> anyhow::Result<SoakOutc
         mcap: Some(directory.join("soak.mcap")),
     };
     let sets = (config.device_seconds * 100.0).round() as u64;
-    let clock = UnixClock::new();
     let mut recorder = Recorder::create(paths.clone(), config.devices, clock, Some(sets))?;
     let session_config = SessionConfig {
         request_timeout: Duration::from_secs(5),

@@ -1,5 +1,5 @@
 """Reads an MCAP file `taxel-bridge --sim N --mcap FILE` wrote (or, with --file, one
-`taxel record --format mcap` wrote of one device playing the same scene) with the Python `mcap` and
+`taxel record --mcap` wrote of one device playing the same scene) with the Python `mcap` and
 `mcap-ros2-support` packages (the readers Foxglove's and ROS 2's tools are built on) and checks
 every message: each decodes with the schema stored in the file, the schemas are the standard
 ROS 2 types whose hashes rosbags computes, the pad topics' sequence numbers have no gap, the
@@ -31,7 +31,7 @@ STEADY_FROM_SEQUENCE = 300  # 3 s of scene time at 100 sample sets per second
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--bridge", help="the taxel-bridge program to run (or --file)")
-    parser.add_argument("--file", help="an MCAP file `taxel record --format mcap` wrote (no diagnostics)")
+    parser.add_argument("--file", help="an MCAP file `taxel record --mcap` wrote (no diagnostics)")
     parser.add_argument("--scene", required=True)
     parser.add_argument("--devices", type=int, default=2)
     parser.add_argument("--seconds", type=float, default=6.0)

@@ -225,7 +225,7 @@ def main():
         checks.check(names == [f"taxel_bridge: device{device}" for device in range(args.devices)], f"one status per device ({names})")
         for status in last.status:
             values = {pair.key: pair.value for pair in status.values}
-            checks.check(values.get("frames dropped by the bridge (queue full)") == "0", f"{status.name}: nothing dropped by the bridge ({status.message})")
+            checks.check(values.get("sample sets dropped by the bridge (queue full, all devices)") == "0", f"{status.name}: nothing dropped by the bridge ({status.message})")
             checks.check("calibration source" in values and "pad0 temperature source" in values, f"{status.name}: calibration and temperature source reported")
 
     if args.report:

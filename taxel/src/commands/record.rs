@@ -78,6 +78,9 @@ pub struct RecordArgs {
 
 /// Runs `taxel record`.
 pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
+    // The host clock starts before any device is opened: a device's first sets may have been
+    // taken before its stream started, and the mapping must not place them before the origin.
+    let clock = UnixClock::new();
     let ports = args.board.select_ports()?;
     let stop = Arc::new(AtomicBool::new(false));
     let handler_stop = Arc::clone(&stop);
@@ -102,7 +105,6 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
         noteln!("device {device} on {port}: {}", info_words(session.info()));
         sessions.push(session);
     }
-    let clock = UnixClock::new();
     let mut recorder = Recorder::create(paths.clone(), sessions.len(), clock, args.samples)?;
     for (device, session) in sessions.iter_mut().enumerate() {
         session.link_mut().set_raw_log(recorder.raw_log(device)?);
