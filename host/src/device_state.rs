@@ -1,7 +1,7 @@
-//! The device's state a recording's pressures were computed with: the `NAME.csv.device.json`
-//! file beside a recording (see [`crate::recording`]), how it is read from the device when a
-//! recording starts ([`read_device_state`]) and how every pad's baselines are followed while it
-//! runs ([`BaselineFollower`]).
+//! The device's state a recording's pressures were computed with: the `NAME.dev<n>.device.json`
+//! file beside a recording (see [`crate::recorder`]), and how it is read from the device when a
+//! recording starts ([`read_device_state`]); the session follows every pad's baselines while it
+//! runs ([`crate::session`]).
 //!
 //! The file is JSON: `format` ([`DEVICE_STATE_FORMAT`]) and `version`
 //! ([`DEVICE_STATE_VERSION`]); the device's identity (`firmware`, `protocol_version`,
@@ -14,9 +14,8 @@
 //! on, `{"pad": n, "calibration_source", "tier", "calibration", "baselines"}` with the same
 //! meaning as pad 0's fields. Pad 0 stays in the top-level fields so that a one-pad device's
 //! file is exactly what it was before devices had several pads, and a reader that knows only
-//! pad 0 still finds it. A file of several pads written before the other pads' state could be
-//! read back has `pad_count` and no `other_pads`: it describes pad 0 only, and `taxel convert`
-//! then uses pad 0's state for every pad and says so.
+//! pad 0 still finds it. A pad the file does not describe is converted with the defaults (and
+//! `taxel convert` says so).
 
 use std::io::{Read, Write};
 use std::path::Path;
@@ -25,13 +24,12 @@ use std::time::Duration;
 use anyhow::{bail, Context};
 use model_core::{BaselineRecord, Calibration, CalibrationSpec, TAXEL_COUNT};
 use serde::{Deserialize, Serialize};
-use wire::{DeviceEvent, DeviceFrame, EventFrame, InfoFrame, PadIndex, PadInfoFrame, SampleFrame};
+use wire::{DeviceEvent, DeviceFrame, EventFrame, InfoFrame, PadIndex, PadInfoFrame};
 
 use crate::calibration_transfer::{pad_info, pull, pull_baselines};
 use crate::device_link::DeviceLink;
 use crate::device_words::{board_serial_hex, calibration_source_words, tier_words};
 use crate::output_file::OutputFile;
-use crate::recording::SampleSink;
 
 /// The `format` field of a device-state file.
 pub const DEVICE_STATE_FORMAT: &str = "taxel-recording-device-state";
@@ -313,46 +311,6 @@ pub fn read_device_state<P: Read + Write>(
         }
     }
     Ok(state)
-}
-
-/// Follows the device's baselines during a recording: after a TareFinished event it reads the
-/// new baselines of the pad the event names (ReadBaseline), which apply from that pad's next
-/// sample frame on.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct BaselineFollower {
-    pending: Vec<(PadIndex, [Option<BaselineRecord>; TAXEL_COUNT])>,
-}
-
-impl BaselineFollower {
-    /// Takes a device event; on TareFinished reads the new baselines of its pad (frames that
-    /// arrive meanwhile stay queued in the link, in order).
-    pub fn on_event<P: Read + Write>(
-        &mut self,
-        link: &mut DeviceLink<P>,
-        event: &EventFrame,
-        timeout: Duration,
-    ) -> anyhow::Result<()> {
-        if let DeviceEvent::TareFinished { pad, .. } = event.event {
-            let taxels = pull_baselines(link, pad, timeout)?;
-            self.pending.retain(|(known, _)| *known != pad);
-            self.pending.push((pad, taxels));
-        }
-        Ok(())
-    }
-
-    /// Before a sample is written: records its pad's new baselines as applying from it.
-    pub fn before_sample<S: SampleSink + ?Sized>(&mut self, sink: &mut S, sample: &SampleFrame) {
-        if let Some(index) = self.pending.iter().position(|(pad, _)| *pad == sample.pad) {
-            let (pad, taxels) = self.pending.swap_remove(index);
-            sink.baselines_changed(
-                pad,
-                BaselineChange {
-                    from_sequence: sample.sequence,
-                    taxels,
-                },
-            );
-        }
-    }
 }
 
 #[cfg(test)]

@@ -6,13 +6,14 @@
 //!   with their replies), [`session`] (one device's stream, the host's only stream loop),
 //!   [`worker`] (sessions on threads, their events down one queue with their arrival on the
 //!   [`host_clock`]), [`stream_accounting`] (gaps, drops), [`pad_set`] (every pad's frame of a
-//!   sample set), [`clock_sync`] and [`host_timeline`] (device clocks mapped onto the host's).
+//!   sample set), [`clock_sync`] (device clocks mapped onto the host's) and [`stamping`] (the
+//!   one stamping policy).
 //! - Its state: [`device_state`], [`device_words`] (what a device says, in words),
 //!   [`calibration_file`], [`calibration_transfer`], [`calibrate`] and [`calibrate_report`]
 //!   (fitting a calibration from reference loads).
-//! - Files: [`csv_format`], [`output_file`] (written under a temporary name, renamed when
-//!   complete), [`recording`], [`record_rows`], [`timeline_files`], [`mcap_record`], and the
-//!   loops that fill them ([`record`], [`multi_record`]); [`convert`] re-processes recordings.
+//! - Files: [`schema`] (the one recording schema), [`recorder`] (worker events into the schema
+//!   and MCAP, with raw logs and device states), [`convert`] (the conversion engine),
+//!   [`csv_format`], [`output_file`] (written under a temporary name, renamed when complete).
 //! - [`console`]: notes to the user on stderr that never panic on a closed stream.
 #![deny(missing_docs)]
 // Output goes through `console`, which never panics on a closed stdout or stderr.
@@ -31,18 +32,11 @@ pub mod device_state;
 pub mod device_words;
 pub mod frame_receiver;
 pub mod host_clock;
-pub mod host_timeline;
-pub mod mcap_record;
-pub mod multi_record;
 pub mod output_file;
 pub mod pad_set;
-pub mod record;
-pub mod record_rows;
 pub mod recorder;
-pub mod recording;
 pub mod schema;
 pub mod session;
 pub mod stamping;
 pub mod stream_accounting;
-pub mod timeline_files;
 pub mod worker;

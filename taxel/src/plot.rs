@@ -18,9 +18,9 @@ use plotters::prelude::*;
 
 use taxel_host::calibrate::{read_loads, reference_data, ReferenceData};
 use taxel_host::csv_format::TAXEL_LABELS;
-use taxel_host::schema::{RowReader, SchemaError};
 use taxel_host::noteln;
 use taxel_host::output_file::PendingRename;
+use taxel_host::schema::{RowReader, SchemaError};
 pub use taxel_plot_style::{register_embedded_font, tier_colour, TAXEL_COLOURS};
 
 /// The long help of the subcommand.
@@ -138,11 +138,13 @@ pub fn read_pressure_series<R: Read>(input: R) -> anyhow::Result<PressureSeries>
         };
         series.rows += 1;
         let origin_us = *first_us.get_or_insert(row.host_time_us);
-        let pad = pads.entry((row.device, row.pad)).or_insert_with(|| PadSeries {
-            device: row.device,
-            pad: row.pad,
-            ..PadSeries::default()
-        });
+        let pad = pads
+            .entry((row.device, row.pad))
+            .or_insert_with(|| PadSeries {
+                device: row.device,
+                pad: row.pad,
+                ..PadSeries::default()
+            });
         pad.time_s
             .push((row.host_time_us as f64 - origin_us as f64) / 1e6);
         for taxel in 0..TAXEL_COUNT {
@@ -634,10 +636,16 @@ pub fn run(args: &PlotArgs) -> anyhow::Result<ExitCode> {
             let panels = u32::try_from(series.pads.len().max(1)).unwrap_or(u32::MAX);
             let size = (
                 args.width.unwrap_or(1200),
-                args.height.unwrap_or(600_u32.saturating_mul(panels.min(4)).max(600)),
+                args.height
+                    .unwrap_or(600_u32.saturating_mul(panels.min(4)).max(600)),
             );
             plot_pressures(&series, &args.output, size)?;
-            let longest = series.pads.iter().map(|pad| pad.time_s.len()).max().unwrap_or(0);
+            let longest = series
+                .pads
+                .iter()
+                .map(|pad| pad.time_s.len())
+                .max()
+                .unwrap_or(0);
             noteln!(
                 "wrote {} ({} rows, {} pad(s){})",
                 args.output.display(),

@@ -5,14 +5,17 @@
 
 mod support;
 
-use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use model_core::{Calibration, CalibrationSpec, CurvePoint};
 use support::{ack, encoded, sample, ChunkedReader, FakeDevice};
 use taxel_host::calibration_transfer::upload;
 use taxel_host::device_link::{DeviceLink, FrameReceiver, LinkError, RequestError};
-use taxel_host::record::{record_header, record_link, StopReason};
+use taxel_host::host_clock::UnixClock;
+use taxel_host::pad_set::PadSet;
+use taxel_host::recorder::{Recorder, RecordingPaths};
+use taxel_host::session::SessionEvent;
+use taxel_host::worker::{ArrivedEvent, WorkerEvent};
 use wire::{
     Command, CountersFrame, DecodeError, DeviceEvent, DeviceFrame, ErrorCode, EventFrame,
     ReplyFrame, ReplyPayload, SampleRate, TemperatureSource, Tier,
@@ -273,137 +276,82 @@ fn upload_stops_at_the_first_refusal() {
     assert_eq!(link.port().requests.len(), 3);
 }
 
+/// Worker events of one device: sets 1, 2 and 4 of one pad (3 was lost), then its end.
+fn recorded_events() -> Vec<ArrivedEvent> {
+    let set = |sequence: u32, arrival_us: u64| ArrivedEvent {
+        device: 0,
+        arrival_us,
+        event: WorkerEvent::Session(SessionEvent::Set {
+            set: PadSet {
+                sequence,
+                pads: vec![Some(support::sample(
+                    sequence,
+                    u64::from(sequence) * 10_000,
+                    [
+                        (Some(12.5), 4.75, 0),
+                        (None, 4.5, 4),
+                        (Some(0.0), 4.5, 0),
+                        (Some(1.0), 4.6, 0),
+                    ],
+                ))],
+            },
+            sets_missing_before: u64::from(sequence == 4),
+        }),
+    };
+    vec![set(1, 100), set(2, 200), set(4, 400)]
+}
+
 #[test]
-fn recording_writes_samples_and_every_byte_until_the_stream_ends() {
-    let (_, bytes, _) = frames_with_garbage();
-    let reader = ChunkedReader::new(bytes.clone(), vec![13, 64]);
-    let mut link = DeviceLink::new(reader);
-    let raw_log = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
-    link.set_raw_log(Box::new(SharedBuffer(raw_log.clone())));
-    let mut csv_writer = csv::WriterBuilder::new()
-        .terminator(csv::Terminator::CRLF)
-        .from_writer(Vec::new());
-    csv_writer.write_record(record_header()).unwrap();
-    let stop = AtomicBool::new(false);
-    let mut messages = Vec::new();
-    let summary = record_link(
-        &mut link,
-        &mut csv_writer,
-        &stop,
-        None,
-        Duration::from_millis(500),
-        &mut |message| messages.push(message.to_owned()),
-    )
-    .unwrap();
-    assert!(matches!(summary.stop_reason, StopReason::Disconnected(_)));
-    assert_eq!(summary.samples, 3);
-    assert_eq!(summary.sequence_gap_samples, 1);
-    assert_eq!(summary.bytes_received, bytes.len() as u64);
-    assert_eq!(*raw_log.lock().unwrap(), bytes);
-    let text = String::from_utf8(csv_writer.into_inner().unwrap()).unwrap();
-    let lines: Vec<&str> = text.split("\r\n").collect();
+fn the_recorder_writes_every_set_it_is_given_in_the_schema() {
+    let directory = tempfile::tempdir().unwrap();
+    let path = directory.path().join("rec.csv");
+    let paths = RecordingPaths {
+        csv: Some(path.clone()),
+        mcap: None,
+    };
+    let mut recorder = Recorder::create(paths, 1, UnixClock::new(), None).unwrap();
+    for event in recorded_events() {
+        recorder.take(event).unwrap();
+    }
+    let summary = recorder.finish().unwrap();
+    assert_eq!(summary.devices[0].sets, 3);
     assert_eq!(
-        lines[0],
-        "seq,time_s,temp_c,temp_source,c11_pf,c12_pf,c21_pf,c22_pf,p11_kpa,p12_kpa,p21_kpa,p22_kpa,flags11,flags12,flags21,flags22,marker"
+        summary.devices[0].stamped_at_arrival, 3,
+        "no clock estimate from three sets"
     );
-    assert_eq!(
-        lines[1],
-        "1,0.001000,23.5,tmp117,4.75,-0.25,4.5,4.6,12.5,,0,1,,below_baseline|shorted,,below_baseline,"
-    );
-    assert_eq!(
-        lines[3],
-        "4,0.016000,23.5,tmp117,0.2,0.2,0.2,0.2,,,,,open,open,open,open,"
-    );
-    assert_eq!(lines[4], "");
-    assert_eq!(lines.len(), 5);
-    assert!(messages
+    let text = std::fs::read_to_string(&path).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], taxel_host::schema::header().join(","));
+    let sequences: Vec<&str> = lines[1..]
         .iter()
-        .any(|message| message.contains("temperature now from the MCU internal sensor")));
+        .map(|line| line.split(',').nth(3).unwrap())
+        .collect();
+    assert_eq!(sequences, ["1", "2", "4"]);
+    let cells: Vec<&str> = lines[1].split(',').collect();
+    assert_eq!(
+        &cells[8..20],
+        ["4.75", "4.5", "4.5", "4.6", "12.5", "", "0", "1", "", "shorted", "", ""]
+    );
+    assert_eq!(cells[5], "", "stamped at its arrival: no sync error");
 }
 
 #[test]
-fn recording_stops_at_the_sample_limit_or_when_asked() {
-    let (_, bytes, _) = frames_with_garbage();
-    let mut link = DeviceLink::new(ChunkedReader::new(bytes.clone(), vec![5]));
-    let mut csv_writer = csv::Writer::from_writer(Vec::new());
-    let summary = record_link(
-        &mut link,
-        &mut csv_writer,
-        &AtomicBool::new(false),
-        Some(2),
-        Duration::from_millis(500),
-        &mut |_| {},
-    )
-    .unwrap();
-    assert_eq!(summary.stop_reason, StopReason::SampleLimit);
-    assert_eq!(summary.samples, 2);
-    let mut link = DeviceLink::new(ChunkedReader::new(bytes, vec![5]));
-    let summary = record_link(
-        &mut link,
-        &mut csv_writer,
-        &AtomicBool::new(true),
-        None,
-        Duration::from_millis(500),
-        &mut |_| {},
-    )
-    .unwrap();
-    assert_eq!(summary.stop_reason, StopReason::Interrupted);
-    assert_eq!(summary.samples, 0);
-}
-
-/// A raw-log sink the test can read after the link took ownership of it.
-struct SharedBuffer(std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
-
-impl std::io::Write for SharedBuffer {
-    fn write(&mut self, buffer: &[u8]) -> std::io::Result<usize> {
-        self.0.lock().unwrap().extend_from_slice(buffer);
-        Ok(buffer.len())
+fn a_full_disk_stops_the_recording_with_an_error_naming_the_file() {
+    let paths = RecordingPaths {
+        csv: Some(std::path::PathBuf::from("/dev/full")),
+        mcap: None,
+    };
+    let mut recorder = Recorder::create(paths, 1, UnixClock::new(), None).unwrap();
+    let mut result = Ok(());
+    for event in recorded_events().into_iter().cycle().take(10_000) {
+        result = recorder.take(event).and_then(|()| recorder.flush());
+        if result.is_err() {
+            break;
+        }
     }
-
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
-
-#[test]
-fn a_full_disk_stops_the_recording_with_an_error_and_the_other_file_keeps_everything() {
-    let (_, bytes, _) = frames_with_garbage();
-    let mut link = DeviceLink::new(ChunkedReader::new(bytes.clone(), vec![7]));
-    let raw_log = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
-    // Buffered as `taxel record` buffers it: nothing reaches the buffer's owner unless flushed.
-    link.set_raw_log(Box::new(std::io::BufWriter::with_capacity(
-        1 << 16,
-        SharedBuffer(raw_log.clone()),
-    )));
-    // /dev/full accepts the open and fails every write with "no space left on device"; the
-    // CSV's buffer is too small to hide it.
-    let full = std::fs::OpenOptions::new()
-        .write(true)
-        .open("/dev/full")
-        .unwrap();
-    let mut csv_writer = csv::WriterBuilder::new()
-        .buffer_capacity(8)
-        .from_writer(full);
-    let stop = AtomicBool::new(false);
-    let error = record_link(
-        &mut link,
-        &mut csv_writer,
-        &stop,
-        None,
-        Duration::from_millis(500),
-        &mut |_| {},
-    )
-    .unwrap_err();
-    let text = format!("{error:#}");
+    let text = format!("{:#}", result.unwrap_err());
     assert!(text.contains("writing the CSV"), "{text}");
     assert!(text.to_lowercase().contains("no space"), "{text}");
-    // Everything received up to the failure is in the raw log, flushed.
-    let logged = raw_log.lock().unwrap().clone();
-    assert!(
-        !logged.is_empty() && bytes.starts_with(&logged),
-        "{} bytes logged",
-        logged.len()
-    );
 }
 
 /// A fresh link asks the device how many pads it has, and the calibration goes to every pad.

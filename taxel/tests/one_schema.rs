@@ -16,7 +16,10 @@ use support::{taxel_binary, SimulatorProcess};
 use taxel_host::schema::{header, PadRow, RowReader};
 
 fn taxel(arguments: &[&str]) -> std::process::Output {
-    let output = Command::new(taxel_binary()).args(arguments).output().unwrap();
+    let output = Command::new(taxel_binary())
+        .args(arguments)
+        .output()
+        .unwrap();
     assert!(
         output.status.success(),
         "taxel {arguments:?}: {}",
@@ -45,7 +48,12 @@ fn first_line(path: &Path) -> String {
 }
 
 /// Records `samples` sets of each simulator into `name`.csv and `name`.mcap.
-fn record(directory: &Path, name: &str, ports: &[&str], samples: u64) -> (std::path::PathBuf, std::path::PathBuf) {
+fn record(
+    directory: &Path,
+    name: &str,
+    ports: &[&str],
+    samples: u64,
+) -> (std::path::PathBuf, std::path::PathBuf) {
     let csv = directory.join(format!("{name}.csv"));
     let mcap = directory.join(format!("{name}.mcap"));
     let samples = samples.to_string();
@@ -68,14 +76,21 @@ fn topic_counts(path: &Path) -> HashMap<String, usize> {
     let bytes = std::fs::read(path).unwrap();
     let mut counts = HashMap::new();
     for message in mcap::MessageStream::new(&bytes).unwrap() {
-        *counts.entry(message.unwrap().channel.topic.clone()).or_insert(0) += 1;
+        *counts
+            .entry(message.unwrap().channel.topic.clone())
+            .or_insert(0) += 1;
     }
     counts
 }
 
 fn assert_reprocessed_equal(csv: &Path) {
     let converted = csv.with_extension("converted.csv");
-    taxel(&["convert", csv.to_str().unwrap(), "-o", converted.to_str().unwrap()]);
+    taxel(&[
+        "convert",
+        csv.to_str().unwrap(),
+        "-o",
+        converted.to_str().unwrap(),
+    ]);
     assert_eq!(first_line(&converted), header().join(","));
     let recorded = rows(csv);
     let again = rows(&converted);
@@ -93,7 +108,10 @@ fn assert_reprocessed_equal(csv: &Path) {
         assert_eq!(device.pressure_kpa, host.pressure_kpa, "{recorded:?}");
         assert_eq!(device.flags, host.flags, "{recorded:?}");
         assert_eq!(device.force_n, host.force_n, "{recorded:?}");
-        assert_eq!(device.centre_of_pressure_mm, host.centre_of_pressure_mm, "{recorded:?}");
+        assert_eq!(
+            device.centre_of_pressure_mm, host.centre_of_pressure_mm,
+            "{recorded:?}"
+        );
         assert_eq!(device.partial, host.partial, "{recorded:?}");
         compared += 1;
     }
@@ -104,22 +122,34 @@ fn assert_reprocessed_equal(csv: &Path) {
 fn every_case_writes_one_schema_that_convert_and_plot_read_and_reprocessing_reproduces() {
     let directory = tempfile::tempdir().unwrap();
     let one_pad = SimulatorProcess::start(directory.path(), "one.txt", &["--speed", "5"]);
-    let three_pads =
-        SimulatorProcess::start(directory.path(), "three.txt", &["--speed", "5", "--pads", "3"]);
-    let gripper =
-        SimulatorProcess::start(directory.path(), "gripper.txt", &["--speed", "5", "--scene", "gripper"]);
+    let three_pads = SimulatorProcess::start(
+        directory.path(),
+        "three.txt",
+        &["--speed", "5", "--pads", "3"],
+    );
+    let gripper = SimulatorProcess::start(
+        directory.path(),
+        "gripper.txt",
+        &["--speed", "5", "--scene", "gripper"],
+    );
     let cases: [(&str, Vec<&str>, Vec<usize>); 3] = [
         ("one", vec![one_pad.port.as_str()], vec![1]),
         ("three", vec![three_pads.port.as_str()], vec![3]),
-        ("both", vec![one_pad.port.as_str(), gripper.port.as_str()], vec![1, 2]),
+        (
+            "both",
+            vec![one_pad.port.as_str(), gripper.port.as_str()],
+            vec![1, 2],
+        ),
     ];
     for (name, ports, pads) in cases {
         let (csv, mcap) = record(directory.path(), name, &ports, 150);
         assert_eq!(first_line(&csv), header().join(","), "{name}");
         let recorded = rows(&csv);
         for (device, pads) in pads.iter().enumerate() {
-            let device_rows: Vec<&PadRow> =
-                recorded.iter().filter(|row| row.device as usize == device).collect();
+            let device_rows: Vec<&PadRow> = recorded
+                .iter()
+                .filter(|row| row.device as usize == device)
+                .collect();
             assert_eq!(device_rows.len(), 150 * pads, "{name}: device {device}");
             for pad in 0..*pads {
                 let sequences: Vec<u32> = device_rows
@@ -130,8 +160,14 @@ fn every_case_writes_one_schema_that_convert_and_plot_read_and_reprocessing_repr
                 assert_eq!(sequences.len(), 150);
                 assert!(sequences.windows(2).all(|pair| pair[1] == pair[0] + 1));
             }
-            assert!(directory.path().join(format!("{name}.csv.dev{device}.raw")).exists());
-            assert!(directory.path().join(format!("{name}.csv.dev{device}.device.json")).exists());
+            assert!(directory
+                .path()
+                .join(format!("{name}.csv.dev{device}.raw"))
+                .exists());
+            assert!(directory
+                .path()
+                .join(format!("{name}.csv.dev{device}.device.json"))
+                .exists());
         }
         // The MCAP file holds the same sets: a pressure cloud and a wrench per pad per set.
         let counts = topic_counts(&mcap);
@@ -143,26 +179,51 @@ fn every_case_writes_one_schema_that_convert_and_plot_read_and_reprocessing_repr
         }
         assert_reprocessed_equal(&csv);
         let picture = directory.path().join(format!("{name}.svg"));
-        taxel(&["plot", csv.to_str().unwrap(), "-o", picture.to_str().unwrap()]);
+        taxel(&[
+            "plot",
+            csv.to_str().unwrap(),
+            "-o",
+            picture.to_str().unwrap(),
+        ]);
         let svg = std::fs::read_to_string(&picture).unwrap();
         if pads.iter().sum::<usize>() > 1 {
             assert!(svg.contains("Device 0 pad 0"), "{name}: a panel per pad");
         }
         let wide = directory.path().join(format!("{name}.wide.csv"));
-        taxel(&["convert", csv.to_str().unwrap(), "--wide", "-o", wide.to_str().unwrap()]);
+        taxel(&[
+            "convert",
+            csv.to_str().unwrap(),
+            "--wide",
+            "-o",
+            wide.to_str().unwrap(),
+        ]);
         let wide_rows = std::fs::read_to_string(&wide).unwrap().lines().count() - 1;
-        assert_eq!(wide_rows, 150 * pads.len(), "{name}: one row per set of each device");
+        assert_eq!(
+            wide_rows,
+            150 * pads.len(),
+            "{name}: one row per set of each device"
+        );
     }
 }
 
 #[test]
 fn a_raw_log_converts_into_the_schema_with_its_device_state() {
     let directory = tempfile::tempdir().unwrap();
-    let device = SimulatorProcess::start(directory.path(), "port.txt", &["--speed", "5", "--pads", "2"]);
+    let device = SimulatorProcess::start(
+        directory.path(),
+        "port.txt",
+        &["--speed", "5", "--pads", "2"],
+    );
     let (csv, _) = record(directory.path(), "rec", &[device.port.as_str()], 120);
     let raw = directory.path().join("rec.csv.dev0.raw");
     let converted = directory.path().join("raw.csv");
-    taxel(&["convert", "--raw", raw.to_str().unwrap(), "-o", converted.to_str().unwrap()]);
+    taxel(&[
+        "convert",
+        "--raw",
+        raw.to_str().unwrap(),
+        "-o",
+        converted.to_str().unwrap(),
+    ]);
     let from_raw = rows(&converted);
     let recorded = rows(&csv);
     // The raw log holds every frame received, the CSV the 120 sets recorded: each recorded row
@@ -184,17 +245,27 @@ fn a_raw_log_converts_into_the_schema_with_its_device_state() {
 fn a_file_of_another_shape_is_refused_by_name() {
     let directory = tempfile::tempdir().unwrap();
     let old = directory.path().join("old.csv");
-    std::fs::write(&old, "seq,time_s,temp_c,c11_pf,c12_pf,c21_pf,c22_pf\n1,0.0,25,4.5,4.5,4.5,4.5\n").unwrap();
+    std::fs::write(
+        &old,
+        "seq,time_s,temp_c,c11_pf,c12_pf,c21_pf,c22_pf\n1,0.0,25,4.5,4.5,4.5,4.5\n",
+    )
+    .unwrap();
     for command in ["convert", "plot"] {
         let mut arguments = vec![command, old.to_str().unwrap()];
         let picture = directory.path().join("p.svg");
         if command == "plot" {
             arguments.extend(["-o", picture.to_str().unwrap()]);
         }
-        let output = Command::new(taxel_binary()).args(&arguments).output().unwrap();
+        let output = Command::new(taxel_binary())
+            .args(&arguments)
+            .output()
+            .unwrap();
         assert!(!output.status.success());
         let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(stderr.contains("not a taxel recording"), "{command}: {stderr}");
+        assert!(
+            stderr.contains("not a taxel recording"),
+            "{command}: {stderr}"
+        );
         assert!(stderr.contains("earlier versions"), "{command}: {stderr}");
     }
 }

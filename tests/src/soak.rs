@@ -86,7 +86,12 @@ pub fn run_soak(config: SoakConfig, directory: &Path) -> anyhow::Result<SoakOutc
     let clock = UnixClock::new();
     let mut simulators = Vec::new();
     for device in 0..config.devices {
-        let scene = scene_config(None, Some(config.pads), Some(config.speed), device as u64 + 1)?;
+        let scene = scene_config(
+            None,
+            Some(config.pads),
+            Some(config.speed),
+            device as u64 + 1,
+        )?;
         simulators.push(SimulatorThread::start(scene, None)?);
     }
     let paths = RecordingPaths {
@@ -101,7 +106,10 @@ pub fn run_soak(config: SoakConfig, directory: &Path) -> anyhow::Result<SoakOutc
     };
     let mut sessions = Vec::new();
     for (device, simulator) in simulators.iter().enumerate() {
-        let port = open_serial(&simulator.path().display().to_string(), Duration::from_millis(20))?;
+        let port = open_serial(
+            &simulator.path().display().to_string(),
+            Duration::from_millis(20),
+        )?;
         let mut session = DeviceSession::open(DeviceLink::new(port.port), session_config)?;
         session.link_mut().set_raw_log(recorder.raw_log(device)?);
         session.start()?;
@@ -156,10 +164,7 @@ pub fn run_soak(config: SoakConfig, directory: &Path) -> anyhow::Result<SoakOutc
     outcome.counted_losses = counted_losses;
     outcome.rss_kib = rss;
     let size = |path: &Path| std::fs::metadata(path).map_or(0, |metadata| metadata.len());
-    outcome.file_bytes = (
-        size(&csv_path),
-        paths.mcap.as_deref().map_or(0, size),
-    );
+    outcome.file_bytes = (size(&csv_path), paths.mcap.as_deref().map_or(0, size));
     Ok(outcome)
 }
 

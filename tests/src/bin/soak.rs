@@ -14,8 +14,14 @@ const END: &str = "<!-- soak: end -->";
 
 fn main() -> ExitCode {
     let mut arguments = std::env::args().skip(1);
-    let device_seconds = arguments.next().and_then(|text| text.parse().ok()).unwrap_or(3600.0);
-    let speed = arguments.next().and_then(|text| text.parse().ok()).unwrap_or(20.0);
+    let device_seconds = arguments
+        .next()
+        .and_then(|text| text.parse().ok())
+        .unwrap_or(3600.0);
+    let speed = arguments
+        .next()
+        .and_then(|text| text.parse().ok())
+        .unwrap_or(20.0);
     let config = SoakConfig {
         devices: 2,
         pads: 8,
@@ -45,7 +51,11 @@ fn main() -> ExitCode {
     let report = std::fs::read_to_string(REPORT).unwrap_or_default();
     let updated = match (report.find(START), report.find(END)) {
         (Some(start), Some(end)) if start < end => {
-            format!("{}{section}{}", &report[..start], &report[end + END.len() + 1..])
+            format!(
+                "{}{section}{}",
+                &report[..start],
+                &report[end + END.len() + 1..]
+            )
         }
         _ => format!("{}\n{section}", report.trim_end()),
     };
