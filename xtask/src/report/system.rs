@@ -231,6 +231,10 @@ pub(super) fn measured_elsewhere(out: &mut String) {
             "The Python package (conversion against numpy, the simulator through the iterator)",
             "python/PERFORMANCE.md",
         ),
+        (
+            "`taxel convert`'s engine against a reference CSV pass (1,000,000 rows, one core)",
+            "host/PERFORMANCE.md",
+        ),
     ] {
         let _ = writeln!(out, "### {what}\n");
         match std::fs::read_to_string(root.join(path)) {
