@@ -96,10 +96,16 @@ impl Relay {
             clock,
             devices: healths
                 .into_iter()
-                .map(|health| DeviceStream {
-                    stamper: Stamper::default(),
-                    health,
-                    accounting: None,
+                .map(|health| {
+                    let mut stamper = Stamper::default();
+                    if let Some(info) = &health.info {
+                        stamper.set_clock_us_per_s(info.clock_us_per_s);
+                    }
+                    DeviceStream {
+                        stamper,
+                        health,
+                        accounting: None,
+                    }
                 })
                 .collect(),
             worker_devices,
@@ -563,6 +569,7 @@ mod tests {
             streaming: false,
             text_mode: false,
             pad_count: 2,
+            clock_us_per_s: 1_000_000,
         };
         let out = relay.take(ArrivedEvent {
             device: 0,

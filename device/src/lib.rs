@@ -87,7 +87,13 @@ pub struct DeviceIdentity {
     pub firmware_version: FirmwareVersion,
     /// The MCU's 96-bit unique ID.
     pub board_serial: [u8; 12],
+    /// How many µs the device clock counts per second of real time
+    /// ([`REAL_TIME_CLOCK_US_PER_S`] for a board; see `InfoFrame::clock_us_per_s`).
+    pub clock_us_per_s: u32,
 }
+
+/// A board's clock: a µs per µs of real time.
+pub const REAL_TIME_CLOCK_US_PER_S: u32 = 1_000_000;
 
 /// Something to send to the host.
 #[derive(Debug, Clone, PartialEq)]
@@ -310,6 +316,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             streaming: self.streaming,
             text_mode: self.text_mode,
             pad_count: u8::try_from(self.control.pad_count()).unwrap_or(u8::MAX),
+            clock_us_per_s: self.identity.clock_us_per_s,
         }
     }
 

@@ -69,6 +69,7 @@ pub async fn acquisition_task(
         identity: DeviceIdentity {
             firmware_version: device::FIRMWARE_VERSION,
             board_serial: embassy_stm32::uid::uid(),
+            clock_us_per_s: device::REAL_TIME_CLOCK_US_PER_S,
         },
     };
     info!("{}", parts.identity);

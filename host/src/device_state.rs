@@ -333,6 +333,7 @@ mod tests {
             streaming: false,
             text_mode: false,
             pad_count,
+            clock_us_per_s: 1_000_000,
         }
     }
 

@@ -157,6 +157,7 @@ mod tests {
             streaming: true,
             text_mode: false,
             pad_count: 2,
+            clock_us_per_s: 1_000_000,
         };
         let text = info_words(&info);
         assert!(text.contains(", 2 pads,"), "{text}");

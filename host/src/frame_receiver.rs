@@ -174,6 +174,7 @@ mod tests {
             streaming: true,
             text_mode: false,
             pad_count,
+            clock_us_per_s: 1_000_000,
         }
     }
 

@@ -198,6 +198,14 @@ impl Recorder {
         Ok(Box::new(writer))
     }
 
+    /// Says how many µs device `device`'s clock counts per second of real time (its Info's
+    /// `clock_us_per_s`), for the clock mapping (see [`crate::stamping`]).
+    pub fn set_clock_us_per_s(&mut self, device: usize, clock_us_per_s: u32) {
+        if let Some(record) = self.devices.get_mut(device) {
+            record.stamper.set_clock_us_per_s(clock_us_per_s);
+        }
+    }
+
     /// Drops a marker: it goes into the rows of each device's next set.
     pub fn mark(&mut self, label: &str) {
         for device in &mut self.devices {

@@ -2,7 +2,11 @@
 //! recorder (CSV and MCAP), the live view and the bridge.
 //!
 //! Each device's clock is mapped onto the host's by a [`ClockMapper`] fed with every sample
-//! frame's device time and arrival. An item (a set, an event) is stamped with its device time
+//! frame's device time and arrival, in µs of real time: a device's Info says how many µs its
+//! clock counts per second ([`Stamper::set_clock_us_per_s`]; a simulated device at speed 5
+//! counts 5,000,000), so that the mapper, which refuses implausible drifts, sees a clock it can
+//! map at any simulated speed; a device not paced to real time at all (0) is never mapped and
+//! its items go out at their arrival. An item (a set, an event) is stamped with its device time
 //! mapped onto the host clock, never later than its arrival, with the mapping's error bound.
 //! The mapper needs about 1.5 s of frames before its first estimate; until then items wait, at
 //! most [`MAX_WAIT_US`] each, and one that waited that long without an estimate is stamped
@@ -18,6 +22,9 @@ use crate::clock_sync::{ClockEstimate, ClockMapper};
 /// How long an item waits for its device's first clock estimate, µs (the mapper needs about
 /// 1.5 s of frames).
 pub const MAX_WAIT_US: u64 = 3_000_000;
+
+/// A board's clock rate: a µs per µs of real time.
+const REAL_TIME_US_PER_S: u32 = 1_000_000;
 
 /// An item with its stamp.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,6 +54,7 @@ pub struct Stamper<T> {
     waiting: VecDeque<Held<T>>,
     stamped_at_arrival: u64,
     last_host_us: Option<u64>,
+    clock_us_per_s: u32,
 }
 
 impl<T> Default for Stamper<T> {
@@ -63,12 +71,37 @@ impl<T> Stamper<T> {
             waiting: VecDeque::new(),
             stamped_at_arrival: 0,
             last_host_us: None,
+            clock_us_per_s: REAL_TIME_US_PER_S,
+        }
+    }
+
+    /// Says how many µs the device's clock counts per second of real time (its Info's
+    /// `clock_us_per_s`; 1,000,000 unless told). The mapping starts again.
+    pub fn set_clock_us_per_s(&mut self, clock_us_per_s: u32) {
+        if clock_us_per_s != self.clock_us_per_s {
+            self.clock_us_per_s = clock_us_per_s;
+            self.mapper.clear();
+        }
+    }
+
+    /// A device time in µs of real time (`None` for a device not paced to real time).
+    fn real_time_us(&self, device_us: u64) -> Option<u64> {
+        match self.clock_us_per_s {
+            0 => None,
+            REAL_TIME_US_PER_S => Some(device_us),
+            rate => Some(
+                (u128::from(device_us) * u128::from(REAL_TIME_US_PER_S) / u128::from(rate))
+                    .try_into()
+                    .unwrap_or(u64::MAX),
+            ),
         }
     }
 
     /// Takes a sample frame's device time and arrival into the clock mapping.
     pub fn observe(&mut self, device_us: u64, arrival_us: u64) {
-        self.mapper.observe(device_us, arrival_us);
+        if let Some(real_time_us) = self.real_time_us(device_us) {
+            self.mapper.observe(real_time_us, arrival_us);
+        }
     }
 
     /// Adds an item that happened at `device_us` on the device clock and arrived at
@@ -123,10 +156,11 @@ impl<T> Stamper<T> {
     }
 
     fn stamp(&mut self, held: Held<T>, estimate: Option<&ClockEstimate>) -> Stamped<T> {
-        let (host_us, error_us) = match estimate {
-            Some(estimate) => (
-                estimate.to_host_us(held.device_us).min(held.arrival_us),
-                Some(estimate.uncertainty_at_us(held.device_us)),
+        let mapped = estimate.zip(self.real_time_us(held.device_us));
+        let (host_us, error_us) = match mapped {
+            Some((estimate, real_time_us)) => (
+                estimate.to_host_us(real_time_us).min(held.arrival_us),
+                Some(estimate.uncertainty_at_us(real_time_us)),
             ),
             None => {
                 self.stamped_at_arrival += 1;
@@ -211,6 +245,45 @@ mod tests {
         assert!(released[1].host_us >= released[0].host_us);
         let shift = released[0].host_us - (3_000_000 + 1_000_000);
         assert!(released[1].error_us.unwrap() >= shift);
+    }
+
+    /// A device whose clock counts 20 times real time (a simulator at speed 20).
+    fn stamped_at_speed_20(clock_us_per_s: u32) -> Vec<Stamped<u64>> {
+        let mut stamper = Stamper::default();
+        stamper.set_clock_us_per_s(clock_us_per_s);
+        let mut released = Vec::new();
+        // 5 s of host time at 100 sets/s: the mapper's first estimate needs 2 s.
+        for index in 0..500u64 {
+            let host_us = 10_000 * index;
+            let device_us = host_us * 20;
+            let arrival_us = host_us + 300 + (index * 7919) % 1_500;
+            stamper.observe(device_us, arrival_us);
+            stamper.push(host_us, device_us, arrival_us);
+            released.extend(stamper.release(arrival_us));
+        }
+        released.extend(stamper.finish());
+        released
+    }
+
+    #[test]
+    fn a_clock_that_counts_faster_than_real_time_is_mapped_when_its_rate_is_known() {
+        let known = stamped_at_speed_20(20_000_000);
+        assert_eq!(known.len(), 500);
+        assert!(known.iter().all(|stamped| stamped.error_us.is_some()));
+        for stamped in &known {
+            let error_us = stamped.error_us.unwrap_or(0);
+            assert!(
+                stamped.host_us.abs_diff(stamped.item) <= error_us,
+                "{stamped:?}"
+            );
+        }
+        // Taken as a real-time clock, its rate is an implausible drift: never mapped.
+        let unknown = stamped_at_speed_20(1_000_000);
+        assert!(unknown.iter().all(|stamped| stamped.error_us.is_none()));
+        // Not paced at all: never mapped either.
+        assert!(stamped_at_speed_20(0)
+            .iter()
+            .all(|stamped| stamped.error_us.is_none()));
     }
 
     #[test]

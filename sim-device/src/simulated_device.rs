@@ -195,6 +195,16 @@ pub struct SimulatedDevice {
     // The board's no-init RAM: rewritten after every step, read by the next MCU-only boot.
     retained_ram: [u8; RETAINED_LEN],
     clock_error: ClockError,
+    clock_us_per_s: u32,
+}
+
+/// How many µs the simulated device's clock counts per second of real time at `speed` (its
+/// Info says so, so that a host maps its clock at any speed); 0 when it is not paced.
+pub fn clock_us_per_s(speed: Option<f64>) -> u32 {
+    speed.map_or(0, |speed| {
+        // Saturating float-to-integer cast: a speed beyond 4294 counts as that.
+        (speed * f64::from(device::REAL_TIME_CLOCK_US_PER_S)).round() as u32
+    })
 }
 
 /// The board serial the simulated device reports: "SIMULATED" and the seed's low bytes.
@@ -286,6 +296,7 @@ impl SimulatedDevice {
             ResetKind::PowerOn,
             None,
             clock_error,
+            clock_us_per_s(config.speed),
         );
         // Paced from the end of the boot: the boot itself is not played in real time, so that a
         // slow simulation (speed 1e-4) is constructed at once and answers as soon as its pace
@@ -303,6 +314,7 @@ impl SimulatedDevice {
             passes_with_faults: 0,
             retained_ram: [0; RETAINED_LEN],
             clock_error,
+            clock_us_per_s: clock_us_per_s(config.speed),
         })
     }
 
@@ -322,6 +334,7 @@ impl SimulatedDevice {
             ResetKind::McuOnly,
             RetainedState::decode(&self.retained_ram),
             self.clock_error,
+            self.clock_us_per_s,
         );
         Ok(())
     }
@@ -408,6 +421,7 @@ fn boot_simulated(
     reset: ResetKind,
     retained: Option<RetainedState>,
     clock_error: ClockError,
+    clock_us_per_s: u32,
 ) -> Device<SimulatedAcquisition, SimulatedPersistence> {
     let mut bus = simulation.i2c();
     let topology = embassy_futures::block_on(discover(
@@ -428,6 +442,7 @@ fn boot_simulated(
         identity: DeviceIdentity {
             firmware_version: device::FIRMWARE_VERSION,
             board_serial: simulated_board_serial(seed),
+            clock_us_per_s,
         },
     };
     let (device, _) = device::boot(parts, &BOARD, reset, retained);

@@ -72,6 +72,7 @@ fn info() -> InfoFrame {
         streaming: true,
         text_mode: false,
         pad_count: 1,
+        clock_us_per_s: 1_000_000,
     }
 }
 

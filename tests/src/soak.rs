@@ -111,6 +111,7 @@ pub fn run_soak(config: SoakConfig, directory: &Path) -> anyhow::Result<SoakOutc
             Duration::from_millis(20),
         )?;
         let mut session = DeviceSession::open(DeviceLink::new(port.port), session_config)?;
+        recorder.set_clock_us_per_s(device, session.info().clock_us_per_s);
         session.link_mut().set_raw_log(recorder.raw_log(device)?);
         session.start()?;
         sessions.push(session);

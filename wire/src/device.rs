@@ -74,12 +74,17 @@ pub struct InfoFrame {
     pub text_mode: bool,
     /// How many pads the device reads (sample frames carry pad indices below it; version 3).
     pub pad_count: u8,
+    /// How many µs the device clock counts per second of real time (version 4): 1,000,000 for
+    /// a board (its crystal's small error aside, which the host measures); a simulated device
+    /// running at speed `s` counts `s` × 1,000,000; 0 when it is not paced to real time at all,
+    /// whose clock the host then cannot map onto its own.
+    pub clock_us_per_s: u32,
 }
 
 impl InfoFrame {
     /// The largest body: 1 + 3 + 12 + 5 (varint u32) + 1 + 2 (the rate, at most 400 as a
-    /// varint) + 1 + 1 + 1 + 1.
-    pub const MAX_BODY_LEN: usize = 1 + 3 + 12 + 5 + 1 + 2 + 1 + 1 + 1 + 1;
+    /// varint) + 1 + 1 + 1 + 1 + 5 (the clock rate, a varint u32).
+    pub const MAX_BODY_LEN: usize = 1 + 3 + 12 + 5 + 1 + 2 + 1 + 1 + 1 + 1 + 5;
     /// The largest encoded frame, delimiter included.
     pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
 }
@@ -216,10 +221,17 @@ impl ReplyFrame {
     /// The largest encoded frame, delimiter included (more than one USB packet).
     pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
     /// The largest encoded frame of every reply except calibration replies: a reply carrying
-    /// a counters frame (its body, 30 bytes, is the largest of Info, Counters, ModelTier and
-    /// Baseline).
-    pub const MAX_ENCODED_LEN_WITHOUT_CALIBRATION: usize =
-        crate::frame_encoded_len_bound(3 + 1 + 1 + CountersFrame::MAX_BODY_LEN);
+    /// an Info frame (its body, 33 bytes since version 4, is the largest of Info, Counters,
+    /// ModelTier and Baseline).
+    pub const MAX_ENCODED_LEN_WITHOUT_CALIBRATION: usize = crate::frame_encoded_len_bound(
+        3 + 1
+            + 1
+            + if InfoFrame::MAX_BODY_LEN > CountersFrame::MAX_BODY_LEN {
+                InfoFrame::MAX_BODY_LEN
+            } else {
+                CountersFrame::MAX_BODY_LEN
+            },
+    );
     /// The most calibration points a calibration reply can carry and still fit one 63-byte
     /// frame in the worst case of its other fields (an unloaded capacitance included).
     pub const CALIBRATION_POINTS_IN_ONE_PACKET: usize = 4;

@@ -62,7 +62,7 @@ pub use postcard::Error as PostcardError;
 /// version-1 peer could not tell, and every frame of version 2 says so instead. Version 3 made
 /// the device several pads: a sample frame per pad with its index, force, centre of pressure
 /// and contact; contact events; the pad count in the info frame.
-pub const PROTOCOL_VERSION: u8 = 3;
+pub const PROTOCOL_VERSION: u8 = 4;
 
 /// The number of taxels on the pad: C11, C12, C21, C22 in this order (row, column).
 pub const TAXEL_COUNT: usize = 4;

@@ -107,6 +107,7 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
     }
     let mut recorder = Recorder::create(paths.clone(), sessions.len(), clock, args.samples)?;
     for (device, session) in sessions.iter_mut().enumerate() {
+        recorder.set_clock_us_per_s(device, session.info().clock_us_per_s);
         session.link_mut().set_raw_log(recorder.raw_log(device)?);
         session
             .start()

@@ -67,6 +67,7 @@ impl DeviceView {
         self.state.connected_to(source);
         self.state.info = Some(info);
         self.clock = Stamper::default();
+        self.clock.set_clock_us_per_s(info.clock_us_per_s);
     }
 
     /// The device's line: connection, sets/s, its clock against the host's, and its status.

@@ -620,9 +620,20 @@ impl LiveView {
                 self.view.say("recording needs a connected device");
             }
             RecordingPhase::Off => {
+                let clock_rates: Vec<u32> = self
+                    .view
+                    .devices
+                    .iter()
+                    .map(|device| {
+                        device
+                            .state
+                            .info
+                            .map_or(1_000_000, |info| info.clock_us_per_s)
+                    })
+                    .collect();
                 let started = ViewRecording::start(
                     &self.record_dir,
-                    self.slots.len(),
+                    &clock_rates,
                     self.clock,
                     self.skipped(),
                 );

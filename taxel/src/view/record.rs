@@ -66,11 +66,12 @@ pub(super) struct ViewRecording {
 }
 
 impl ViewRecording {
-    /// Starts a recording of `device_count` devices in `directory`, whose events arrive on
-    /// `clock`; `skipped_now` is how many sets the view has skipped so far.
+    /// Starts a recording of the devices whose clocks count `clock_rates` µs per second (their
+    /// Infos') in `directory`, whose events arrive on `clock`; `skipped_now` is how many sets
+    /// the view has skipped so far.
     pub(super) fn start(
         directory: &Path,
-        device_count: usize,
+        clock_rates: &[u32],
         clock: UnixClock,
         skipped_now: u64,
     ) -> anyhow::Result<Self> {
@@ -88,7 +89,10 @@ impl ViewRecording {
             csv: Some(csv_path.clone()),
             mcap: None,
         };
-        let recorder = Recorder::create(paths, device_count, clock, None)?;
+        let mut recorder = Recorder::create(paths, clock_rates.len(), clock, None)?;
+        for (device, clock_us_per_s) in clock_rates.iter().enumerate() {
+            recorder.set_clock_us_per_s(device, *clock_us_per_s);
+        }
         Ok(Self {
             recorder,
             csv_path,

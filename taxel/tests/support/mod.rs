@@ -240,5 +240,6 @@ pub fn info(pad_count: u8) -> wire::InfoFrame {
         streaming: true,
         text_mode: false,
         pad_count,
+        clock_us_per_s: 1_000_000,
     }
 }

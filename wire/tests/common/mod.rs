@@ -145,6 +145,7 @@ pub fn info_frame() -> impl Strategy<Value = InfoFrame> {
         any::<bool>(),
         any::<bool>(),
         any::<u8>(),
+        any::<u32>(),
     )
         .prop_map(
             |(
@@ -158,6 +159,7 @@ pub fn info_frame() -> impl Strategy<Value = InfoFrame> {
                 streaming,
                 text_mode,
                 pad_count,
+                clock_us_per_s,
             )| InfoFrame {
                 protocol_version,
                 firmware_version: FirmwareVersion {
@@ -173,6 +175,7 @@ pub fn info_frame() -> impl Strategy<Value = InfoFrame> {
                 streaming,
                 text_mode,
                 pad_count,
+                clock_us_per_s,
             },
         )
 }
@@ -438,6 +441,7 @@ pub fn worst_case_info() -> InfoFrame {
         streaming: true,
         text_mode: true,
         pad_count: u8::MAX,
+        clock_us_per_s: u32::MAX,
     }
 }
 
