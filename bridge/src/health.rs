@@ -113,7 +113,10 @@ pub fn device_status(device: usize, health: &DeviceHealth) -> DiagnosticStatus {
     let mut warnings = Vec::new();
     if let Some(counters) = &health.counters {
         values.extend([
-            KeyValue::new("device: sample sets not sent", counters.dropped_sample_sets),
+            KeyValue::new(
+                "device: sample frames not sent (one per pad per set)",
+                counters.dropped_sample_frames,
+            ),
             KeyValue::new("device: frames not sent", counters.frames_dropped_no_host),
             KeyValue::new(
                 "device: converter re-initialisations",

@@ -86,7 +86,7 @@ pub fn sample_frame(
 /// The counters frame: the loop's counters summed over pads, and the host side's.
 pub fn counters_frame(counters: &Counters, host: &HostCounters) -> CountersFrame {
     CountersFrame {
-        dropped_sample_sets: host.sample_sets_dropped,
+        dropped_sample_frames: host.sample_frames_dropped,
         converter_reinits: counters.converter_reinits,
         i2c_errors: counters.i2c_errors,
         temperature_sensor_errors: counters.temperature_errors,

@@ -127,9 +127,10 @@ pub trait HostPort {
 pub struct HostCounters {
     /// Frames not sent because no host had the port open, or its queue was full.
     pub frames_dropped_no_host: u32,
-    /// Sample sets produced while streaming that were not sent (no host had the port open, or
-    /// its queue was full): among `frames_dropped_no_host`, the ones that were sample sets.
-    pub sample_sets_dropped: u32,
+    /// Sample frames produced while streaming that were not sent (no host had the port open, or
+    /// its queue was full), one per pad per set: among `frames_dropped_no_host`, the ones that
+    /// were sample frames.
+    pub sample_frames_dropped: u32,
     /// Host frames that could not be decoded or were refused without a reply.
     pub host_frames_rejected: u32,
 }
@@ -471,8 +472,8 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 Outgoing::Frame(DeviceFrame::Sample(frame))
             };
             if !self.send(host, outgoing) {
-                self.host_counters.sample_sets_dropped =
-                    self.host_counters.sample_sets_dropped.saturating_add(1);
+                self.host_counters.sample_frames_dropped =
+                    self.host_counters.sample_frames_dropped.saturating_add(1);
             }
         }
         if let Some(event) = contact_event {

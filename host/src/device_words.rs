@@ -81,8 +81,8 @@ pub fn info_words(info: &InfoFrame) -> String {
 /// The device's health counters (since its boot) in words.
 pub fn counters_words(counters: &CountersFrame) -> String {
     format!(
-        "since boot: {} sample sets not sent, {} frames of any kind not sent (no host or queue full), {} converter re-initialisations, {} I2C errors, {} temperature-sensor errors, {} bad frames from the host",
-        counters.dropped_sample_sets,
+        "since boot: {} sample frames not sent (one per pad per set), {} frames of any kind not sent (no host or queue full), {} converter re-initialisations, {} I2C errors, {} temperature-sensor errors, {} bad frames from the host",
+        counters.dropped_sample_frames,
         counters.frames_dropped_no_host,
         counters.converter_reinits,
         counters.i2c_errors,

@@ -1,7 +1,7 @@
 //! Where sample frames went, told apart honestly for one connection:
 //!
 //! - **received**: sample frames decoded;
-//! - **dropped by the device**: the growth of the device's `dropped_sample_sets` counter since
+//! - **dropped by the device**: the growth of the device's `dropped_sample_frames` counter since
 //!   this connection's first counters (sample frames it produced while streaming and could not
 //!   send, one per pad per sample set; a dropped event or counters frame is not a lost sample);
 //! - **lost on the link**: sequence gaps between consecutive received samples of one pad's
@@ -59,11 +59,11 @@ impl StreamAccounting {
 
     /// Takes the device's counters (a Counters reply or frame). The first one is the origin;
     /// a counter that went down means the device restarted, and its new value counts from 0.
-    /// The device's drops are its `dropped_sample_sets`: sample frames (one per pad per set) it
+    /// The device's drops are its `dropped_sample_frames`: sample frames (one per pad per set) it
     /// produced while streaming and could not send (other frames it could not send are not
     /// samples).
     pub fn counters(&mut self, counters: &CountersFrame) {
-        let now = counters.dropped_sample_sets;
+        let now = counters.dropped_sample_frames;
         match self.device_dropped_origin {
             None => {
                 self.device_dropped_origin = Some(now);
@@ -206,7 +206,7 @@ mod tests {
 
     fn counters(dropped: u32) -> CountersFrame {
         CountersFrame {
-            dropped_sample_sets: dropped,
+            dropped_sample_frames: dropped,
             ..CountersFrame::default()
         }
     }

@@ -342,7 +342,7 @@ fn counters_dict<'py>(
     counters: &wire::CountersFrame,
 ) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
-    dict.set_item("dropped_sample_sets", counters.dropped_sample_sets)?;
+    dict.set_item("dropped_sample_frames", counters.dropped_sample_frames)?;
     dict.set_item("converter_reinits", counters.converter_reinits)?;
     dict.set_item("i2c_errors", counters.i2c_errors)?;
     dict.set_item(

@@ -185,7 +185,7 @@ def test_commands():
         sim.save_calibration()
         sim.restore_defaults()
         counters = sim.read_counters()
-        assert set(counters) >= {"dropped_sample_sets", "i2c_errors"}
+        assert set(counters) >= {"dropped_sample_frames", "i2c_errors"}
         with pytest.raises(ValueError, match="the device reads 1 pad: there is no pad 3"):
             sim.read_calibration(pad=3)
         # Samples kept flowing through the commands, without gaps.

@@ -668,16 +668,23 @@ fn the_calibration_id_is_the_last_one_written_for_every_taxel() {
     }
 }
 
-/// `dropped_sample_sets` counts exactly the sample sets produced while streaming that were not
-/// sent (here: a host that never reads fills the output queue); frames of other kinds that were
+/// `dropped_sample_frames` counts exactly the sample frames produced while streaming that were
+/// not sent (here: a host that never reads fills the output queue) — one per pad per set, so a
+/// device of 3 pads counts 3 for a set it could not send; frames of other kinds that were
 /// dropped are not in it.
 #[test]
-fn dropped_sample_sets_counts_the_sample_sets_that_were_not_sent() {
+fn dropped_sample_frames_counts_the_sample_frames_that_were_not_sent() {
+    for pads in [1u32, 3] {
+        dropped_frames_of_pads(pads);
+    }
+}
+
+fn dropped_frames_of_pads(pads: u32) {
     let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
         scene: SceneFile::default_scene().unwrap(),
         seed: 4,
         speed: None,
-        topology: sim_device::pads_topology(1),
+        topology: sim_device::pads_topology(pads as usize),
         bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
     })
     .unwrap();
@@ -697,14 +704,15 @@ fn dropped_sample_sets_counts_the_sample_sets_that_were_not_sent() {
             _ => None,
         })
         .collect();
-    assert!(counters.sample_sets_dropped > 200, "{counters:?}");
+    assert!(counters.sample_frames_dropped > 200, "{counters:?}");
+    // A step is one sample set of every pad: each pad's frame is in the port or counted.
     assert_eq!(
-        samples.len() as u32 + counters.sample_sets_dropped,
-        steps,
-        "every set is either in the port or counted"
+        samples.len() as u32 + counters.sample_frames_dropped,
+        steps * pads,
+        "{pads} pads: every frame is either in the port or counted"
     );
-    assert!(counters.frames_dropped_no_host > counters.sample_sets_dropped);
+    assert!(counters.frames_dropped_no_host > counters.sample_frames_dropped);
     let control = device.device_mut().control();
     let frame = device::counters_frame(&control.counters(), &counters);
-    assert_eq!(frame.dropped_sample_sets, counters.sample_sets_dropped);
+    assert_eq!(frame.dropped_sample_frames, counters.sample_frames_dropped);
 }

@@ -41,7 +41,7 @@ fn frames_with_garbage() -> (Vec<DeviceFrame>, Vec<u8>, u64) {
             },
         }),
         DeviceFrame::Counters(CountersFrame {
-            dropped_sample_sets: 2,
+            dropped_sample_frames: 2,
             ..CountersFrame::default()
         }),
         DeviceFrame::Sample(sample(2, 6_000, [(Some(3.0), 4.7, 0); 4])),

@@ -90,7 +90,7 @@ fn state_with_samples() -> ViewState {
     fed.sample(sample(13, 1_015_000, taxels));
     fed.state.apply_event(&SessionEvent::Info(info()), 0);
     fed.counters(CountersFrame {
-        dropped_sample_sets: 2,
+        dropped_sample_frames: 2,
         ..CountersFrame::default()
     });
     fed.state
@@ -338,7 +338,7 @@ fn the_recording_shows_in_the_status_line() {
 fn device_drops_are_deltas_since_the_connection() {
     let mut fed = Fed::connected("counters");
     let counters = |dropped| CountersFrame {
-        dropped_sample_sets: dropped,
+        dropped_sample_frames: dropped,
         // Frames of other kinds the device could not send are not lost sample sets.
         frames_dropped_no_host: dropped * 2,
         ..CountersFrame::default()

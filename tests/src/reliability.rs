@@ -304,7 +304,7 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
         result.sets_sent += 1;
         if drops_at_start.is_none() && now_us >= 1_000_000 {
             let counters = simulated.device_mut().host_counters();
-            drops_at_start = Some(u64::from(counters.sample_sets_dropped));
+            drops_at_start = Some(u64::from(counters.sample_frames_dropped));
         }
         let _ = sample;
         // The host side: read what a host of this kind reads in one set's time.
@@ -368,7 +368,7 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
     let counters = simulated.device_mut().host_counters();
     // Sample sets only: a dropped event or counters frame never explains a missing sample set.
     result.device_drops =
-        u64::from(counters.sample_sets_dropped).saturating_sub(drops_at_start.unwrap_or(0));
+        u64::from(counters.sample_frames_dropped).saturating_sub(drops_at_start.unwrap_or(0));
     Ok(result)
 }
 

@@ -93,10 +93,11 @@ impl InfoFrame {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CountersFrame {
-    /// Sample sets produced while streaming that were not sent: no host had the port open, or
+    /// Sample frames produced while streaming that were not sent — one per pad per sample set
+    /// (a device of 8 pads counts 8 for a set it could not send): no host had the port open, or
     /// the output queue towards it was full. A gap in the sequence numbers of one uninterrupted
     /// stream that this does not explain was lost between the device and the host.
-    pub dropped_sample_sets: u32,
+    pub dropped_sample_frames: u32,
     /// Times the converter was reset and reconfigured after an error.
     pub converter_reinits: u32,
     /// Failed I2C transfers (converter and temperature sensor).

@@ -182,7 +182,7 @@ pub fn info_frame() -> impl Strategy<Value = InfoFrame> {
 
 pub fn counters_frame() -> impl Strategy<Value = CountersFrame> {
     any::<[u32; 6]>().prop_map(|values| CountersFrame {
-        dropped_sample_sets: values[0],
+        dropped_sample_frames: values[0],
         converter_reinits: values[1],
         i2c_errors: values[2],
         temperature_sensor_errors: values[3],
@@ -447,7 +447,7 @@ pub fn worst_case_info() -> InfoFrame {
 
 pub fn worst_case_counters() -> CountersFrame {
     CountersFrame {
-        dropped_sample_sets: u32::MAX,
+        dropped_sample_frames: u32::MAX,
         converter_reinits: u32::MAX,
         i2c_errors: u32::MAX,
         temperature_sensor_errors: u32::MAX,

@@ -116,7 +116,7 @@ pub(super) fn several_pads(out: &mut String, data: &ReportData) {
     let _ = writeln!(
         out,
         "\nThe device never waits for the host: a frame that does not fit its output queue is \
-         dropped and counted (`dropped_sample_sets`), so a slow host costs sample sets, never \
+         dropped and counted (`dropped_sample_frames`), so a slow host costs sample sets, never \
          the acquisition's timing.\n"
     );
 }
