@@ -19,7 +19,7 @@ use zenoh::{Session, Wait};
 
 use crate::health::{device_status, DeviceHealth};
 use crate::publisher::FramePublisher;
-use crate::relay::Outgoing;
+use crate::publisher::Outgoing;
 
 /// Bytes of one sample record.
 pub const SAMPLE_BYTES: usize = 60;

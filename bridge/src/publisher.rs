@@ -33,7 +33,36 @@ use zenoh::{Session, Wait};
 
 use crate::health::{device_status, DeviceHealth};
 use crate::names::{attachment, data_key_expression, GraphNode};
-use crate::relay::Outgoing;
+
+/// What a message says, ready for a publisher: its content, its stamp and its arrival.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outgoing {
+    /// One pad's sample frame.
+    Sample {
+        /// The device's index.
+        device: usize,
+        /// The frame as received.
+        sample: wire::SampleFrame,
+        /// Its device time on the host clock (or its arrival, see the module documentation),
+        /// ns since the Unix epoch.
+        stamp_ns: u64,
+        /// When its sample set arrived, ns since the Unix epoch.
+        arrival_ns: u64,
+    },
+    /// A pad came into contact or left it.
+    Contact {
+        /// The device's index.
+        device: usize,
+        /// The pad.
+        pad: u8,
+        /// True when the contact started, false when it ended.
+        started: bool,
+        /// When it happened on the host clock, ns since the Unix epoch.
+        stamp_ns: u64,
+        /// When it arrived, ns since the Unix epoch.
+        arrival_ns: u64,
+    },
+}
 
 /// How the bridge names things.
 #[derive(Debug, Clone, PartialEq, Eq)]

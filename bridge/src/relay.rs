@@ -32,37 +32,7 @@ use taxel_host::worker::{ArrivedEvent, EventQueue, Worker, WorkerEvent};
 use wire::{DeviceEvent, SampleFrame};
 
 use crate::health::{DeviceHealth, ReaderState};
-use crate::publisher::{FramePublisher, PublishCounts, TimingLog};
-
-/// What a message says, ready for a publisher: its content, its stamp and its arrival.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Outgoing {
-    /// One pad's sample frame.
-    Sample {
-        /// The device's index.
-        device: usize,
-        /// The frame as received.
-        sample: SampleFrame,
-        /// Its device time on the host clock (or its arrival, see the module documentation),
-        /// ns since the Unix epoch.
-        stamp_ns: u64,
-        /// When its sample set arrived, ns since the Unix epoch.
-        arrival_ns: u64,
-    },
-    /// A pad came into contact or left it.
-    Contact {
-        /// The device's index.
-        device: usize,
-        /// The pad.
-        pad: u8,
-        /// True when the contact started, false when it ended.
-        started: bool,
-        /// When it happened on the host clock, ns since the Unix epoch.
-        stamp_ns: u64,
-        /// When it arrived, ns since the Unix epoch.
-        arrival_ns: u64,
-    },
-}
+use crate::publisher::{FramePublisher, Outgoing, PublishCounts, TimingLog};
 
 /// What a device's stamper holds.
 #[derive(Debug, Clone, PartialEq)]

@@ -143,3 +143,37 @@ pub fn fit_report(data: &ReferenceData, calibration: &Calibration, budget_kpa: f
     }
     text
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use model_core::{Calibration, CalibrationSpec, CurvePoint};
+
+    #[test]
+    fn conditioning_names_the_flat_interval_and_warns_over_budget() {
+        let mut spec = CalibrationSpec::default();
+        spec.taxels[1].points = heapless::Vec::from_slice(&[
+            CurvePoint::new(0.0, 0.0),
+            CurvePoint::new(10.0, 0.1),
+            CurvePoint::new(20.0, 0.10001),
+            CurvePoint::new(30.0, 0.15),
+        ])
+        .unwrap();
+        let calibration = Calibration::new(&spec).unwrap();
+        let (table, warnings) = conditioning_report(&calibration, &[4.5; 4], 0.5);
+        // The article's curve on c11: its first interval by hand, 0.5 fF / 4.5 pF over the
+        // Fritsch-Carlson slope there (at least the 0.00738 /kPa end tangent): under 0.016 kPa.
+        let first = table.lines().nth(1).unwrap();
+        assert!(first.contains("c11") && first.contains("0..10"), "{first}");
+        let noise: f32 = first.split_whitespace().last().unwrap().parse().unwrap();
+        assert!(noise > 0.011 && noise < 0.016, "{noise}");
+        // The 10..20 kPa interval of c12 rises by 1e-5: about 1.1e-4 / 1e-6 = 111 kPa or worse.
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.contains("c12") && w.contains("10..20")),
+            "{warnings:?}"
+        );
+        assert!(warnings.iter().all(|w| w.contains("c12")), "{warnings:?}");
+    }
+}

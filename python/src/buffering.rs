@@ -4,7 +4,7 @@
 //! counts of what was lost.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
@@ -12,18 +12,12 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyUntypedArrayMethods, ToPyArray};
 use pyo3::prelude::*;
 
+use crate::locking::lock;
 use crate::sample_set::SetRecord;
 use crate::stream::Stream;
 
 /// How long the collecting thread waits for a set before it looks at its stop flag.
 const SLICE: Duration = Duration::from_millis(20);
-
-/// Locks a shared value; a panic while it was held left plain data, still usable.
-pub fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
-    mutex
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner())
-}
 
 /// What the collecting thread gathered since the last read.
 #[derive(Debug, Default)]

@@ -4,26 +4,23 @@
 //! loop, `taxel_host::session`); every wait here releases the GIL and looks for Ctrl-C every
 //! [`SLICE`].
 
-use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::sync::{Arc, Mutex};
-use std::thread;
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use pyo3::exceptions::{PyStopIteration, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use taxel_host::device_link::{
-    open_serial, select_port, DeviceLink, RequestError, DEFAULT_PID, DEFAULT_VID,
-};
-use taxel_host::host_clock::MonotonicClock;
-use taxel_host::session::{DeviceSession, SessionConfig};
-use taxel_host::worker::{EventQueue, Overflow, Worker};
+use taxel_host::device_link::{open_serial, select_port, RequestError, DEFAULT_PID, DEFAULT_VID};
+use taxel_host::session::DeviceSession;
+use taxel_host::worker::Worker;
 use wire::{Command, PadIndex, ReplyPayload, SampleRate};
 
-use crate::buffering::{lock, Buffer, Buffering};
+use crate::buffering::{Buffer, Buffering};
 use crate::calibration::Calibration;
+use crate::connect::{start_interruptibly, wait_interruptibly};
 use crate::errors::{anyhow_error, taxel_error, ErrorKind};
+use crate::locking::lock;
 use crate::sample_set::SampleSet;
 use crate::stream::{Stream, QUEUE_SETS};
 
@@ -33,10 +30,10 @@ pub trait Transport: std::io::Read + std::io::Write + Send {}
 impl<T: std::io::Read + std::io::Write + Send> Transport for T {}
 
 /// The link a device is read over.
-type Link = Box<dyn Transport>;
+pub type Link = Box<dyn Transport>;
 
 /// How long a blocking call waits with the GIL released before it looks for Ctrl-C.
-const SLICE: Duration = Duration::from_millis(50);
+pub const SLICE: Duration = Duration::from_millis(50);
 
 /// The read timeout of a serial port: one poll of the link waits at most this.
 const PORT_READ_TIMEOUT: Duration = Duration::from_millis(20);
@@ -229,100 +226,6 @@ impl Device {
         if let Some(mut backend) = backend {
             backend.stop();
         }
-    }
-}
-
-/// Waits for `receiver` until `deadline` in slices with the GIL released, raising on Ctrl-C;
-/// `None` when nothing came (or the sender went away).
-fn wait_interruptibly<T: Send>(
-    py: Python<'_>,
-    receiver: Receiver<T>,
-    deadline: Instant,
-) -> PyResult<Option<T>> {
-    let mut receiver = receiver;
-    loop {
-        let slice = deadline
-            .saturating_duration_since(Instant::now())
-            .min(SLICE);
-        // Moved in and out: a receiver may not be shared between threads, only sent.
-        let (received, returned) = py.allow_threads(move || {
-            let received = receiver.recv_timeout(slice);
-            (received, receiver)
-        });
-        receiver = returned;
-        match received {
-            Ok(value) => return Ok(Some(value)),
-            Err(RecvTimeoutError::Disconnected) => return Ok(None),
-            Err(RecvTimeoutError::Timeout) => {
-                py.check_signals()?;
-                if Instant::now() >= deadline {
-                    return Ok(None);
-                }
-            }
-        }
-    }
-}
-
-/// The host clock now, Unix seconds.
-fn unix_now_s() -> f64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |elapsed| elapsed.as_secs_f64())
-}
-
-/// Opens the session and starts the worker on a thread of its own, waited for in slices with
-/// the GIL released so that Ctrl-C interrupts it, and for `timeout` in all (the start makes
-/// several requests, each bounded by `timeout`); an abandoned start ends by itself within its
-/// own timeouts.
-fn start_interruptibly(
-    py: Python<'_>,
-    port: Link,
-    timeout: Duration,
-    queue_sets: usize,
-    slow_hint: &str,
-) -> PyResult<(Worker<Link>, Arc<Stream>)> {
-    // A little over the timeout, so that a first request that times out reports itself (with
-    // the request it was) rather than this overall bound.
-    let deadline = Instant::now() + timeout + 2 * SLICE;
-    let (sender, receiver) = mpsc::channel();
-    thread::Builder::new()
-        .name("taxel-connect".into())
-        .spawn(move || {
-            let config = SessionConfig {
-                request_timeout: timeout,
-                follow_state: false,
-            };
-            let started =
-                DeviceSession::open(DeviceLink::new(port), config).and_then(|mut session| {
-                    session.start()?;
-                    let info = *session.info();
-                    let queue = Arc::new(EventQueue::new(queue_sets, Overflow::DropOldestSet));
-                    let origin_unix_s = unix_now_s();
-                    let worker = Worker::start(
-                        vec![session],
-                        Arc::clone(&queue),
-                        Arc::new(MonotonicClock::new()),
-                    )
-                    .context("starting the device's reader thread")?;
-                    Ok((worker, Arc::new(Stream::new(queue, origin_unix_s, info))))
-                });
-            let _ = sender.send(started);
-        })
-        .map_err(|error| {
-            taxel_error(
-                ErrorKind::Other,
-                format!("starting the connection: {error}"),
-            )
-        })?;
-    match wait_interruptibly(py, receiver, deadline)? {
-        Some(started) => started.map_err(|error| anyhow_error(&error, ErrorKind::Other)),
-        None => Err(taxel_error(
-            ErrorKind::Timeout,
-            format!(
-                "the device did not finish connecting (identity and stream start) within {} ms{slow_hint}",
-                timeout.as_millis()
-            ),
-        )),
     }
 }
 

@@ -8,9 +8,11 @@
 mod arrays;
 mod buffering;
 mod calibration;
+mod connect;
 mod convert;
 mod device;
 mod errors;
+mod locking;
 mod memory_link;
 mod recording;
 mod sample_set;

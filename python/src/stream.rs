@@ -13,7 +13,7 @@ use taxel_host::stream_accounting::sequence_gap;
 use taxel_host::worker::{ArrivedEvent, DeviceEnd, EndReason, EventQueue, WorkerEvent};
 use wire::{EventFrame, InfoFrame};
 
-use crate::buffering::lock;
+use crate::locking::lock;
 use crate::sample_set::SetRecord;
 
 /// Sample sets the queue holds by default for a caller that does not read; older ones are

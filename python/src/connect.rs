@@ -1,0 +1,113 @@
+//! Connecting to a device from Python without ever blocking Ctrl-C: the session is opened
+//! and the worker started on a thread of their own, waited for in slices with the GIL
+//! released, within one overall timeout.
+
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::sync::Arc;
+use std::thread;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use anyhow::Context;
+use pyo3::prelude::*;
+use taxel_host::device_link::DeviceLink;
+use taxel_host::host_clock::MonotonicClock;
+use taxel_host::session::{DeviceSession, SessionConfig};
+use taxel_host::worker::{EventQueue, Overflow, Worker};
+
+use crate::device::{Link, SLICE};
+use crate::errors::{anyhow_error, taxel_error, ErrorKind};
+use crate::stream::Stream;
+
+/// Waits for `receiver` until `deadline` in slices with the GIL released, raising on Ctrl-C;
+/// `None` when nothing came (or the sender went away).
+pub fn wait_interruptibly<T: Send>(
+    py: Python<'_>,
+    receiver: Receiver<T>,
+    deadline: Instant,
+) -> PyResult<Option<T>> {
+    let mut receiver = receiver;
+    loop {
+        let slice = deadline
+            .saturating_duration_since(Instant::now())
+            .min(SLICE);
+        // Moved in and out: a receiver may not be shared between threads, only sent.
+        let (received, returned) = py.allow_threads(move || {
+            let received = receiver.recv_timeout(slice);
+            (received, receiver)
+        });
+        receiver = returned;
+        match received {
+            Ok(value) => return Ok(Some(value)),
+            Err(RecvTimeoutError::Disconnected) => return Ok(None),
+            Err(RecvTimeoutError::Timeout) => {
+                py.check_signals()?;
+                if Instant::now() >= deadline {
+                    return Ok(None);
+                }
+            }
+        }
+    }
+}
+
+/// The host clock now, Unix seconds.
+fn unix_now_s() -> f64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |elapsed| elapsed.as_secs_f64())
+}
+
+/// Opens the session and starts the worker on a thread of its own, waited for in slices with
+/// the GIL released so that Ctrl-C interrupts it, and for `timeout` in all (the start makes
+/// several requests, each bounded by `timeout`); an abandoned start ends by itself within its
+/// own timeouts.
+pub fn start_interruptibly(
+    py: Python<'_>,
+    port: Link,
+    timeout: Duration,
+    queue_sets: usize,
+    slow_hint: &str,
+) -> PyResult<(Worker<Link>, Arc<Stream>)> {
+    // A little over the timeout, so that a first request that times out reports itself (with
+    // the request it was) rather than this overall bound.
+    let deadline = Instant::now() + timeout + 2 * SLICE;
+    let (sender, receiver) = mpsc::channel();
+    thread::Builder::new()
+        .name("taxel-connect".into())
+        .spawn(move || {
+            let config = SessionConfig {
+                request_timeout: timeout,
+                follow_state: false,
+            };
+            let started =
+                DeviceSession::open(DeviceLink::new(port), config).and_then(|mut session| {
+                    session.start()?;
+                    let info = *session.info();
+                    let queue = Arc::new(EventQueue::new(queue_sets, Overflow::DropOldestSet));
+                    let origin_unix_s = unix_now_s();
+                    let worker = Worker::start(
+                        vec![session],
+                        Arc::clone(&queue),
+                        Arc::new(MonotonicClock::new()),
+                    )
+                    .context("starting the device's reader thread")?;
+                    Ok((worker, Arc::new(Stream::new(queue, origin_unix_s, info))))
+                });
+            let _ = sender.send(started);
+        })
+        .map_err(|error| {
+            taxel_error(
+                ErrorKind::Other,
+                format!("starting the connection: {error}"),
+            )
+        })?;
+    match wait_interruptibly(py, receiver, deadline)? {
+        Some(started) => started.map_err(|error| anyhow_error(&error, ErrorKind::Other)),
+        None => Err(taxel_error(
+            ErrorKind::Timeout,
+            format!(
+                "the device did not finish connecting (identity and stream start) within {} ms{slow_hint}",
+                timeout.as_millis()
+            ),
+        )),
+    }
+}
