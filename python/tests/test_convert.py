@@ -28,29 +28,56 @@ def recording():
     return capacitance, temperature, time_s
 
 
+def micros(seconds):
+    """Seconds with 6 decimals, as `taxel.convert` reads `time_s` (truncated to µs)."""
+    whole_us = int(float(seconds) * 1e6)
+    return f"{whole_us // 1_000_000}.{whole_us % 1_000_000:06d}"
+
+
 def cell(value):
-    return "" if np.isnan(value) else repr(float(value))
+    return "" if np.isnan(value) else repr(float(np.float32(value)))
 
 
-def flag_bits(text):
-    bits = 0
-    for name in filter(None, text.split("|")):
-        bits |= int(taxel.Flags[name.upper()])
-    return bits
-
-
-def cli_convert(taxel_cli, tmp_path, capacitance, temperature, time_s, *arguments):
-    """Writes the data as a CSV file, runs `taxel convert` on it, reads its pressures (as the
-    f32 values it printed) and flags."""
-    source = tmp_path / "input.csv"
-    with source.open("w", newline="") as file:
+def write_recording(path, capacitance, temperature, time_s, sequence=None):
+    """The data as a recording of the schema (device 0, pads side by side in `capacitance`,
+    one temperature per pad); a pad whose four capacitances and temperature are all NaN is its
+    frame missing from that set (a row with the set's identity only)."""
+    rows, taxels = capacitance.shape
+    pads = taxels // 4
+    temperature = temperature.reshape(rows, -1)
+    with path.open("w", newline="") as file:
         writer = csv.writer(file)
-        writer.writerow(["time_s", "temp_c", "c11_pf", "c12_pf", "c21_pf", "c22_pf"])
-        for row in range(len(time_s)):
-            writer.writerow(
-                [repr(float(time_s[row])), cell(temperature[row])]
-                + [cell(value) for value in capacitance[row]]
-            )
+        writer.writerow(taxel_header())
+        for row in range(rows):
+            seq = row if sequence is None else int(sequence[row])
+            for pad in range(pads):
+                caps = capacitance[row, 4 * pad : 4 * pad + 4]
+                temp = temperature[row, min(pad, temperature.shape[1] - 1)]
+                identity = [micros(time_s[row]), "0", str(pad), str(seq)]
+                if pads > 1 and np.all(np.isnan(caps)) and np.isnan(temp):
+                    writer.writerow(identity + [""] * 22)
+                    continue
+                writer.writerow(
+                    identity
+                    + [micros(time_s[row]), "", cell(temp), "none" if np.isnan(temp) else "tmp117"]
+                    + [cell(value) for value in caps]
+                    + [""] * 8 + ["", "", "", "0", "0", ""]
+                )
+
+
+def taxel_header():
+    return (
+        "host_time_s,device,pad,seq,device_time_s,sync_error_ms,temp_c,temp_source,"
+        "c11_pf,c12_pf,c21_pf,c22_pf,p11_kpa,p12_kpa,p21_kpa,p22_kpa,"
+        "flags11,flags12,flags21,flags22,force_n,cop_x_mm,cop_y_mm,partial,contact,marker"
+    ).split(",")
+
+
+def cli_convert(taxel_cli, tmp_path, capacitance, temperature, time_s, *arguments, sequence=None):
+    """Writes the data as a recording of the schema, runs `taxel convert` on it and returns its
+    pressures and flags as (N, taxels) arrays, and its messages."""
+    source = tmp_path / "input.csv"
+    write_recording(source, capacitance, temperature, time_s, sequence)
     output = tmp_path / "output.csv"
     result = subprocess.run(
         [taxel_cli, "convert", str(source), "-o", str(output), "--no-device-state", *arguments],
@@ -58,17 +85,11 @@ def cli_convert(taxel_cli, tmp_path, capacitance, temperature, time_s, *argument
         text=True,
     )
     assert result.returncode == 0, result.stderr
-    with output.open(newline="") as file:
-        rows = list(csv.DictReader(file))
-    names = ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa"]
-    pressure = np.array(
-        [[np.float32(row[name]) if row[name] else np.nan for name in names] for row in rows],
-        dtype=np.float64,
-    )
-    flags = np.array(
-        [[flag_bits(row[f"flags{name[1:3]}"]) for name in names] for row in rows],
-        dtype=np.uint16,
-    )
+    converted = taxel.read_recording(output)
+    rows, taxels = capacitance.shape
+    pads = taxels // 4
+    pressure = converted.pressure_kpa.reshape(rows, pads * 4)
+    flags = converted.flags.reshape(rows, pads * 4)
     return pressure, flags, result.stderr
 
 
@@ -170,48 +191,15 @@ def test_an_unfinished_tare_warns_in_the_cli_words(recording):
 
 
 def two_pad_cli_convert(taxel_cli, tmp_path, buffer, capacitance, temperature, time_s, missing):
-    """Writes a two-pad recording in `taxel record`'s pad-prefixed layout (a pad's cells all
-    empty in the rows of `missing`: its frame is missing from that set), converts it with
-    `taxel convert --tare-rows 4` and returns its pressures and flags as (N, 8) arrays."""
-    names = ["c11_pf", "c12_pf", "c21_pf", "c22_pf"]
-    source = tmp_path / "pads.csv"
-    with source.open("w", newline="") as file:
-        writer = csv.writer(file)
-        header = ["seq"]
-        for pad in range(2):
-            header += [f"pad{pad}_time_s", f"pad{pad}_temp_c"] + [f"pad{pad}_{n}" for n in names]
-        writer.writerow(header)
-        for row in range(len(time_s)):
-            cells = [str(int(buffer.sequence[row]))]
-            for pad in range(2):
-                if (row, pad) in missing:
-                    cells += [""] * 6
-                    continue
-                cells += [repr(float(time_s[row])), cell(temperature[row, pad])]
-                cells += [cell(value) for value in capacitance[row, 4 * pad : 4 * pad + 4]]
-            writer.writerow(cells)
-    output = tmp_path / "converted.csv"
-    result = subprocess.run(
-        [taxel_cli, "convert", str(source), "-o", str(output), "--no-device-state",
-         "--tare-rows", "4"],
-        capture_output=True,
-        text=True,
+    """A two-pad recording of the schema (a pad's frame missing from the sets of `missing`),
+    converted with `taxel convert --tare-rows 4`: its pressures and flags as (N, 8) arrays."""
+    pressure, flags, messages = cli_convert(
+        taxel_cli, tmp_path, capacitance, temperature, time_s, "--tare-rows", "4",
+        sequence=buffer.sequence,
     )
-    assert result.returncode == 0, result.stderr
     if missing:
-        assert f"{len(missing)} pad frames were missing" in result.stderr, result.stderr
-    with output.open(newline="") as file:
-        rows = list(csv.DictReader(file))
-    columns = [f"pad{pad}_p{k}_kpa" for pad in range(2) for k in ("11", "12", "21", "22")]
-    expected = np.array(
-        [[np.float32(row[c]) if row[c] else np.nan for c in columns] for row in rows],
-        dtype=np.float64,
-    )
-    flag_columns = [c.replace("_p", "_flags").replace("_kpa", "") for c in columns]
-    expected_flags = np.array(
-        [[flag_bits(row[c]) for c in flag_columns] for row in rows], dtype=np.uint16
-    )
-    return expected, expected_flags
+        assert f"{len(missing)} pad frames were missing" in messages, messages
+    return pressure, flags
 
 
 @pytest.fixture(scope="module")
@@ -225,8 +213,8 @@ def gripper_recording():
 
 
 def test_several_pads_equal_the_cli(taxel_cli, tmp_path, gripper_recording):
-    """A recording of two pads in `taxel record`'s pad-prefixed layout, converted pad by pad by
-    the command line, gives what `taxel.convert` gives for the (N, 8) array."""
+    """A recording of two pads in the schema, converted pad by pad by the command line, gives
+    what `taxel.convert` gives for the (N, 8) array."""
     buffer, capacitance, temperature, time_s = gripper_recording
     expected, expected_flags = two_pad_cli_convert(
         taxel_cli, tmp_path, buffer, capacitance, temperature, time_s, set()
