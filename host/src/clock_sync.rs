@@ -546,6 +546,17 @@ impl ClockMapper {
         })
     }
 
+    /// Device µs per host µs of the fitted line when it is refused as an implausible drift
+    /// (beyond [`ClockMapperConfig::max_drift_ppm`]): why there is no estimate although there
+    /// were frames enough (a device clock running at another rate than the host's, such as a
+    /// simulated device at another speed that does not say so).
+    pub fn refused_rate(&self) -> Option<f64> {
+        let fits = self.fits?;
+        self.plausible_fits()
+            .is_none()
+            .then_some(1.0 / fits.whole.host_per_device)
+    }
+
     /// How many times the mapper started again (reboots, clock steps, gaps) since it was made.
     pub fn restarts(&self) -> u64 {
         self.restarts
@@ -731,6 +742,18 @@ mod tests {
         ];
         let line = fit_lower_envelope(&points).unwrap();
         assert!(line.host_per_device.is_finite());
+    }
+
+    #[test]
+    fn a_clock_at_another_rate_is_refused_and_its_rate_said() {
+        let mut mapper = ClockMapper::new();
+        for index in 0..400u64 {
+            let host_us = 10_000 * index + 1_000;
+            mapper.observe(5 * 10_000 * index, host_us);
+        }
+        assert!(mapper.estimate().is_none());
+        let rate = mapper.refused_rate().unwrap();
+        assert!((rate - 5.0).abs() < 0.01, "{rate}");
     }
 
     #[test]

@@ -98,6 +98,9 @@ pub struct DeviceSummary {
     pub stamped_at_arrival: u64,
     /// The device's clock mapping at the end.
     pub clock: Option<ClockEstimate>,
+    /// Without a mapping: the device-to-host clock rate the mapper measured and refused as an
+    /// implausible drift (see `ClockMapper::refused_rate`).
+    pub refused_clock_rate: Option<f64>,
     /// How the device's stream ended, with its accounting.
     pub end: Option<DeviceEnd>,
 }
@@ -387,6 +390,7 @@ impl Recorder {
                 missing_frames: record.missing_frames,
                 stamped_at_arrival: record.stamper.stamped_at_arrival(),
                 clock: record.stamper.estimate(),
+                refused_clock_rate: record.stamper.mapper().refused_rate(),
                 end: record.end,
             });
         }

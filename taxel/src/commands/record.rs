@@ -226,7 +226,12 @@ fn device_words(summary: &DeviceSummary) -> String {
             clock.drift_ppm,
             clock.uncertainty_us as f64 / 1e3
         )),
-        None => words.push_str("; no clock estimate"),
+        None => match summary.refused_clock_rate {
+            Some(rate) => words.push_str(&format!(
+                "; no clock estimate: the device clock runs {rate:.4} times as fast as the host's, beyond any crystal's error (a simulated device at another speed that does not say so?)"
+            )),
+            None => words.push_str("; no clock estimate (fewer than 2 s of sample sets)"),
+        },
     }
     if summary.stamped_at_arrival > 0 {
         words.push_str(&format!(
