@@ -6,6 +6,26 @@ use taxel_host::device_link::{
     attached_boards, choose_board, parse_hex_u16, select_port, LinkError, DEFAULT_PID, DEFAULT_VID,
 };
 
+/// The USB vendor and product ids boards are found by (the pad's, unless given).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::Args)]
+pub struct UsbIdArgs {
+    /// USB vendor id of the boards, for finding them (hex).
+    #[arg(long, value_name = "VID", default_value = "0x1209", value_parser = parse_hex_u16)]
+    pub vid: u16,
+    /// USB product id of the boards, for finding them (hex).
+    #[arg(long, value_name = "PID", default_value = "0x0001", value_parser = parse_hex_u16)]
+    pub pid: u16,
+}
+
+impl Default for UsbIdArgs {
+    fn default() -> Self {
+        Self {
+            vid: DEFAULT_VID,
+            pid: DEFAULT_PID,
+        }
+    }
+}
+
 /// Which board to talk to: a serial port, or an attached board chosen by its USB serial number
 /// (or the only one attached).
 #[derive(Debug, Clone, PartialEq, Eq, clap::Args)]
@@ -16,12 +36,9 @@ pub struct BoardArgs {
     /// Choose the attached board with this USB serial number.
     #[arg(long, value_name = "SN", conflicts_with = "port")]
     pub serial: Option<String>,
-    /// USB vendor id of the board, for finding it.
-    #[arg(long, value_name = "VID", default_value = "0x1209", value_parser = parse_hex_u16)]
-    pub vid: u16,
-    /// USB product id of the board, for finding it.
-    #[arg(long, value_name = "PID", default_value = "0x0001", value_parser = parse_hex_u16)]
-    pub pid: u16,
+    /// The boards' USB ids.
+    #[command(flatten)]
+    pub usb: UsbIdArgs,
 }
 
 impl BoardArgs {
@@ -30,8 +47,7 @@ impl BoardArgs {
         Self {
             port: Some(port),
             serial: None,
-            vid: DEFAULT_VID,
-            pid: DEFAULT_PID,
+            usb: UsbIdArgs::default(),
         }
     }
 
@@ -40,8 +56,8 @@ impl BoardArgs {
         select_port(
             self.port.as_deref(),
             self.serial.as_deref(),
-            self.vid,
-            self.pid,
+            self.usb.vid,
+            self.usb.pid,
         )
     }
 }
@@ -57,12 +73,9 @@ pub struct MultiBoardArgs {
     /// after the PORTs, in the order given).
     #[arg(long, value_name = "SN")]
     pub serial: Vec<String>,
-    /// USB vendor id of the boards, for finding them.
-    #[arg(long, value_name = "VID", default_value = "0x1209", value_parser = parse_hex_u16)]
-    pub vid: u16,
-    /// USB product id of the boards, for finding them.
-    #[arg(long, value_name = "PID", default_value = "0x0001", value_parser = parse_hex_u16)]
-    pub pid: u16,
+    /// The boards' USB ids.
+    #[command(flatten)]
+    pub usb: UsbIdArgs,
 }
 
 impl MultiBoardArgs {
@@ -71,8 +84,7 @@ impl MultiBoardArgs {
         Self {
             ports,
             serial: Vec::new(),
-            vid: DEFAULT_VID,
-            pid: DEFAULT_PID,
+            usb: UsbIdArgs::default(),
         }
     }
 
@@ -95,13 +107,15 @@ impl MultiBoardArgs {
         self.refuse_repeats("recorded")?;
         let mut ports = self.ports.clone();
         if !self.serial.is_empty() {
-            let boards = attached_boards(self.vid, self.pid)?;
+            let boards = attached_boards(self.usb.vid, self.usb.pid)?;
             for serial in &self.serial {
-                ports.push(choose_board(&boards, Some(serial), self.vid, self.pid)?.port_name);
+                ports.push(
+                    choose_board(&boards, Some(serial), self.usb.vid, self.usb.pid)?.port_name,
+                );
             }
         }
         if ports.is_empty() {
-            ports.push(select_port(None, None, self.vid, self.pid)?);
+            ports.push(select_port(None, None, self.usb.vid, self.usb.pid)?);
         }
         if let Some(port) = first_repeated(&ports) {
             anyhow::bail!("{port} is given twice: each device is recorded once");
@@ -155,5 +169,17 @@ mod tests {
         );
         let args = MultiBoardArgs::for_ports(vec!["/dev/a".into(), "/dev/b".into()]);
         assert_eq!(args.select_ports().unwrap(), ["/dev/a", "/dev/b"]);
+    }
+
+    #[test]
+    fn the_default_usb_ids_are_the_pads() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Probe {
+            #[command(flatten)]
+            usb: UsbIdArgs,
+        }
+        let probe = Probe::try_parse_from(["probe"]).unwrap();
+        assert_eq!(probe.usb, UsbIdArgs::default());
     }
 }

@@ -2,8 +2,7 @@
 
 use std::process::ExitCode;
 
-use taxel_host::device_link::parse_hex_u16;
-use taxel_host::device_link::{attached_boards, BoardPort, DEFAULT_PID, DEFAULT_VID};
+use taxel_host::device_link::{attached_boards, BoardPort};
 
 /// The long help of the subcommand.
 pub const LONG_ABOUT: &str = "List the boards attached by USB with the pad's VID:PID: port, \
@@ -12,23 +11,11 @@ serial number, manufacturer and product. The serial number chooses a board with 
 Example: taxel list";
 
 /// Arguments of `taxel list`.
-#[derive(Debug, Clone, clap::Args)]
+#[derive(Debug, Clone, Default, clap::Args)]
 pub struct ListArgs {
-    /// USB vendor id to look for (hex).
-    #[arg(long, value_name = "VID", default_value = "0x1209", value_parser = parse_hex_u16)]
-    pub vid: u16,
-    /// USB product id to look for (hex).
-    #[arg(long, value_name = "PID", default_value = "0x0001", value_parser = parse_hex_u16)]
-    pub pid: u16,
-}
-
-impl Default for ListArgs {
-    fn default() -> Self {
-        Self {
-            vid: DEFAULT_VID,
-            pid: DEFAULT_PID,
-        }
-    }
+    /// The USB ids to look for.
+    #[command(flatten)]
+    pub usb: taxel_args::UsbIdArgs,
 }
 
 /// The listing text: one line per board, or "no board attached".
@@ -55,7 +42,7 @@ pub fn listing(boards: &[BoardPort]) -> String {
 
 /// Runs `taxel list`.
 pub fn run(args: &ListArgs) -> anyhow::Result<ExitCode> {
-    let boards = attached_boards(args.vid, args.pid)?;
+    let boards = attached_boards(args.usb.vid, args.usb.pid)?;
     taxel_host::console::out(format_args!("{}", listing(&boards)))?;
     Ok(ExitCode::SUCCESS)
 }

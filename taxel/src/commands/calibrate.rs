@@ -59,9 +59,9 @@ pub struct CalibrateArgs {
     /// After uploading, make the device save the calibration to its flash.
     #[arg(long, requires = "upload")]
     pub save: bool,
-    /// How long to wait for each reply from the device, ms.
-    #[arg(long, value_name = "MS", default_value_t = 2000)]
-    pub timeout_ms: u64,
+    /// How long to wait for the device.
+    #[command(flatten)]
+    pub link: taxel_args::LinkArgs,
     /// Pressure noise budget of the use case, kPa: intervals where 0.5 fF of converter noise
     /// moves the pressure by more are warned about (the gripper use case's 0.5 kPa by default).
     #[arg(long, value_name = "KPA", default_value_t = model_core::UseCase::GRIPPER.error_budget_kpa)]
@@ -115,7 +115,7 @@ pub fn run(args: &CalibrateArgs) -> anyhow::Result<ExitCode> {
             &mut link,
             &calibration,
             args.save,
-            Duration::from_millis(args.timeout_ms),
+            args.link.timeout(),
             &mut |message| noteln!("{message}"),
         )?;
     }

@@ -5,7 +5,7 @@ use anyhow::Context;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
-use taxel_args::BoardArgs;
+use taxel_args::{BoardArgs, LinkArgs};
 use taxel_host::calibration_file::{self};
 use taxel_host::calibration_transfer::*;
 use taxel_host::device_link::{self, DeviceLink};
@@ -39,9 +39,9 @@ pub struct PortArgs {
     /// The device.
     #[command(flatten)]
     pub board: BoardArgs,
-    /// How long to wait for each reply from the device, ms.
-    #[arg(long, value_name = "MS", default_value_t = 2000)]
-    pub timeout_ms: u64,
+    /// How long to wait for the device.
+    #[command(flatten)]
+    pub link: LinkArgs,
 }
 
 /// `pull` or `push`.
@@ -86,7 +86,7 @@ fn open(port: &PortArgs) -> anyhow::Result<(String, DeviceLink<Box<dyn serialpor
 pub fn run(args: &CalibrationArgs) -> anyhow::Result<ExitCode> {
     match &args.action {
         CalibrationAction::Pull { port, output, pad } => {
-            let timeout = Duration::from_millis(port.timeout_ms);
+            let timeout = port.link.timeout();
             let (path, mut link) = open(port)?;
             let (info, _) = link
                 .synchronise(timeout)
@@ -122,7 +122,7 @@ pub fn run(args: &CalibrationArgs) -> anyhow::Result<ExitCode> {
         } => {
             let calibration = calibration_file::read(file)
                 .with_context(|| format!("reading {}", file.display()))?;
-            let timeout = Duration::from_millis(port.timeout_ms);
+            let timeout = port.link.timeout();
             let (path, mut link) = open(port)?;
             let only_pad = pad.map(pad_index).transpose()?;
             match only_pad {

@@ -139,14 +139,13 @@ impl LiveView {
         let by_port = board
             .ports
             .iter()
-            .map(|port| BoardTarget::new(Some(port.clone()), None, board.vid, board.pid));
-        let by_serial = board
-            .serial
-            .iter()
-            .map(|serial| BoardTarget::new(None, Some(serial.clone()), board.vid, board.pid));
+            .map(|port| BoardTarget::new(Some(port.clone()), None, board.usb.vid, board.usb.pid));
+        let by_serial = board.serial.iter().map(|serial| {
+            BoardTarget::new(None, Some(serial.clone()), board.usb.vid, board.usb.pid)
+        });
         let mut targets: Vec<BoardTarget> = by_port.chain(by_serial).collect();
         if targets.is_empty() {
-            targets.push(BoardTarget::new(None, None, board.vid, board.pid));
+            targets.push(BoardTarget::new(None, None, board.usb.vid, board.usb.pid));
         }
         let mut view =
             DevicesView::new(targets.iter().map(BoardTarget::describe).collect(), layout);
