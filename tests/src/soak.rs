@@ -46,9 +46,10 @@ pub struct SoakOutcome {
     pub rows: u64,
     /// Rows of pad frames that never arrived (flagged by their empty cells).
     pub missing_rows: u64,
-    /// Sets missing from the sequence numbers in the file, every device and pad.
+    /// Pad frames missing from the sequence numbers in the file, every device and pad.
     pub sequence_gaps: u64,
-    /// Sets the devices' accounting counts as lost (dropped by the device or on the link).
+    /// Pad frames the devices' accounting counts as lost (dropped by the device or on the
+    /// link; the device counts one per pad per set).
     pub counted_losses: u64,
     /// Rows without a clock sync error.
     pub rows_without_sync_error: u64,
@@ -61,7 +62,7 @@ pub struct SoakOutcome {
 }
 
 impl SoakOutcome {
-    /// Sets missing from the file that no accounting explains.
+    /// Pad frames missing from the file that no accounting explains.
     pub fn unflagged_losses(&self) -> u64 {
         self.sequence_gaps.saturating_sub(self.counted_losses)
     }
@@ -206,9 +207,9 @@ recording schema (CSV) and MCAP at once; the file is then read back.\n\n\
 | sample sets per device | {sets:?} |\n\
 | rows (a row per pad per set) | {rows} |\n\
 | rows of pad frames that never arrived (flagged: empty cells) | {missing} |\n\
-| sets missing from the sequence numbers in the file | {gaps} |\n\
-| sets the devices' accounting counts as lost | {counted} |\n\
-| sets lost unflagged | **{unflagged}** |\n\
+| pad frames missing from the sequence numbers in the file | {gaps} |\n\
+| pad frames the devices' accounting counts as lost (dropped by the device or on the link) | {counted} |\n\
+| pad frames lost unflagged | **{unflagged}** |\n\
 | rows without a clock sync error | {without_sync} |\n\
 | largest clock sync error | {max_sync:.3} ms |\n\
 | resident memory: after start, largest, end | {rss_start} KiB, {rss_max} KiB, {rss_end} KiB |\n\
