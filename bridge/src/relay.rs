@@ -25,11 +25,11 @@ use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 use taxel_host::host_clock::{HostClock, UnixClock};
-use taxel_host::session::SessionEvent;
+use taxel_host::session::{contact_change, SessionEvent};
 use taxel_host::stamping::{Stamped, Stamper};
 use taxel_host::stream_accounting::StreamAccounting;
 use taxel_host::worker::{ArrivedEvent, EventQueue, Worker, WorkerEvent};
-use wire::{DeviceEvent, SampleFrame};
+use wire::SampleFrame;
 
 use crate::health::{DeviceHealth, ReaderState};
 use crate::publisher::{FramePublisher, Outgoing, PublishCounts, TimingLog};
@@ -249,20 +249,15 @@ impl DeviceStream {
                         .push(Item::Sample(sample), device_us, arrival_us);
                 }
             }
-            SessionEvent::Device(event) => match event.event {
-                DeviceEvent::ContactStarted { pad } | DeviceEvent::ContactEnded { pad } => {
-                    let started = matches!(event.event, DeviceEvent::ContactStarted { .. });
-                    self.stamper.push(
-                        Item::Contact {
-                            pad: pad.get(),
-                            started,
-                        },
-                        event.timestamp_us,
-                        arrival_us,
-                    );
+            SessionEvent::Device(event) => {
+                if let Some((pad, started)) = contact_change(&event) {
+                    let item = Item::Contact {
+                        pad: pad.get(),
+                        started,
+                    };
+                    self.stamper.push(item, event.timestamp_us, arrival_us);
                 }
-                _ => {}
-            },
+            }
             SessionEvent::Info(info) => self.health.info = Some(info),
             SessionEvent::Counters(counters) => self.health.counters = Some(counters),
             SessionEvent::Baselines { .. }
@@ -379,7 +374,7 @@ mod tests {
     use super::*;
     use taxel_host::pad_set::PadSet;
     use taxel_host::stamping::MAX_WAIT_US;
-    use wire::{EventFrame, PadIndex, PadSummary, TaxelSample, TemperatureSource};
+    use wire::{DeviceEvent, EventFrame, PadIndex, PadSummary, TaxelSample, TemperatureSource};
 
     fn frame(pad: u8, sequence: u32, timestamp_us: u64) -> SampleFrame {
         SampleFrame {

@@ -22,14 +22,14 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use taxel_ros2::pad_messages::{DEFAULT_FRAME_PREFIX, DEFAULT_NAMESPACE};
 use taxel_ros2::PadMessagesFile;
-use wire::{DeviceEvent, SampleFrame};
+use wire::SampleFrame;
 
 use crate::clock_sync::ClockEstimate;
 use crate::host_clock::UnixClock;
 use crate::output_file::{OutputFile, PendingRename};
 use crate::pad_set::PadSet;
 use crate::schema::{PadReading, PadRow, RowWriter};
-use crate::session::SessionEvent;
+use crate::session::{contact_change, SessionEvent};
 use crate::stamping::{Stamped, Stamper};
 use crate::worker::{ArrivedEvent, DeviceEnd, WorkerEvent};
 
@@ -262,22 +262,17 @@ impl Recorder {
                     .stamper
                     .push(Item::Set { set, marker }, device_us, arrival_us);
             }
-            WorkerEvent::Session(SessionEvent::Device(event)) => match event.event {
+            WorkerEvent::Session(SessionEvent::Device(event)) => {
                 // Events after the device's last recorded set are beyond the recording.
-                _ if limit.is_some_and(|limit| record.sets_taken >= limit) => {}
-                DeviceEvent::ContactStarted { pad } | DeviceEvent::ContactEnded { pad } => {
-                    let started = matches!(event.event, DeviceEvent::ContactStarted { .. });
-                    record.stamper.push(
-                        Item::Contact {
-                            pad: pad.get(),
-                            started,
-                        },
-                        event.timestamp_us,
-                        arrival_us,
-                    );
+                let within = limit.is_none_or(|limit| record.sets_taken < limit);
+                if let (Some((pad, started)), true) = (contact_change(&event), within) {
+                    let item = Item::Contact {
+                        pad: pad.get(),
+                        started,
+                    };
+                    record.stamper.push(item, event.timestamp_us, arrival_us);
                 }
-                _ => {}
-            },
+            }
             WorkerEvent::Session(_) => {}
             WorkerEvent::Ended(end) => {
                 record.end = Some(*end);

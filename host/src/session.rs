@@ -89,6 +89,15 @@ pub enum SessionEvent {
     },
 }
 
+/// A contact change the device reported: the pad, and whether the contact started (or ended).
+pub fn contact_change(event: &EventFrame) -> Option<(PadIndex, bool)> {
+    match event.event {
+        DeviceEvent::ContactStarted { pad } => Some((pad, true)),
+        DeviceEvent::ContactEnded { pad } => Some((pad, false)),
+        _ => None,
+    }
+}
+
 /// A device's stream, from identification to stop (see the module documentation).
 pub struct DeviceSession<P> {
     link: DeviceLink<P>,
