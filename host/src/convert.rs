@@ -1,8 +1,9 @@
 //! The conversion engine: recorded readings through the pad pipeline again — the model with
 //! its calibration, tier and baselines, force and centre of pressure, the contact detector —
 //! for every pad of every device, each with its own state. `taxel convert` runs it over a
-//! recording of the schema ([`crate::schema`]) or a raw byte log; the Python package over its
-//! arrays. With the device's recorded state (`NAME.dev<n>.device.json` beside the recording),
+//! recording of the schema ([`crate::schema`]) or a raw byte log, and the Python package's
+//! `convert_recording` over a recording (its `convert` of arrays runs the model's batch path,
+//! tested equal to this engine). With the device's recorded state (`NAME.dev<n>.device.json` beside the recording),
 //! re-processing reproduces what the device computed; options given replace its parts.
 //!
 //! Output: the same rows (identity, times, capacitances and temperature kept) with the
@@ -109,6 +110,9 @@ impl PadOptions {
     }
 }
 
+/// The most devices whose states are looked for beside a recording.
+pub const MAX_DEVICES: u32 = 256;
+
 /// The recorded state of each device of a recording, read from beside it.
 #[derive(Debug, Clone, Default)]
 pub struct RecordedStates {
@@ -118,14 +122,14 @@ pub struct RecordedStates {
 }
 
 impl RecordedStates {
-    /// The states beside `recording` (`NAME.dev<n>.device.json`), devices 0, 1, ... as long as
-    /// they exist.
+    /// The states beside `recording` (`NAME.dev<n>.device.json`) of every device number up to
+    /// [`MAX_DEVICES`] that has one (a device without its file does not hide the next).
     pub fn beside(recording: &Path) -> anyhow::Result<Self> {
         let mut states = Self::default();
-        for device in 0u32.. {
+        for device in 0..MAX_DEVICES {
             let path = device_file(recording, device as usize, "device.json");
             if !path.exists() {
-                break;
+                continue;
             }
             states
                 .devices

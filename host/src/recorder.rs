@@ -338,42 +338,84 @@ impl Recorder {
 
     /// Ends the recording: stamps and writes what still waits, writes each device's state,
     /// closes every file and renames it into place. The raw logs' writers must be closed
-    /// (taken back from the links) before.
+    /// (taken back from the links) before. When any step fails, every file not yet in place is
+    /// kept under its temporary name and the error names them: a recording is never lost to a
+    /// failure at its end.
     pub fn finish(mut self) -> anyhow::Result<RecordingSummary> {
+        let mut files = Vec::new();
+        match self.finish_files(&mut files) {
+            Ok(devices) => Ok(RecordingSummary { devices, files }),
+            Err(error) => {
+                let kept = self.abandon();
+                let names: Vec<String> =
+                    kept.iter().map(|path| path.display().to_string()).collect();
+                Err(error.context(format!(
+                    "the recording could not be finished; what was received is kept in {}",
+                    if names.is_empty() {
+                        "the files already renamed".to_owned()
+                    } else {
+                        names.join(", ")
+                    }
+                )))
+            }
+        }
+    }
+
+    /// The steps of [`Recorder::finish`]; a file leaves `self` only once it is in place.
+    fn finish_files(&mut self, files: &mut Vec<PathBuf>) -> anyhow::Result<Vec<DeviceSummary>> {
         for device in 0..self.devices.len() {
             let released = self.devices[device].stamper.finish();
             self.write(device, released)?;
         }
-        let mut files = Vec::new();
+        if let Some((rows, _)) = &mut self.csv {
+            rows.flush().context("writing the CSV file")?;
+        }
         if let Some((rows, pending)) = self.csv.take() {
             let target = pending.target().to_path_buf();
-            let writer = rows.into_inner();
-            let file = writer
-                .into_inner()
-                .map_err(|error| error.into_error())
-                .with_context(|| format!("writing {}", target.display()))?;
-            pending.commit_file(file)?;
+            match rows.into_inner().into_inner() {
+                Ok(file) => pending.commit_file(file)?,
+                Err(error) => {
+                    let kept = pending.keep()?;
+                    return Err(error.into_error()).with_context(|| {
+                        format!("writing {} (kept as {})", target.display(), kept.display())
+                    });
+                }
+            }
             files.push(target);
         }
         if let Some((mcap, pending)) = self.mcap.take() {
             let target = pending.target().to_path_buf();
-            let writer = mcap
+            let finished = mcap
                 .finish()
-                .with_context(|| format!("finishing {}", target.display()))?;
-            let file = writer
-                .into_inner()
-                .map_err(|error| error.into_error())
-                .with_context(|| format!("writing {}", target.display()))?;
-            pending.commit_file(file)?;
+                .map_err(anyhow::Error::from)
+                .and_then(|writer| {
+                    writer
+                        .into_inner()
+                        .map_err(|error| error.into_error().into())
+                });
+            match finished {
+                Ok(file) => pending.commit_file(file)?,
+                Err(error) => {
+                    let kept = pending.keep()?;
+                    return Err(error).with_context(|| {
+                        format!(
+                            "finishing {} (kept as {})",
+                            target.display(),
+                            kept.display()
+                        )
+                    });
+                }
+            }
             files.push(target);
         }
         let mut devices = Vec::new();
-        for (index, record) in self.devices.into_iter().enumerate() {
-            if let Some(raw) = record.raw {
+        for index in 0..self.devices.len() {
+            if let Some(raw) = self.devices[index].raw.take() {
                 let target = raw.target().to_path_buf();
                 raw.commit()?;
                 files.push(target);
             }
+            let record = &self.devices[index];
             let state = record.end.as_ref().and_then(|end| end.state.as_ref());
             if let (Some(state), Some(path)) = (state, self.paths.device_state(index)) {
                 state.write(&path)?;
@@ -386,10 +428,10 @@ impl Recorder {
                 stamped_at_arrival: record.stamper.stamped_at_arrival(),
                 clock: record.stamper.estimate(),
                 refused_clock_rate: record.stamper.mapper().refused_rate(),
-                end: record.end,
+                end: record.end.clone(),
             });
         }
-        Ok(RecordingSummary { devices, files })
+        Ok(devices)
     }
 
     /// Gives up: keeps every file written so far under its temporary name and returns the

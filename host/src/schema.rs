@@ -4,9 +4,10 @@
 //! (input and output), `taxel plot` and the Python package read and write this one table; every
 //! column is defined once, in [`COLUMNS`], and the help texts are generated from it.
 //!
-//! A pad whose frame of a set never arrived still has its row, with the set's identity
-//! (`host_time_s`, `device`, `pad`, `seq`) and every other cell empty: a loss is visible where
-//! it happened, never silent. A wide table (one row per set) is an export of this one
+//! A pad whose frame of a set never arrived, while other pads' frames of that set did, still has
+//! its row, with the set's identity (`host_time_s`, `device`, `pad`, `seq`) and every other cell
+//! empty. A set lost whole (every pad's frame) has no rows: it shows as a gap in `seq`, which
+//! the recorder's closing line and the device's accounting count. A wide table (one row per set) is an export of this one
 //! (`taxel convert --wide`), never a second input shape.
 
 use std::io::{BufRead, Write};

@@ -24,7 +24,7 @@ use crate::calibration_transfer::pull_baselines;
 use crate::device_link::{DeviceLink, LinkError, LinkStatistics, RequestError};
 use crate::device_state::{read_device_state, BaselineChange, RecordedDeviceState};
 use crate::pad_set::{PadSet, PadSetAssembler};
-use crate::stream_accounting::StreamAccounting;
+use crate::stream_accounting::{sequence_gap, StreamAccounting};
 
 /// How a session talks to its device.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -107,16 +107,14 @@ pub struct DeviceSession<P> {
     assembler: PadSetAssembler,
     accounting: StreamAccounting,
     events: VecDeque<SessionEvent>,
-    // Sequence gaps seen on a set's first frame, until the set closes.
-    gaps: VecDeque<(u32, u64)>,
+    // The sequence number of the last set closed: a set's gap is from it (a set closed without
+    // some pads is not a lost set).
+    last_set_sequence: Option<u32>,
     // New baselines read after a tare, waiting for the pad's next frame to be dated.
     pending_baselines: Vec<(PadIndex, [Option<BaselineRecord>; TAXEL_COUNT])>,
     stale_frames: u64,
     streaming: bool,
 }
-
-/// Sequence gaps remembered for sets still open.
-const GAP_MEMORY: usize = 64;
 
 impl<P: Read + Write> DeviceSession<P> {
     /// Identifies the device on `link` (discarding the frames that waited in the port from
@@ -139,7 +137,7 @@ impl<P: Read + Write> DeviceSession<P> {
             assembler: PadSetAssembler::new(info.pad_count),
             accounting: StreamAccounting::new(),
             events: VecDeque::new(),
-            gaps: VecDeque::new(),
+            last_set_sequence: None,
             pending_baselines: Vec::new(),
             stale_frames,
             streaming: false,
@@ -151,6 +149,7 @@ impl<P: Read + Write> DeviceSession<P> {
     pub fn start(&mut self) -> anyhow::Result<()> {
         self.accounting = StreamAccounting::new();
         self.accounting.stale_discarded(self.stale_frames);
+        self.last_set_sequence = None;
         let timeout = self.config.request_timeout;
         if let Ok(ReplyPayload::Counters(counters)) =
             self.link.request(Command::ReadCounters, timeout)
@@ -185,7 +184,7 @@ impl<P: Read + Write> DeviceSession<P> {
     /// with its missing pads, as a last event if there is one.
     pub fn close_open_set(&mut self) -> Option<SessionEvent> {
         let set = self.assembler.finish()?;
-        let sets_missing_before = self.take_gap(set.sequence);
+        let sets_missing_before = self.set_gap(set.sequence);
         Some(SessionEvent::Set {
             set,
             sets_missing_before,
@@ -288,10 +287,7 @@ impl<P: Read + Write> DeviceSession<P> {
     fn take_frame(&mut self, frame: DeviceFrame) {
         match frame {
             DeviceFrame::Sample(sample) => {
-                let gap = self.accounting.sample(&sample);
-                if gap > 0 {
-                    self.remember_gap(sample.sequence, gap);
-                }
+                self.accounting.sample(&sample);
                 if let Some(index) = self
                     .pending_baselines
                     .iter()
@@ -313,7 +309,7 @@ impl<P: Read + Write> DeviceSession<P> {
                         .push_back(SessionEvent::Baselines { pad, change });
                 }
                 for set in self.assembler.push(sample) {
-                    let sets_missing_before = self.take_gap(set.sequence);
+                    let sets_missing_before = self.set_gap(set.sequence);
                     self.events.push_back(SessionEvent::Set {
                         set,
                         sets_missing_before,
@@ -365,23 +361,12 @@ impl<P: Read + Write> DeviceSession<P> {
         }
     }
 
-    fn remember_gap(&mut self, sequence: u32, gap: u64) {
-        match self.gaps.iter_mut().find(|(known, _)| *known == sequence) {
-            Some((_, largest)) => *largest = (*largest).max(gap),
-            None => {
-                if self.gaps.len() >= GAP_MEMORY {
-                    self.gaps.pop_front();
-                }
-                self.gaps.push_back((sequence, gap));
-            }
-        }
-    }
-
-    fn take_gap(&mut self, sequence: u32) -> u64 {
-        self.gaps
-            .iter()
-            .position(|(known, _)| *known == sequence)
-            .and_then(|position| self.gaps.remove(position))
-            .map_or(0, |(_, gap)| gap)
+    /// Sets missing between the last set closed and set `sequence` (wrapping), which closes now.
+    fn set_gap(&mut self, sequence: u32) -> u64 {
+        let gap = self
+            .last_set_sequence
+            .map_or(0, |previous| sequence_gap(previous, sequence));
+        self.last_set_sequence = Some(sequence);
+        gap
     }
 }

@@ -337,7 +337,9 @@ impl<P: Read + Write + Send + 'static> Worker<P> {
         timeout: Duration,
     ) -> Result<ReplyPayload, WorkerRequestError> {
         let receiver = self.send(device, command, timeout)?;
-        match receiver.recv() {
+        // The device's thread answers within the timeout; the margin covers its read slice. A
+        // thread that cannot answer (it waits for a full queue nobody empties) is an end.
+        match receiver.recv_timeout(timeout + 4 * READ_SLICE) {
             Ok(result) => Ok(result?),
             Err(_) => Err(WorkerRequestError::Ended(device)),
         }
@@ -456,6 +458,14 @@ fn read_device<P: Read + Write>(
             Err(error) => break EndReason::Disconnected(error.to_string()),
         }
     };
+    if reason == EndReason::Stopped {
+        // What the session already holds (events of a frame taken, frames decoded and not yet
+        // taken) goes out before the last set is closed, so no pad is called missing that came.
+        let until = Instant::now() + READ_SLICE;
+        while let Ok(Some(event)) = session.next_event(until) {
+            context.deliver(WorkerEvent::Session(event));
+        }
+    }
     if let Some(event) = session.close_open_set() {
         context.deliver(WorkerEvent::Session(event));
     }

@@ -72,11 +72,14 @@ pub fn queue_sets_checked(queue_sets: usize) -> PyResult<usize> {
     Ok(queue_sets)
 }
 
+/// The longest timeout taken, s (11.6 days): longer ones would overflow the clock's arithmetic.
+const MAX_TIMEOUT_S: f64 = 1.0e6;
+
 /// A timeout given in seconds, checked.
 pub fn timeout_from_s(timeout_s: f64) -> PyResult<Duration> {
-    if !(timeout_s.is_finite() && timeout_s > 0.0) {
+    if !(timeout_s.is_finite() && timeout_s > 0.0 && timeout_s <= MAX_TIMEOUT_S) {
         return Err(PyValueError::new_err(format!(
-            "timeout must be a positive number of seconds (got {timeout_s})"
+            "timeout must be a positive number of seconds up to {MAX_TIMEOUT_S} (got {timeout_s})"
         )));
     }
     Ok(Duration::from_secs_f64(timeout_s))
@@ -147,13 +150,21 @@ impl Device {
         what: &str,
         timeout: Duration,
     ) -> PyResult<ReplyPayload> {
-        let result = self.on_session(py, timeout, move |session| {
-            let result = session.request(command, timeout);
-            if let Ok(ReplyPayload::Info(info)) = &result {
-                session.set_info(*info);
-            }
-            result
-        })?;
+        // The device's thread sends it and goes on reading while the reply is awaited, so the
+        // sets arriving meanwhile keep their arrival times (a tare takes a second or more).
+        let receiver = py
+            .allow_threads(|| {
+                lock(&self.worker)
+                    .as_ref()
+                    .map(|worker| worker.send(0, command, timeout))
+            })
+            .ok_or_else(closed_error)?
+            .map_err(|_| self.ended_error())?;
+        let deadline = Instant::now()
+            .checked_add(timeout + Duration::from_secs(1))
+            .unwrap_or_else(Instant::now);
+        let result =
+            wait_interruptibly(py, receiver, deadline)?.ok_or_else(|| self.ended_error())?;
         result.map_err(|error| {
             let kind = match &error {
                 RequestError::Refused(_) => ErrorKind::Refused,

@@ -279,5 +279,15 @@ pub fn convert_recording_rows(
         .iter()
         .map(|bad| format!("line {}: {}", bad.line, bad.reason))
         .collect();
-    Ok((Recording::from_rows(py, &rows)?, bad, summary.tare_warnings))
+    let mut warnings: Vec<String> = summary
+        .pads_without_state
+        .iter()
+        .map(|(device, pad)| {
+            format!(
+                "device {device} pad {pad} has no recorded state: converted with the built-in calibration, the default tier and a tare on its first readable row unless options said otherwise"
+            )
+        })
+        .collect();
+    warnings.extend(summary.tare_warnings);
+    Ok((Recording::from_rows(py, &rows)?, bad, warnings))
 }

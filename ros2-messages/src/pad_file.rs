@@ -1,7 +1,8 @@
 //! The pads' messages in an MCAP file: each pad of each device gets its topics on first use
 //! (pressure cloud, wrench, contact started and ended, see [`crate::pad_messages`]), and every
 //! sample frame and contact event is written with its stamp and arrival. The recorder of
-//! `taxel record` and the bridge's `--mcap` write through this one writer.
+//! `taxel record` (and the live view) writes through it; the bridge's `--mcap` writes the
+//! messages it publishes, diagnostics included, through [`crate::McapRecorder`] itself.
 
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};

@@ -126,11 +126,14 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
             .collect::<Vec<_>>()
             .join(" and ")
     );
-    let result = record_until_done(&queue, &mut recorder, &stop, ports.len());
+    let result = record_until_done(&queue, &mut recorder, &stop);
     let sessions = worker.finish();
+    let mut result = result;
     for mut session in sessions.into_iter().flatten() {
         if let Some(mut raw) = session.link_mut().take_raw_log() {
-            raw.flush().context("writing a raw log")?;
+            if let (Err(error), Ok(())) = (raw.flush(), &result) {
+                result = Err(anyhow::Error::from(error).context("writing a raw log"));
+            }
         }
     }
     let result = result.and_then(|()| {
@@ -167,16 +170,17 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Feeds the recorder until Ctrl-C, every device's limit, or every device ended.
+/// Feeds the recorder until Ctrl-C, every device's limit, or a device's end.
 fn record_until_done(
     queue: &EventQueue,
     recorder: &mut Recorder,
     stop: &AtomicBool,
-    device_count: usize,
 ) -> anyhow::Result<()> {
     let mut last_flush = Instant::now();
     let mut ended = 0;
-    while !stop.load(Ordering::Relaxed) && !recorder.is_complete() && ended < device_count {
+    // A device that went away ends the recording of all (as the live view does): the files
+    // then hold the same span of every device.
+    while !stop.load(Ordering::Relaxed) && !recorder.is_complete() && ended == 0 {
         if let Some(arrived) = queue.pop_until(Instant::now() + Duration::from_millis(100)) {
             match &arrived.event {
                 WorkerEvent::Session(SessionEvent::Device(event)) => {
