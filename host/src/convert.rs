@@ -371,6 +371,9 @@ pub struct ConvertSummary {
     pub pads_without_state: Vec<(u32, u8)>,
     /// Pad frames missing from the recording's sets (their rows kept as they are).
     pub missing_frames: u64,
+    /// Raw logs only: sample frames of pads beyond the pad count the log was read with (left
+    /// out: the pad count comes from the device's state file, 1 without it).
+    pub frames_beyond_pad_count: u64,
 }
 
 /// Converts a recording of the schema from `input` into `sink`.
@@ -481,6 +484,8 @@ pub fn convert_raw<R: Read>(
     let statistics = receiver.statistics();
     summary.undecodable_frames = statistics.frames_rejected;
     summary.undecodable_bytes = statistics.bytes_rejected;
+    summary.frames_beyond_pad_count =
+        statistics.samples_beyond_pad_count + assembler.frames_beyond_pad_count();
     summary.pads_without_state = engine.pads_without_state.clone();
     summary.tare_warnings = engine.finish();
     Ok(summary)

@@ -157,7 +157,8 @@ pub fn run(args: &ConvertArgs) -> anyhow::Result<ExitCode> {
     let (states, raw_device) = match &args.raw {
         Some(raw) => {
             let (device, state) = raw_device(raw);
-            let states = match state.filter(|_| !args.no_device_state) {
+            // The pad count is a fact of the log, read even when the state is not used.
+            let states = match state {
                 Some(path) => RecordedStates::of_one_device(device, &path)?,
                 None => RecordedStates::default(),
             };
@@ -174,6 +175,7 @@ pub fn run(args: &ConvertArgs) -> anyhow::Result<ExitCode> {
     let pad_count = raw_device
         .and_then(|device| states.device(device))
         .map_or(1, |state| state.pad_count.max(1));
+
     let wide_pads = if args.wide {
         match (&args.raw, input.as_os_str() == "-") {
             (Some(_), _) => usize::from(pad_count),
@@ -247,6 +249,12 @@ fn report(summary: &ConvertSummary, raw: bool) {
         noteln!(
             "{} pad frames were missing from the recording's sample sets (their rows are kept as they are)",
             summary.missing_frames
+        );
+    }
+    if summary.frames_beyond_pad_count > 0 {
+        noteln!(
+            "warning: {} sample frames of pads beyond the log's pad count were left out (the pad count comes from the device's state file beside the log, 1 without it)",
+            summary.frames_beyond_pad_count
         );
     }
     if raw {
