@@ -58,7 +58,7 @@ pub struct Simulator {
 #[pymethods]
 impl Simulator {
     #[new]
-    #[pyo3(signature = (scene=None, speed=Some(1.0), seed=0, pads=None, timeout=2.0, link_buffer_bytes=262_144, queue_sets=crate::stream::QUEUE_SETS))]
+    #[pyo3(signature = (scene=None, speed=Some(1.0), seed=sim_device::DEFAULT_SEED, pads=None, timeout=2.0, link_buffer_bytes=262_144, queue_sets=crate::stream::QUEUE_SETS))]
     // Python's keyword arguments, one per option.
     #[allow(clippy::too_many_arguments)]
     fn new(

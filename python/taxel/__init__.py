@@ -18,6 +18,7 @@ and ``(N, 4)`` from a buffer, and a device of ``P`` pads ``(4 * P,)`` and ``(N, 
 from __future__ import annotations
 
 import enum
+import importlib.metadata as _metadata
 import operator
 import os
 import warnings
@@ -58,11 +59,15 @@ __all__ = [
     "TIERS",
     "TaxelError",
     "TaxelWarning",
+    "__version__",
     "convert",
     "convert_recording",
     "list_devices",
     "read_recording",
 ]
+
+#: The installed package's version.
+__version__: str = _metadata.version("taxel")
 
 #: The inversion tiers of the pressure model, by name; ``"monotone-cubic"`` is the default.
 TIERS: Tuple[str, ...] = tuple(_taxel.tier_names())

@@ -229,7 +229,7 @@ class Simulator(Device):
         self,
         scene: Optional[str] = None,
         speed: Optional[float] = 1.0,
-        seed: int = 0,
+        seed: int = 1,
         pads: Optional[int] = None,
         timeout: float = 2.0,
         link_buffer_bytes: int = 262_144,

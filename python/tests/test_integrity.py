@@ -5,6 +5,7 @@ exception."""
 
 import _thread
 import signal
+import subprocess
 import threading
 import time
 
@@ -205,3 +206,20 @@ def test_host_time_is_the_arrival_and_latest_is_the_newest_set():
         # After latest(), read() continues from the newest on.
         following = device.read()
         assert following.sequence > newest.sequence
+
+
+def test_the_version_and_the_simulators_default_seed_are_the_command_lines(taxel_cli, tmp_path):
+    import importlib.metadata
+
+    assert taxel.__version__ == importlib.metadata.version("taxel")
+    version = subprocess.run([taxel_cli, "--version"], capture_output=True, text=True)
+    assert version.stdout.split()[-1] == taxel.__version__
+    process, port = start_cli_simulator(taxel_cli, tmp_path)
+    try:
+        with taxel.Device(port=port) as device:
+            cli_serial = device.info["board_serial"]
+    finally:
+        process.terminate()
+        process.wait(timeout=10)
+    with taxel.Simulator() as simulator:
+        assert simulator.info["board_serial"] == cli_serial

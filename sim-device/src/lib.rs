@@ -17,7 +17,7 @@ pub use scene_file::{
     FaultKind, PadScene, SceneFault, SceneFile, SceneFileError, BUILT_IN_SCENES, DEFAULT_SCENE_TOML,
 };
 pub use sensor_sim::{Pacing, Simulation, Topology};
-pub use serve::{board_for, load_scene, scene_config, SimulatorThread};
+pub use serve::{board_for, load_scene, scene_config, SimulatorThread, DEFAULT_SEED};
 pub use simulated_device::{
     pads_topology, simulated_board_serial, ClockError, SimulatedDevice, SimulatedDeviceConfig,
     SimulatedDeviceError, BUS_FREQUENCY_HZ, FACTORY_CALIBRATION_ID,

@@ -87,6 +87,10 @@ impl SimulatorThread {
     }
 }
 
+/// The noise seed of a simulated device unless one is given (`taxel sim`, the bridge's `--sim`
+/// and the Python `Simulator` alike, so the same scene gives the same stream everywhere).
+pub const DEFAULT_SEED: u64 = 1;
+
 /// The configuration of a simulated board playing `scene` (a built-in name or a file; `None`:
 /// the demo) with `pads` pads (default: as many as the scene describes), at `speed` simulated
 /// seconds per wall-clock second (`None`: as fast as the host computes), with the board's bus

@@ -66,7 +66,7 @@ pub struct SimArgs {
     #[arg(long, value_name = "SECONDS")]
     pub duration: Option<f64>,
     /// Seed of the converter noise (the same seed and scene give the same stream).
-    #[arg(long, value_name = "N", default_value_t = 1)]
+    #[arg(long, value_name = "N", default_value_t = sim_device::DEFAULT_SEED)]
     pub seed: u64,
     /// Also make a symbolic link to the terminal at this path (replaced if it exists).
     #[arg(long, value_name = "PATH")]
