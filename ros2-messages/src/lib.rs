@@ -4,7 +4,7 @@
 //! Foxglove and the ROS 2 bag tools open the file ([`mcap_file`]).
 //!
 //! [`pad_messages`] turns a pad's sample frame into those messages. Light on purpose: no
-//! middleware here, so `taxel record --format mcap` can use the same
+//! middleware here, so `taxel record --mcap` can use the same
 //! messages without the Zenoh dependency of the bridge. Which message carries what, and why
 //! these types, is in docs/BRIDGE.md.
 #![deny(missing_docs)]

@@ -3,7 +3,7 @@
 //! channel per topic with `cdr` messages, and each message's log and publish times in ns since
 //! the Unix epoch. Foxglove, `ros2 bag` and the Python `mcap-ros2-support` reader open them.
 //!
-//! For `taxel record --format mcap`: create a [`McapRecorder`] on the output file, call
+//! For `taxel record --mcap` (through [`crate::PadMessagesFile`]) and the bridge: create a [`McapRecorder`] on the output file, call
 //! [`McapRecorder::add_topic`] once per topic and [`McapRecorder::write`] with the same
 //! messages the bridge publishes, then [`McapRecorder::finish`].
 
