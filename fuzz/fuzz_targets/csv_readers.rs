@@ -6,8 +6,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use taxel_host::convert::{
-    convert_raw, convert_recording, ConversionEngine, ConvertSettings, RecordedStates,
-    WideWriter,
+    convert_raw, convert_recording, ConversionEngine, ConvertSettings, RecordedStates, WideWriter,
 };
 use taxel_host::schema::RowWriter;
 
