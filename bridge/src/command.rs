@@ -348,11 +348,13 @@ fn bridge_ports(
         Mode::Ros2 => ros.insert(RosPublisher::new(session, naming, recorder)?),
         Mode::Plain => plain.insert(PlainPublisher::new(session, &args.namespace)),
     };
-    let timing_log: Option<TimingLog> = match &args.timing_log {
-        Some(path) => Some(Box::new(std::io::BufWriter::new(
-            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?,
-        ))),
-        None => None,
+    // Written under a temporary name and renamed when the bridge ends cleanly, as every file.
+    let (timing_log, timing_pending): (Option<TimingLog>, _) = match &args.timing_log {
+        Some(path) => {
+            let (writer, pending) = taxel_host::output_file::OutputFile::create(path)?.into_parts();
+            (Some(Box::new(writer)), Some(pending))
+        }
+        None => (None, None),
     };
     // The streams start last, just before their threads read them, so that few sets wait in
     // a port.
@@ -386,7 +388,11 @@ fn bridge_ports(
     let messages = relay.finish();
     publication.send(messages, &relay)?;
     publication.health(&relay, &queue)?;
+    // Flushes and closes the timing log, which can then take its name.
     let counts = publication.finish()?;
+    if let Some(pending) = timing_pending {
+        pending.commit()?;
+    }
     if let Some(ros) = ros {
         if let (Some(file), Some(pending)) = (ros.finish()?, mcap_file) {
             pending.commit_file(file)?;
