@@ -374,21 +374,13 @@ mod tests {
     use super::*;
     use taxel_host::pad_set::PadSet;
     use taxel_host::stamping::MAX_WAIT_US;
-    use wire::{DeviceEvent, EventFrame, PadIndex, PadSummary, TaxelSample, TemperatureSource};
+    use wire::{DeviceEvent, EventFrame, PadIndex, TemperatureSource};
 
     fn frame(pad: u8, sequence: u32, timestamp_us: u64) -> SampleFrame {
         SampleFrame {
-            pad: PadIndex::new(pad).unwrap(),
             sequence,
             timestamp_us,
-            temperature_c: None,
-            temperature_source: TemperatureSource::Tmp117,
-            taxels: [TaxelSample {
-                pressure_kpa: Some(0.0),
-                capacitance_pf: 4.5,
-                flags: 0,
-            }; 4],
-            summary: PadSummary::default(),
+            ..wire::testing::sample_frame(pad)
         }
     }
 

@@ -143,16 +143,14 @@ mod tests {
     use super::*;
 
     fn frame(pad: u8, sequence: u32) -> SampleFrame {
+        let base = wire::testing::sample_frame(pad);
         SampleFrame {
-            pad: PadIndex::new(pad).unwrap(),
             sequence,
             timestamp_us: u64::from(sequence) * 10_000 + u64::from(pad) * 300,
             temperature_c: Some(24.0),
-            temperature_source: wire::TemperatureSource::Tmp117,
             taxels: [wire::TaxelSample {
                 pressure_kpa: Some(f32::from(pad)),
-                capacitance_pf: 4.5,
-                flags: 0,
+                ..base.taxels[0]
             }; 4],
             summary: wire::PadSummary {
                 force_n: Some(0.25),
@@ -160,6 +158,7 @@ mod tests {
                 partial: false,
                 contact: pad == 1,
             },
+            ..base
         }
     }
 

@@ -190,17 +190,8 @@ mod tests {
 
     fn sample(sequence: u32) -> SampleFrame {
         SampleFrame {
-            pad: wire::PadIndex::default(),
             sequence,
-            timestamp_us: 0,
-            temperature_c: None,
-            temperature_source: wire::TemperatureSource::None,
-            taxels: [wire::TaxelSample {
-                capacitance_pf: 4.5,
-                pressure_kpa: None,
-                flags: 0,
-            }; 4],
-            summary: wire::PadSummary::default(),
+            ..wire::testing::sample_frame(0)
         }
     }
 
@@ -237,8 +228,8 @@ mod tests {
 
     fn sample_of_pad(pad: u8, sequence: u32) -> SampleFrame {
         SampleFrame {
-            pad: PadIndex::new(pad).unwrap(),
-            ..sample(sequence)
+            sequence,
+            ..wire::testing::sample_frame(pad)
         }
     }
 

@@ -9,6 +9,8 @@ pub mod pty;
 pub mod scene_file;
 pub mod serve;
 pub mod simulated_device;
+#[cfg(feature = "testing")]
+pub mod testing;
 
 pub use flash::{SimulatedFlash, FLASH_REGION_LEN, FLASH_SECTOR_LEN};
 pub use memory_port::MemoryPort;

@@ -142,6 +142,35 @@ pub struct SimulatedDeviceConfig {
     pub bus_frequency_hz: Option<u32>,
 }
 
+impl SimulatedDeviceConfig {
+    /// `scene` on `pads` pads ([`pads_topology`]) with the board's bus clock, the default seed
+    /// ([`crate::DEFAULT_SEED`]), as fast as the host computes.
+    pub fn new(scene: SceneFile, pads: usize) -> Self {
+        Self {
+            scene,
+            seed: crate::DEFAULT_SEED,
+            speed: None,
+            topology: pads_topology(pads),
+            bus_frequency_hz: BUS_FREQUENCY_HZ,
+        }
+    }
+
+    /// The same configuration with noise seed `seed`.
+    #[must_use]
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.seed = seed;
+        self
+    }
+
+    /// The same configuration at `speed` simulated seconds per wall-clock second (`None`: as
+    /// fast as the host computes).
+    #[must_use]
+    pub fn with_speed(mut self, speed: Option<f64>) -> Self {
+        self.speed = speed;
+        self
+    }
+}
+
 /// The board's I2C clock ([`device::BoardConfig::i2c_frequency_hz`]).
 pub const BUS_FREQUENCY_HZ: Option<u32> = Some(BOARD.i2c_frequency_hz);
 

@@ -15,13 +15,9 @@ const FDC_CONF: u8 = 0x0C;
 
 #[test]
 fn the_simulated_converter_is_configured_as_the_board() {
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile::default_scene().unwrap(),
-        seed: 2,
-        speed: None,
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    let mut device = SimulatedDevice::new(
+        SimulatedDeviceConfig::new(SceneFile::default_scene().unwrap(), 1).with_seed(2),
+    )
     .unwrap();
     let mut port = MemoryPort::new(usize::MAX);
     for _ in 0..30 {

@@ -4,10 +4,8 @@
 // Test helpers may unwrap and panic: a failure is the test failing.
 #![allow(clippy::unwrap_used, clippy::panic)]
 
-mod support;
-
+use sim_device::testing::Host;
 use sim_device::{MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
-use support::Host;
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, DeviceFrameDecoder, ErrorCode,
     EventFrame, ReplyPayload, Request, SampleFrame, SampleRate, TaxelCalibrationRecord, UseCase,
@@ -555,13 +553,9 @@ fn the_built_in_default_is_one_calibration_and_the_factory_one_is_in_flash() {
     assert_eq!(calibration_records(&mut host), expected);
 
     let mut blank = Host::new();
-    blank.device = SimulatedDevice::with_blank_flash(SimulatedDeviceConfig {
-        scene: SceneFile::default_scene().unwrap(),
-        seed: 9,
-        speed: None,
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    blank.device = SimulatedDevice::with_blank_flash(
+        SimulatedDeviceConfig::new(SceneFile::default_scene().unwrap(), 1).with_seed(9),
+    )
     .unwrap();
     blank.steps(20);
     assert_eq!(blank.info().calibration_source, CalibrationSource::Defaults);
@@ -680,13 +674,9 @@ fn dropped_sample_frames_counts_the_sample_frames_that_were_not_sent() {
 }
 
 fn dropped_frames_of_pads(pads: u32) {
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile::default_scene().unwrap(),
-        seed: 4,
-        speed: None,
-        topology: sim_device::pads_topology(pads as usize),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    let mut device = SimulatedDevice::new(
+        SimulatedDeviceConfig::new(SceneFile::default_scene().unwrap(), pads as usize).with_seed(4),
+    )
     .unwrap();
     let mut port = MemoryPort::new(2_000);
     let steps = 300u32;

@@ -7,8 +7,9 @@
 #![allow(clippy::unwrap_used, clippy::panic)]
 
 use sensor_sim::{Keyframe, ScriptedScene};
-use sim_device::{MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
-use wire::{DeviceEvent, DeviceFrame, DeviceFrameDecoder, SampleFrame};
+use sim_device::testing::Host;
+use sim_device::{SceneFile, SimulatedDeviceConfig};
+use wire::{DeviceEvent, DeviceFrame, SampleFrame};
 
 /// Electrode area (5 mm x 5 mm) and centres of C11, C12, C21, C22 (x along a row, y towards
 /// row 1, origin at the pad centre), as the sensor notes give them.
@@ -71,35 +72,29 @@ fn truth(scene: &ScriptedScene, time_s: f64) -> (f64, Option<[f64; 2]>) {
 
 /// Runs the scene and returns the sample frames and the contact events (start?, time).
 fn run() -> (Vec<SampleFrame>, Vec<(bool, u64)>) {
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile::single_pad("presses", false, scene(), Vec::new()),
-        seed: 11,
-        speed: None,
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
-    .unwrap();
-    let mut link = MemoryPort::new(usize::MAX);
-    let mut decoder = DeviceFrameDecoder::new();
+    let mut host = Host::with_config(
+        SimulatedDeviceConfig::new(
+            SceneFile::single_pad("presses", false, scene(), Vec::new()),
+            1,
+        )
+        .with_seed(11),
+    );
     let (mut samples, mut contacts) = (Vec::new(), Vec::new());
-    while device.simulation().now_us() < 8_000_000 {
-        device.step(&mut link);
-        for frame in decoder.feed(&link.take_for_host(usize::MAX)) {
-            match frame.unwrap() {
-                DeviceFrame::Sample(sample) => samples.push(sample),
-                DeviceFrame::Event(event) => match event.event {
-                    DeviceEvent::ContactStarted { pad } => {
-                        assert_eq!(pad.get(), 0);
-                        contacts.push((true, event.timestamp_us));
-                    }
-                    DeviceEvent::ContactEnded { pad } => {
-                        assert_eq!(pad.get(), 0);
-                        contacts.push((false, event.timestamp_us));
-                    }
-                    _ => {}
-                },
+    for frame in host.run_until_s(8.0) {
+        match frame {
+            DeviceFrame::Sample(sample) => samples.push(sample),
+            DeviceFrame::Event(event) => match event.event {
+                DeviceEvent::ContactStarted { pad } => {
+                    assert_eq!(pad.get(), 0);
+                    contacts.push((true, event.timestamp_us));
+                }
+                DeviceEvent::ContactEnded { pad } => {
+                    assert_eq!(pad.get(), 0);
+                    contacts.push((false, event.timestamp_us));
+                }
                 _ => {}
-            }
+            },
+            _ => {}
         }
     }
     (samples, contacts)

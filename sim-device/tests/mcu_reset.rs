@@ -37,13 +37,10 @@ fn loaded_device() -> SimulatedDevice {
         keyframe(1.5, [30.0, 12.0, 0.0, 45.0], 26.0),
     ])
     .unwrap();
-    SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile::single_pad("held", false, scene, Vec::new()),
-        seed: 5,
-        speed: None,
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    SimulatedDevice::new(
+        SimulatedDeviceConfig::new(SceneFile::single_pad("held", false, scene, Vec::new()), 1)
+            .with_seed(5),
+    )
     .unwrap()
 }
 

@@ -8,8 +8,9 @@
 #![allow(clippy::unwrap_used, clippy::panic)]
 
 use sensor_sim::{Device, Fault, Keyframe, ScriptedScene, Simulation, Window};
-use sim_device::{pads_topology, MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
-use wire::{DeviceEvent, DeviceFrame, DeviceFrameDecoder, InfoFrame, SampleFrame};
+use sim_device::testing::Host;
+use sim_device::{pads_topology, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+use wire::{DeviceEvent, DeviceFrame, InfoFrame, SampleFrame};
 
 /// Four 25 mm² electrodes.
 const PAD_AREA_M2: f64 = 4.0 * 25e-6;
@@ -60,7 +61,7 @@ fn run(
     setup: impl Fn(&Simulation),
     until_s: f64,
 ) -> Run {
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
+    let device = SimulatedDevice::new(SimulatedDeviceConfig {
         scene: SceneFile::single_pad(
             "unloaded",
             false,
@@ -83,27 +84,23 @@ fn run(
             .unwrap();
     }
     setup(device.simulation());
-    run_to(&mut device, until_s)
+    run_to(device, until_s)
 }
 
 /// Steps `device` to `until_s` and decodes everything it sent.
-fn run_to(device: &mut SimulatedDevice, until_s: f64) -> Run {
-    let mut link = MemoryPort::new(usize::MAX);
-    let mut decoder = DeviceFrameDecoder::new();
+fn run_to(device: SimulatedDevice, until_s: f64) -> Run {
+    let mut host = Host::on(device);
     let mut run = Run {
         info: None,
         samples: Vec::new(),
         events: Vec::new(),
     };
-    while device.simulation().now_us() < (until_s * 1e6) as u64 {
-        device.step(&mut link);
-        for frame in decoder.feed(&link.take_for_host(usize::MAX)) {
-            match frame.unwrap() {
-                DeviceFrame::Info(info) => run.info = Some(info),
-                DeviceFrame::Sample(sample) => run.samples.push(sample),
-                DeviceFrame::Event(event) => run.events.push((event.timestamp_us, event.event)),
-                _ => {}
-            }
+    for frame in host.run_until_s(until_s) {
+        match frame {
+            DeviceFrame::Info(info) => run.info = Some(info),
+            DeviceFrame::Sample(sample) => run.samples.push(sample),
+            DeviceFrame::Event(event) => run.events.push((event.timestamp_us, event.event)),
+            _ => {}
         }
     }
     run
@@ -279,15 +276,9 @@ fn scene_force_n(scene: &SceneFile, pad: usize, time_s: f64) -> f64 {
 fn run_built_in(name: &str, until_s: f64) -> (SceneFile, Run) {
     let scene = SceneFile::built_in(name).unwrap();
     let pads = scene.pads.len();
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: scene.clone(),
-        seed: 4,
-        speed: None,
-        topology: pads_topology(pads),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
-    .unwrap();
-    let run = run_to(&mut device, until_s);
+    let device =
+        SimulatedDevice::new(SimulatedDeviceConfig::new(scene.clone(), pads).with_seed(4)).unwrap();
+    let run = run_to(device, until_s);
     (scene, run)
 }
 

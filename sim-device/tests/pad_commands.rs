@@ -5,9 +5,7 @@
 // Test helpers may unwrap and panic: a failure is the test failing.
 #![allow(clippy::unwrap_used, clippy::panic)]
 
-mod support;
-
-use support::Host;
+use sim_device::testing::Host;
 use wire::{
     CalibrationSource, Command, ErrorCode, PadIndex, PadInfoFrame, ReplyPayload, TemperatureSensor,
     UseCase,

@@ -14,13 +14,9 @@ use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 use wire::{Command, DeviceFrame, DeviceFrameDecoder, ReplyPayload, Request};
 
 fn device() -> SimulatedDevice {
-    SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile::default_scene().unwrap(),
-        seed: 7,
-        speed: None,
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    SimulatedDevice::new(
+        SimulatedDeviceConfig::new(SceneFile::default_scene().unwrap(), 1).with_seed(7),
+    )
     .unwrap()
 }
 

@@ -169,7 +169,7 @@ pub fn run_demo(args: &DemoArgs) -> anyhow::Result<ExitCode> {
     let simulator = SimulatorThread::start(
         SimulatedDeviceConfig {
             scene,
-            seed: 1,
+            seed: sim_device::DEFAULT_SEED,
             speed: Some(args.speed),
             topology,
             bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,

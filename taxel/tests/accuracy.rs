@@ -65,13 +65,13 @@ fn keyframe(time_s: f64, pressure_kpa: [f32; 4], temperature_c: f32) -> Keyframe
 /// Runs the simulated device through a scene (and sensor faults) and decodes its sample frames
 /// as the host does.
 fn record(scene: &ScriptedScene, faults: &[(Fault, f64, f64)], seed: u64) -> Vec<SampleFrame> {
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile::single_pad("accuracy".to_string(), false, scene.clone(), Vec::new()),
-        seed,
-        speed: None,
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    let mut device = SimulatedDevice::new(
+        SimulatedDeviceConfig::new(
+            SceneFile::single_pad("accuracy".to_string(), false, scene.clone(), Vec::new()),
+            1,
+        )
+        .with_seed(seed),
+    )
     .unwrap();
     let simulation = device.simulation().clone();
     for &(fault, start_s, end_s) in faults {

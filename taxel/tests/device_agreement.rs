@@ -200,13 +200,11 @@ fn a_tare_during_a_recording_is_followed_by_the_conversion() {
     use wire::{Command as DeviceCommand, ReplyPayload};
 
     let directory = tempfile::tempdir().unwrap();
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile::default_scene().unwrap(),
-        seed: 5,
-        speed: Some(20.0),
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    let mut device = SimulatedDevice::new(
+        SimulatedDeviceConfig::new(SceneFile::default_scene().unwrap(), 1)
+            .with_seed(5)
+            .with_speed(Some(20.0)),
+    )
     .unwrap();
     let mut port = PtyPort::open().unwrap();
     let path = port.path().to_string_lossy().into_owned();
@@ -332,13 +330,10 @@ fn calibration_pull_writes_the_device_calibration() {
     assert!(messages.contains("from flash"), "{messages}");
     let calibration = taxel_host::calibration_file::read(&pulled).unwrap();
     assert_eq!(calibration.id(), sim_device::FACTORY_CALIBRATION_ID);
-    let truth = sim_device::SimulatedDevice::new(sim_device::SimulatedDeviceConfig {
-        scene: sim_device::SceneFile::default_scene().unwrap(),
-        seed: 1,
-        speed: None,
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    let truth = sim_device::SimulatedDevice::new(
+        sim_device::SimulatedDeviceConfig::new(sim_device::SceneFile::default_scene().unwrap(), 1)
+            .with_seed(1),
+    )
     .unwrap()
     .simulation()
     .physics()

@@ -50,13 +50,7 @@ impl Latency {
 
 fn board(seed: u64, clock_error: ClockError, host_start_us: u64) -> Board {
     let device = SimulatedDevice::with_clock_error(
-        SimulatedDeviceConfig {
-            scene: SceneFile::default_scene().unwrap(),
-            seed,
-            speed: None,
-            topology: sim_device::pads_topology(1),
-            bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-        },
+        SimulatedDeviceConfig::new(SceneFile::default_scene().unwrap(), 1).with_seed(seed),
         clock_error,
     )
     .unwrap();

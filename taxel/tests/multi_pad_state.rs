@@ -249,13 +249,11 @@ fn a_tare_during_a_recording_lands_in_each_pads_own_history() {
     const SETS: u64 = 400;
 
     let directory = tempfile::tempdir().unwrap();
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile::default_scene().unwrap(),
-        seed: 11,
-        speed: Some(20.0),
-        topology: sim_device::pads_topology(2),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    let mut device = SimulatedDevice::new(
+        SimulatedDeviceConfig::new(SceneFile::default_scene().unwrap(), 2)
+            .with_seed(11)
+            .with_speed(Some(20.0)),
+    )
     .unwrap();
     let mut port = PtyPort::open().unwrap();
     let path = port.path().to_string_lossy().into_owned();

@@ -22,17 +22,16 @@ use taxel_host::device_state::RecordedDeviceState;
 use taxel_host::pad_set::PadSet;
 use taxel_host::schema::{PadRow, RowReader};
 use taxel_host::session::SessionEvent;
-use wire::{PadIndex, PadSummary, SampleFrame, TaxelSample, TemperatureSource};
+use wire::{PadSummary, SampleFrame, TaxelSample};
 
 /// Pad `pad`'s frame of set `sequence` at `timestamp_us` (device clock), pressing
 /// `pressure_kpa` on every taxel.
 fn frame(pad: u8, sequence: u32, timestamp_us: u64, pressure_kpa: f32) -> SampleFrame {
+    let base = wire::testing::sample_frame(pad);
     SampleFrame {
-        pad: PadIndex::new(pad).unwrap(),
         sequence,
         timestamp_us,
         temperature_c: Some(24.0),
-        temperature_source: TemperatureSource::Tmp117,
         taxels: [TaxelSample {
             pressure_kpa: Some(pressure_kpa),
             capacitance_pf: 4.6,
@@ -44,6 +43,7 @@ fn frame(pad: u8, sequence: u32, timestamp_us: u64, pressure_kpa: f32) -> Sample
             partial: false,
             contact: false,
         },
+        ..base
     }
 }
 

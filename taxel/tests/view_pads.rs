@@ -11,7 +11,7 @@ use support::info;
 
 use taxel::layout::{Layout, LayoutProblem};
 use taxel::view::{render_to_string, PadFreshness, ViewState, CENTRE_MARKER};
-use wire::{PadIndex, PadSummary, SampleFrame, TaxelSample, TemperatureSource};
+use wire::{PadSummary, SampleFrame, TaxelSample};
 
 /// SHORTED: a fault (the taxel has no pressure).
 const SHORTED: u16 = 0x0004;
@@ -45,12 +45,10 @@ impl PadReading {
 
 fn frame(pad: u8, sequence: u32, reading: PadReading) -> SampleFrame {
     SampleFrame {
-        pad: PadIndex::new(pad).unwrap(),
         sequence,
         // 10 ms sets, the pads of one set 300 µs apart.
         timestamp_us: u64::from(sequence) * 10_000 + u64::from(pad) * 300,
         temperature_c: Some(24.0 + f32::from(pad)),
-        temperature_source: TemperatureSource::Tmp117,
         taxels: std::array::from_fn(|taxel| TaxelSample {
             pressure_kpa: reading.pressures_kpa[taxel],
             capacitance_pf: 4.6,
@@ -62,6 +60,7 @@ fn frame(pad: u8, sequence: u32, reading: PadReading) -> SampleFrame {
             partial: reading.pressures_kpa.iter().any(Option::is_none),
             contact: reading.contact,
         },
+        ..wire::testing::sample_frame(pad)
     }
 }
 
@@ -580,13 +579,11 @@ fn a_snapshot_of_the_simulated_device_with_three_pads_in_the_glove_layout() {
 
     use sim_device::{PtyPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile::default_scene().unwrap(),
-        seed: 3,
-        speed: Some(1.0),
-        topology: sim_device::pads_topology(3),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    let mut device = SimulatedDevice::new(
+        SimulatedDeviceConfig::new(SceneFile::default_scene().unwrap(), 3)
+            .with_seed(3)
+            .with_speed(Some(1.0)),
+    )
     .unwrap();
     let mut port = PtyPort::open().unwrap();
     let path = port.path().to_string_lossy().into_owned();

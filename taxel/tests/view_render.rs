@@ -68,11 +68,7 @@ fn info() -> InfoFrame {
         calibration_id: 7,
         calibration_source: CalibrationSource::Flash,
         rate: wire::SampleRate::Sps200,
-        model_tier: wire::Tier::MonotoneCubic,
-        streaming: true,
-        text_mode: false,
-        pad_count: 1,
-        clock_us_per_s: 1_000_000,
+        ..wire::testing::info_frame(1)
     }
 }
 

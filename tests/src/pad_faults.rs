@@ -9,7 +9,7 @@ use std::fmt::Write as _;
 
 use model_core::TaxelFlags;
 use sensor_sim::{Device as SimDevice, Fault, Keyframe, ScriptedScene, Simulation, Window};
-use sim_device::{pads_topology, MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
+use sim_device::{MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 use wire::{DeviceFrame, DeviceFrameDecoder, SampleFrame};
 
 use crate::reliability::{recovery_words, PRESSURE_TOLERANCE_KPA};
@@ -163,13 +163,13 @@ fn run_once(
     let scenes: Vec<ScriptedScene> = (0..PADS)
         .map(|pad| scene(pad, repetition))
         .collect::<Result<_, _>>()?;
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile::single_pad(kind.name(), false, scenes[0].clone(), Vec::new()),
-        seed: 2000 + u64::from(repetition),
-        speed: None,
-        topology: pads_topology(PADS),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    let mut device = SimulatedDevice::new(
+        SimulatedDeviceConfig::new(
+            SceneFile::single_pad(kind.name(), false, scenes[0].clone(), Vec::new()),
+            PADS,
+        )
+        .with_seed(2000 + u64::from(repetition)),
+    )
     .map_err(|error| error.to_string())?;
     let simulation = device.simulation().clone();
     for (pad, scene) in scenes.iter().enumerate() {

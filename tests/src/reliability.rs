@@ -221,13 +221,9 @@ fn run_once(kind: FaultKind, repetition: u32) -> Result<RunResult, String> {
     let scene = scene(repetition)?;
     let truth = scene.clone();
     let scene_file = SceneFile::single_pad(kind.name().to_string(), false, scene, Vec::new());
-    let mut simulated = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: scene_file,
-        seed: 1000 + u64::from(repetition),
-        speed: None,
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    let mut simulated = SimulatedDevice::new(
+        SimulatedDeviceConfig::new(scene_file, 1).with_seed(1000 + u64::from(repetition)),
+    )
     .map_err(|error| error.to_string())?;
     let shift_us = u64::from(repetition) * 37_000;
     let start_us = (FAULT_START_S * 1e6) as u64 + shift_us;

@@ -116,13 +116,11 @@ fn a_recording_of_the_simulated_device_matches_its_scene() {
     let scene = SceneFile::default_scene().unwrap();
     let period_s = scene.period_s();
     let truth = scene.pads[0].scene.clone();
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene,
-        seed: 3,
-        speed: Some(25.0),
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    let mut device = SimulatedDevice::new(
+        SimulatedDeviceConfig::new(scene, 1)
+            .with_seed(3)
+            .with_speed(Some(25.0)),
+    )
     .unwrap();
     let mut port = PtyPort::open().unwrap();
     let path = port.path().to_string_lossy().into_owned();
@@ -222,13 +220,11 @@ fn a_calibration_uploaded_and_saved_over_the_serial_path_survives_a_reboot() {
     use taxel_host::calibration_transfer::upload;
     use wire::{CalibrationSource, Command, ReplyPayload};
 
-    let mut device = SimulatedDevice::new(SimulatedDeviceConfig {
-        scene: SceneFile::default_scene().unwrap(),
-        seed: 4,
-        speed: Some(20.0),
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
+    let mut device = SimulatedDevice::new(
+        SimulatedDeviceConfig::new(SceneFile::default_scene().unwrap(), 1)
+            .with_seed(4)
+            .with_speed(Some(20.0)),
+    )
     .unwrap();
     let mut port = PtyPort::open().unwrap();
     let path = port.path().to_string_lossy().into_owned();

@@ -23,6 +23,8 @@ mod error;
 pub mod flags;
 mod frame;
 mod sample;
+#[cfg(feature = "testing")]
+pub mod testing;
 mod text;
 mod usb;
 

@@ -238,14 +238,8 @@ impl HostPort for EncodingPort {
 
 fn simulated_device() -> Result<SimulatedDevice> {
     let scene = SceneFile::default_scene().map_err(|error| anyhow!("default scene: {error:?}"))?;
-    SimulatedDevice::new(SimulatedDeviceConfig {
-        scene,
-        seed: SEED,
-        speed: None,
-        topology: sim_device::pads_topology(1),
-        bus_frequency_hz: sim_device::BUS_FREQUENCY_HZ,
-    })
-    .map_err(|error| anyhow!("starting the simulated device: {error}"))
+    SimulatedDevice::new(SimulatedDeviceConfig::new(scene, 1).with_seed(SEED))
+        .map_err(|error| anyhow!("starting the simulated device: {error}"))
 }
 
 /// Runs both passes in this process (meaningful in a release build only).

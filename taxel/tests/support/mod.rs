@@ -7,7 +7,7 @@ use std::io::{self, Read, Write};
 
 use wire::{
     encode_frame_to_vec, DeviceFrame, ReplyFrame, ReplyPayload, Request, RequestDecoder,
-    SampleFrame, TaxelSample, TemperatureSource,
+    SampleFrame, TaxelSample,
 };
 
 /// The path of the built `taxel` binary.
@@ -78,17 +78,16 @@ pub fn sample(
     taxels: [(Option<f32>, f32, u16); 4],
 ) -> SampleFrame {
     SampleFrame {
-        pad: wire::PadIndex::default(),
         sequence,
         timestamp_us,
         temperature_c: Some(23.5),
-        temperature_source: TemperatureSource::Tmp117,
         taxels: taxels.map(|(pressure_kpa, capacitance_pf, flags)| TaxelSample {
             pressure_kpa,
             capacitance_pf,
             flags,
         }),
         summary: wire::PadSummary::default(),
+        ..wire::testing::sample_frame(0)
     }
 }
 
@@ -226,20 +225,11 @@ impl SplitMix64 {
 /// An Info frame of a device with `pad_count` pads (firmware 3.0.0, default calibration).
 pub fn info(pad_count: u8) -> wire::InfoFrame {
     wire::InfoFrame {
-        protocol_version: wire::PROTOCOL_VERSION,
         firmware_version: wire::FirmwareVersion {
             major: 3,
             minor: 0,
             patch: 0,
         },
-        board_serial: [7; 12],
-        calibration_id: 0,
-        calibration_source: wire::CalibrationSource::Defaults,
-        rate: wire::SampleRate::Sps400,
-        model_tier: wire::Tier::MonotoneCubic,
-        streaming: true,
-        text_mode: false,
-        pad_count,
-        clock_us_per_s: 1_000_000,
+        ..wire::testing::info_frame(pad_count)
     }
 }
