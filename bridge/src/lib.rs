@@ -13,13 +13,16 @@
 //! - [`names`]: rmw_zenoh's key expressions, liveliness tokens and attachment;
 //! - [`publisher`]: the Zenoh session and the publishers in the ROS 2 form;
 //! - [`plain`]: the plain mode, for Zenoh users without ROS;
-//! - [`command`]: the command line and the run.
+//! - [`network`]: the Zenoh session's endpoints and their defaults;
+//! - [`run`]: a run of the bridge from its [`run::BridgeConfig`] (the command line that fills
+//!   one is the `taxel-bridge` program's, in the `taxel-bridge-cli` package).
 #![deny(missing_docs)]
 #![deny(clippy::print_stdout, clippy::print_stderr)]
 
-pub mod command;
 pub mod health;
 pub mod names;
+pub mod network;
 pub mod plain;
 pub mod publisher;
 pub mod relay;
+pub mod run;

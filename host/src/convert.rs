@@ -204,9 +204,19 @@ impl ConversionEngine {
 
     /// Computes the row's pad outputs again, in place (a missing frame stays missing).
     pub fn convert(&mut self, row: &mut PadRow) -> anyhow::Result<()> {
+        self.convert_row(row, true)
+    }
+
+    /// As [`convert`](Self::convert), for a row whose device time is not known (arrays given
+    /// without times): the model takes the time between a pad's sets as unknown.
+    pub fn convert_untimed(&mut self, row: &mut PadRow) -> anyhow::Result<()> {
+        self.convert_row(row, false)
+    }
+
+    fn convert_row(&mut self, row: &mut PadRow, timed: bool) -> anyhow::Result<()> {
         let (device, pad, sequence) = (row.device, row.pad, row.sequence);
         if let Some(reading) = &mut row.reading {
-            *reading = self.run(device, pad)?.process(sequence, reading);
+            *reading = self.run(device, pad)?.process(sequence, reading, timed);
         }
         Ok(())
     }

@@ -1,11 +1,16 @@
-//! `taxel.convert`: capacitances and temperatures to pressures and flags with the pressure
-//! model of `model-core`, exactly as `taxel convert` runs it on a CSV file: one model per pad,
-//! its tier set, and a tare on the mean of the first `tare_rows` readable rows.
+//! `taxel.convert`: capacitances and temperatures to pressures and flags through the host
+//! library's conversion engine, the one `taxel convert` runs on a recording: one pipeline per
+//! pad with the calibration and tier given, and a tare on the mean of each pad's first
+//! `tare_rows` readable rows.
 
-use model_core::{PadModel, SampleInput, TareStatus, TaxelReading, Tier, TAXEL_COUNT, TAXEL_NAMES};
+use model_core::{TaxelFlags, TAXEL_COUNT};
 use numpy::ndarray::{Array2, Ix1, Ix2};
 use numpy::{IntoPyArray, PyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
+use taxel_host::console::error_message;
+use taxel_host::convert::{ConversionEngine, ConvertSettings, RecordedStates};
+use taxel_host::schema::{PadReading, PadRow};
+use wire::TemperatureSource;
 
 use crate::arrays::{c_order_values, float64_c_array};
 use crate::calibration::Calibration;
@@ -26,88 +31,75 @@ struct Outputs {
     flags: Vec<u16>,
 }
 
-/// Runs pad `pad`'s model over every row, writing its columns of the outputs. The model's batch
-/// path gives exactly what `PadModel::process` gives row by row (model-core tests it), which is
-/// what `taxel convert` runs. With several pads, a row where the pad's four capacitances and its
-/// temperature are all NaN is its frame missing from that set, as `taxel convert` reads a pad
-/// whose cells are all empty: the model skips it, and its pressures are NaN and its flags 0.
-fn run_pad(model: &mut PadModel, pad: usize, inputs: &Inputs<'_>, outputs: &mut Outputs) {
-    let pads = inputs.pads;
-    let taxels = pads * TAXEL_COUNT;
-    let rows = inputs.temperature_c.len() / pads.max(1);
-    let first_cell = |row: usize| row * taxels + pad * TAXEL_COUNT;
-    let is_present = |row: usize| {
-        pads == 1
-            || !(inputs.temperature_c[row * pads + pad].is_nan()
-                && inputs.capacitance_pf[first_cell(row)..first_cell(row) + TAXEL_COUNT]
-                    .iter()
-                    .all(|value| value.is_nan()))
-    };
-    let present_rows = || (0..rows).filter(move |&row| is_present(row));
-    for row in (0..rows).filter(|&row| !is_present(row)) {
-        outputs.pressure_kpa[first_cell(row)..first_cell(row) + TAXEL_COUNT].fill(f64::NAN);
+/// Pad `pad`'s row of set `row` as the schema holds it: `None` when, with several pads, its
+/// four capacitances and its temperature are all NaN (its frame missing from the set, as
+/// `taxel convert` reads a pad whose cells are all empty).
+fn pad_row(inputs: &Inputs<'_>, row: usize, pad: usize) -> PadRow {
+    let first = (row * inputs.pads + pad) * TAXEL_COUNT;
+    let capacitances = &inputs.capacitance_pf[first..first + TAXEL_COUNT];
+    let temperature = inputs.temperature_c[row * inputs.pads + pad];
+    let missing =
+        inputs.pads > 1 && temperature.is_nan() && capacitances.iter().all(|value| value.is_nan());
+    // A time given is non-negative (checked): the time cell of a recording, in µs.
+    let device_time_us = inputs
+        .time_s
+        .map_or(0, |times| (times[row] * 1.0e6) as u64);
+    PadRow {
+        host_time_us: 0,
+        device: 0,
+        pad: pad as u8,
+        sequence: row as u32,
+        sync_error_us: None,
+        reading: (!missing).then(|| PadReading {
+            device_time_us,
+            temperature_c: (!temperature.is_nan()).then_some(temperature as f32),
+            temperature_source: TemperatureSource::None,
+            capacitance_pf: std::array::from_fn(|taxel| {
+                let value = capacitances[taxel];
+                (!value.is_nan()).then_some(value as f32)
+            }),
+            pressure_kpa: [None; TAXEL_COUNT],
+            flags: [TaxelFlags::empty(); TAXEL_COUNT],
+            force_n: None,
+            centre_of_pressure_mm: None,
+            partial: false,
+            contact: false,
+        }),
+        marker: String::new(),
     }
-    let samples = present_rows().map(|row| {
-        let first = first_cell(row);
-        let readings: [TaxelReading; TAXEL_COUNT] = std::array::from_fn(|taxel| {
-            let value = inputs.capacitance_pf[first + taxel];
-            if value.is_nan() {
-                TaxelReading::Unavailable
-            } else {
-                TaxelReading::CapacitancePf(value as f32)
-            }
-        });
-        let temperature = inputs.temperature_c[row * pads + pad];
-        let temperature = (!temperature.is_nan()).then_some(temperature as f32);
-        let input = SampleInput::new(readings, temperature);
-        match inputs.time_s.map(|time_s| time_s[row]) {
-            // As `taxel convert` reads a time cell: a non-negative time in µs for the
-            // temperature plausibility rule.
-            Some(time_s) if time_s >= 0.0 => input.at_time_us((time_s * 1.0e6) as u64),
-            _ => input,
-        }
-    });
-    let mut output_rows = present_rows();
-    model.process_all(samples, |output| {
-        let Some(row) = output_rows.next() else {
-            return;
-        };
-        let first = first_cell(row);
-        for (taxel, result) in output.taxels.iter().enumerate() {
-            outputs.pressure_kpa[first + taxel] = result.pressure_kpa().map_or(f64::NAN, f64::from);
-            outputs.flags[first + taxel] = result.flags().bits();
-        }
-    });
 }
 
-/// The tare's problems, in `taxel convert`'s words.
-fn tare_warnings(model: &PadModel, pad: usize, pads: usize) -> Vec<String> {
-    let prefix = if pads > 1 {
-        format!("pad {pad}: ")
-    } else {
-        String::new()
-    };
-    match model.tare_status() {
-        TareStatus::Running { remaining } => vec![format!(
-            "{prefix}the tare never finished ({remaining} more readable rows were needed); every pressure is empty (not_tared)"
-        )],
-        TareStatus::Finished { tared_mask } => {
-            let errors = model.last_tare_errors();
-            (0..TAXEL_COUNT)
-                .filter(|taxel| tared_mask & (1 << taxel) == 0)
-                .map(|taxel| {
-                    format!(
-                        "{prefix}taxel {} could not be tared ({}); it stays not_tared",
-                        TAXEL_NAMES[taxel],
-                        errors[taxel]
-                            .map(|error| taxel_host::device_words::baseline_error_words(&error))
-                            .unwrap_or_else(|| "no usable reading".to_owned())
-                    )
-                })
-                .collect()
+/// Runs every row of every pad through `engine`, in set order, into `outputs` (a missing frame's
+/// pressures NaN and flags 0).
+fn run_rows(
+    engine: &mut ConversionEngine,
+    inputs: &Inputs<'_>,
+    outputs: &mut Outputs,
+) -> anyhow::Result<()> {
+    let rows = inputs.temperature_c.len() / inputs.pads.max(1);
+    for row in 0..rows {
+        for pad in 0..inputs.pads {
+            let mut pad_row = pad_row(inputs, row, pad);
+            if inputs.time_s.is_some() {
+                engine.convert(&mut pad_row)?;
+            } else {
+                engine.convert_untimed(&mut pad_row)?;
+            }
+            let first = (row * inputs.pads + pad) * TAXEL_COUNT;
+            for taxel in 0..TAXEL_COUNT {
+                let (pressure, flags) = match &pad_row.reading {
+                    Some(reading) => (
+                        reading.pressure_kpa[taxel].map_or(f64::NAN, f64::from),
+                        reading.flags[taxel].bits(),
+                    ),
+                    None => (f64::NAN, 0),
+                };
+                outputs.pressure_kpa[first + taxel] = pressure;
+                outputs.flags[first + taxel] = flags;
+            }
         }
-        _ => Vec::new(),
     }
+    Ok(())
 }
 
 /// Converts checked, contiguous arrays (the Python wrapper `taxel.convert` checks and shapes
@@ -158,14 +150,13 @@ pub fn convert_arrays<'py>(
             "tare_rows must be at least 1",
         ));
     }
-    let tier = match tier {
-        Some(name) => taxel_host::convert::parse_tier(name)
-            .map_err(|message| taxel_error(ErrorKind::Convert, message))?,
-        None => Tier::default(),
-    };
-    let model_calibration = calibration
-        .map(|calibration| calibration.model().clone())
-        .unwrap_or_default();
+    let tier = tier
+        .map(|name| {
+            taxel_host::convert::parse_tier(name)
+                .map_err(|message| taxel_error(ErrorKind::Convert, message))
+        })
+        .transpose()?;
+    let calibration = calibration.map(|calibration| calibration.model().clone());
     let capacitances = c_order_values(&capacitance_pf, "capacitance_pf", kind)?;
     let temperatures = c_order_values(&temp_c, "temp_c", kind)?;
     let times = match &time_s {
@@ -177,50 +168,46 @@ pub fn convert_arrays<'py>(
                     format!("time_s has {} values for {rows} rows", times.len()),
                 ));
             }
-            if let Some(row) = times.iter().position(|time| !time.is_finite()) {
+            if let Some(row) = times
+                .iter()
+                .position(|time| !time.is_finite() || *time < 0.0)
+            {
                 return Err(taxel_error(
                     ErrorKind::Convert,
-                    format!("time_s[{row}]: the time must be a finite number of seconds"),
+                    format!(
+                        "time_s[{row}] is {}: a time is a finite, non-negative number of seconds",
+                        times[row]
+                    ),
                 ));
             }
             Some(times)
         }
         None => None,
     };
-    let mut models = Vec::with_capacity(pads);
-    for _ in 0..pads {
-        let mut model = PadModel::new(model_calibration.clone());
-        model.set_tier(tier).map_err(|_| {
-            taxel_error(
-                ErrorKind::Convert,
-                format!(
-                    "tier {} is not available for this calibration (the saturating fit needs a concave curve on every taxel)",
-                    tier.name()
-                ),
-            )
-        })?;
-        model.start_tare(tare_rows);
-        models.push(model);
-    }
+    let settings = ConvertSettings {
+        tare_rows: Some(tare_rows),
+        tier,
+        calibration,
+        no_device_state: true,
+    };
     let inputs = Inputs {
         pads,
         capacitance_pf: capacitances,
         temperature_c: temperatures,
         time_s: times,
     };
-    let (outputs, warnings) = py.allow_threads(|| {
-        let mut outputs = Outputs {
-            // Zeroed memory comes from the system untouched; `run_pad` writes every cell.
-            pressure_kpa: vec![0.0; rows * taxels],
-            flags: vec![0u16; rows * taxels],
-        };
-        let mut warnings = Vec::new();
-        for (pad, model) in models.iter_mut().enumerate() {
-            run_pad(model, pad, &inputs, &mut outputs);
-            warnings.extend(tare_warnings(model, pad, pads));
-        }
-        (outputs, warnings)
-    });
+    let (outputs, warnings) = py
+        .allow_threads(|| {
+            let mut engine = ConversionEngine::new(settings, RecordedStates::default());
+            let mut outputs = Outputs {
+                // Zeroed memory comes from the system untouched; `run_rows` writes every cell.
+                pressure_kpa: vec![0.0; rows * taxels],
+                flags: vec![0u16; rows * taxels],
+            };
+            run_rows(&mut engine, &inputs, &mut outputs)?;
+            anyhow::Ok((outputs, engine.finish()))
+        })
+        .map_err(|error| taxel_error(ErrorKind::Convert, error_message(&error)))?;
     let Outputs {
         pressure_kpa,
         flags,

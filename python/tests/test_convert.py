@@ -170,8 +170,10 @@ def test_bad_input_raises_clear_errors(taxel_cli, recording):
         taxel.convert(np.zeros((0, 4)), np.zeros(0))
     with pytest.raises(taxel.ConvertError, match="tare_rows must be 1 to 65535"):
         taxel.convert(capacitance, temperature, tare_rows=0)
-    with pytest.raises(ValueError, match="time_s\\[1\\]: the time must be a finite number"):
+    with pytest.raises(ValueError, match="time_s\\[1\\] is NaN: a time is a finite, non-negative number"):
         taxel.convert(capacitance[:3], temperature[:3], time_s=[0.0, np.nan, 1.0])
+    with pytest.raises(taxel.ConvertError, match="time_s\\[2\\] is -1: a time is a finite, non-negative"):
+        taxel.convert(capacitance[:3], temperature[:3], time_s=[0.0, 0.5, -1.0])
     with pytest.raises(taxel.ConvertError) as raised:
         taxel.convert(capacitance, temperature, tier="fastest")
     message = str(raised.value)

@@ -87,7 +87,7 @@ fn run_bridge(forward: &BridgeForward) -> anyhow::Result<ExitCode> {
         .status()
         .with_context(|| {
             format!(
-                "running {}: build it with `cargo build --release -p taxel-bridge` (or install it on the PATH)",
+                "running {}: build it with `cargo build --release -p taxel-bridge-cli` (or install it on the PATH)",
                 program.to_string_lossy()
             )
         })?;

@@ -57,7 +57,7 @@ def main():
             path = os.path.join(directory, "bridge.mcap")
             bridge = subprocess.run(
                 [args.bridge, "--sim", str(args.devices), "--sim-scene", args.scene, "--mcap", path,
-                 "--listen", "tcp/127.0.0.1:0", "--no-multicast-scouting", "--duration", str(args.seconds)],
+                 "--listen", "tcp/127.0.0.1:0", "--no-connect", "--duration", str(args.seconds)],
                 capture_output=True, text=True, timeout=args.seconds + 60)
             print(bridge.stderr, end="")
             check(bridge.returncode == 0, f"the bridge exited 0 ({bridge.returncode})")

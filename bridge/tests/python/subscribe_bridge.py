@@ -3,14 +3,23 @@ bridge publishes, rosbags decodes the CDR payloads of the standard ROS 2 types, 
 is checked against the simulated scene (bridge/tests/python/plateau.toml), the sequence numbers,
 the stamps and the type hashes rosbags computes. Nothing of the bridge's own code is used.
 
-Run by bridge/tests/python_subscriber.rs; prints one line per check and a closing
+With --default-network the bridge is given no network option: this subscriber plays the
+rmw_zenoh router on this machine (tcp/127.0.0.1:7447, where the bridge connects by default), and
+while the bridge runs its sockets are read from /proc (Linux): it must listen on loopback only and
+have no UDP socket on Zenoh's multicast scouting port 7446. The same check, run on a bridge given
+`--listen tcp/0.0.0.0:0 --multicast-scouting`, must see both (so the check can fail).
+
+Run by bridge-cli/tests/python_clients.rs; prints one line per check and a closing
 "N passed, M failed" line, and exits non-zero on any failure. With --report FILE it also writes
 the latency of every pad message (bridge arrival of the frame to reception here), for
 PERFORMANCE.md.
 """
 
 import argparse
+import ipaddress
 import json
+import os
+import socket
 import struct
 import subprocess
 import sys
@@ -30,6 +39,68 @@ PRESSURE_TOLERANCE_KPA = 0.5
 FORCE_TOLERANCE_N = 0.05
 CENTRE_TOLERANCE_M = 0.2e-3
 STEADY_FROM_S = 3.0
+
+
+ROUTER_PORT = 7447
+MULTICAST_SCOUTING_PORT = 7446
+
+
+def socket_inodes(pid):
+    """The inodes of the sockets process `pid` holds."""
+    inodes = set()
+    fd_dir = f"/proc/{pid}/fd"
+    for fd in os.listdir(fd_dir):
+        try:
+            target = os.readlink(os.path.join(fd_dir, fd))
+        except OSError:
+            continue
+        if target.startswith("socket:["):
+            inodes.add(int(target[len("socket:["):-1]))
+    return inodes
+
+
+def decode_address(hex_address):
+    """`0100007F:1D17` (or its IPv6 form) -> ("127.0.0.1", 7447)."""
+    address, port = hex_address.split(":")
+    raw = bytes.fromhex(address)
+    # /proc prints each 32-bit word in host (little-endian) order.
+    words = b"".join(raw[i:i + 4][::-1] for i in range(0, len(raw), 4))
+    family = socket.AF_INET if len(words) == 4 else socket.AF_INET6
+    return socket.inet_ntop(family, words), int(port, 16)
+
+
+def exposure(pid):
+    """(addresses process `pid` listens on by TCP, local ports of its UDP sockets)."""
+    inodes = socket_inodes(pid)
+    listening, udp_ports = [], []
+    for table in ("tcp", "tcp6", "udp", "udp6"):
+        with open(f"/proc/net/{table}") as lines:
+            next(lines)
+            for line in lines:
+                fields = line.split()
+                if int(fields[9]) not in inodes:
+                    continue
+                address, port = decode_address(fields[1])
+                if table.startswith("tcp") and fields[3] == "0A":
+                    listening.append((address, port))
+                elif table.startswith("udp"):
+                    udp_ports.append(port)
+    return listening, udp_ports
+
+
+def is_loopback(address):
+    return ipaddress.ip_address(address).is_loopback
+
+
+def run_bridge(command, seconds, inspect):
+    """Runs the bridge; with `inspect`, reads its sockets 2.5 s in. -> (completed, exposure)."""
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    seen = None
+    if inspect:
+        time.sleep(2.5)
+        seen = exposure(process.pid)
+    stdout, stderr = process.communicate(timeout=seconds + 60)
+    return subprocess.CompletedProcess(command, process.returncode, stdout, stderr), seen
 
 
 class Checks:
@@ -67,7 +138,11 @@ def main():
     parser.add_argument("--port", type=int, default=17447)
     parser.add_argument("--report", help="write latencies and counts here (JSON)")
     parser.add_argument("--timing-log", help="passed to the bridge (for --report)")
+    parser.add_argument("--default-network", action="store_true",
+                        help="give the bridge no network option; play the router on 7447")
     args = parser.parse_args()
+    if args.default_network:
+        args.port = ROUTER_PORT
 
     with open(args.scene, "rb") as scene_file:
         scene = tomllib.load(scene_file)
@@ -94,15 +169,13 @@ def main():
     data_subscriber = session.declare_subscriber("0/**", on_data)
     token_subscriber = session.liveliness().declare_subscriber("@ros2_lv/0/**", on_token, history=True)
 
-    command = [
-        args.bridge, "--sim", str(args.devices), "--sim-scene", args.scene,
-        "--connect", f"tcp/127.0.0.1:{args.port}", "--listen", "tcp/127.0.0.1:0", "--no-multicast-scouting",
-        "--duration", str(args.seconds),
-    ]
+    command = [args.bridge, "--sim", str(args.devices), "--sim-scene", args.scene, "--duration", str(args.seconds)]
+    if not args.default_network:
+        command += ["--connect", f"tcp/127.0.0.1:{args.port}", "--listen", "tcp/127.0.0.1:0"]
     if args.timing_log:
         command += ["--timing-log", args.timing_log]
     started = time.monotonic()
-    bridge = subprocess.run(command, capture_output=True, text=True, timeout=args.seconds + 60)
+    bridge, seen = run_bridge(command, args.seconds, inspect=args.default_network)
     elapsed = time.monotonic() - started
     time.sleep(0.5)
     data_subscriber.undeclare()
@@ -112,6 +185,18 @@ def main():
 
     checks = Checks()
     checks.check(bridge.returncode == 0, f"the bridge ran {elapsed:.1f} s and exited 0 ({bridge.returncode})")
+    if args.default_network:
+        listening, udp_ports = seen
+        checks.check(listening and all(is_loopback(address) for address, _ in listening),
+                     f"with no network option the bridge listens on loopback only ({listening})")
+        checks.check(MULTICAST_SCOUTING_PORT not in udp_ports,
+                     f"with no network option the bridge has no multicast scouting socket (UDP ports {udp_ports})")
+        # The same check sees an exposed bridge.
+        exposed_command = [args.bridge, "--sim", "1", "--sim-scene", args.scene, "--duration", "4",
+                           "--listen", "tcp/0.0.0.0:0", "--multicast-scouting", "--no-connect"]
+        exposed, (listening, udp_ports) = run_bridge(exposed_command, 4, inspect=True)
+        checks.check(any(not is_loopback(address) for address, _ in listening) and MULTICAST_SCOUTING_PORT in udp_ports,
+                     f"the check sees a bridge opened with --listen tcp/0.0.0.0:0 --multicast-scouting ({listening}, UDP {udp_ports}; exit {exposed.returncode})")
 
     by_topic = {}
     for key, payload, attachment, now_ns in received:

@@ -42,7 +42,7 @@ def main():
     bridge = subprocess.run(
         [args.bridge, "--mode", "plain", "--sim", "1", "--sim-scene", args.scene,
          "--connect", f"tcp/127.0.0.1:{args.port}", "--listen", "tcp/127.0.0.1:0",
-         "--no-multicast-scouting", "--duration", str(args.seconds)],
+         "--duration", str(args.seconds)],
         capture_output=True, text=True, timeout=args.seconds + 60)
     time.sleep(0.5)
     subscriber.undeclare()

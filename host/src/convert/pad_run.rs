@@ -157,10 +157,17 @@ impl PadRun {
 
     /// Runs one reading of set `sequence` through the pad's pipeline: what the device would
     /// have sent (its capacitances and temperature kept).
-    pub(super) fn process(&mut self, sequence: u32, reading: &PadReading) -> PadReading {
+    /// The pad's outputs of `reading`, set `sequence`; with `timed` the model reads the
+    /// reading's device time, else it takes the time between sets as unknown.
+    pub(super) fn process(
+        &mut self,
+        sequence: u32,
+        reading: &PadReading,
+        timed: bool,
+    ) -> PadReading {
         self.baselines
             .before_sample(&mut self.model, Some(sequence));
-        let output = self.model.process(&reading_input(reading));
+        let output = self.model.process(&reading_input(reading, timed));
         self.tare_watch.observe(&self.model);
         let force = pad_force(&output.taxels, &self.geometry);
         self.contact.update(&force, reading.device_time_us);
@@ -186,12 +193,14 @@ impl PadRun {
 
 /// The model input of a recorded reading: its capacitances and temperature, the acquisition's
 /// flags kept, and a converter error (or an empty capacitance) read as no reading.
-fn reading_input(reading: &PadReading) -> SampleInput {
+fn reading_input(reading: &PadReading, timed: bool) -> SampleInput {
     let mut input = SampleInput::new(
         [TaxelReading::Unavailable; TAXEL_COUNT],
         reading.temperature_c.filter(|value| !value.is_nan()),
-    )
-    .at_time_us(reading.device_time_us);
+    );
+    if timed {
+        input = input.at_time_us(reading.device_time_us);
+    }
     for taxel in 0..TAXEL_COUNT {
         let acquisition_flags = reading.flags[taxel].intersection(ACQUISITION_FLAGS);
         input.reading_flags[taxel] = acquisition_flags;

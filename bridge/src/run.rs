@@ -1,16 +1,15 @@
-//! `taxel bridge` (the `taxel-bridge` binary): its arguments, and the run that ties the device
-//! readers, the simulated devices of `--sim N` and the publisher together.
+//! The bridge's run: the devices (or the simulated devices of `--sim N`) read by the host
+//! library's worker, their events relayed to the publisher, until the caller's stop flag, the
+//! duration, or every device stopped. What the run needs is a [`BridgeConfig`]; the command line
+//! that fills one is the `taxel-bridge` program's.
 
 use std::path::PathBuf;
-use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use clap::Parser;
 use sim_device::{scene_config, SimulatorThread};
-use taxel_args::{LinkArgs, MultiBoardArgs};
 use taxel_host::console::error_message;
 use taxel_host::device_link::{open_serial, DeviceLink};
 use taxel_host::host_clock::UnixClock;
@@ -18,11 +17,11 @@ use taxel_host::noteln;
 use taxel_host::output_file::PendingRename;
 use taxel_host::session::{DeviceSession, SessionConfig};
 use taxel_host::worker::{EventQueue, Overflow, Worker};
-use taxel_ros2::pad_messages::{DEFAULT_FRAME_PREFIX, DEFAULT_NAMESPACE};
 use wire::{Command, PadIndex, PadInfoFrame, ReplyPayload};
 use zenoh::Wait;
 
 use crate::health::{DeviceHealth, ReaderState, STOPPED_WORDS};
+use crate::network::Network;
 use crate::plain::PlainPublisher;
 use crate::publisher::{FramePublisher, Naming, RosPublisher, TimingLog};
 use crate::relay::{relay_events, Publication, Relay};
@@ -30,21 +29,11 @@ use crate::relay::{relay_events, Publication, Relay};
 /// How long one read of a device's port waits (the worker's threads read in slices of 20 ms).
 const PORT_READ_TIMEOUT: Duration = Duration::from_millis(20);
 
-/// Long help of `taxel bridge`.
-pub const LONG_ABOUT: &str = "Publish the pads of one or more devices into Zenoh, in the form \
-ROS 2's rmw_zenoh uses: CDR-serialised standard messages on key expressions \
-<domain>/<topic>/<type>/<type hash>, with liveliness tokens so the publishers appear in the ROS 2 \
-graph. Per pad: <namespace>/device<d>/pad<p>/pressure (sensor_msgs/msg/PointCloud2: pressure in Pa \
-and flags per taxel), .../wrench (geometry_msgs/msg/WrenchStamped: the force at the centre of \
-pressure), .../contact_started and .../contact_ended (std_msgs/msg/Header); per device, its health \
-on /diagnostics (diagnostic_msgs/msg/DiagnosticArray). Stamps are the device time mapped onto the \
-host clock (a frame or event that waited 3 s for its device's first clock estimate is stamped with \
-its arrival); the attachment's sequence number is the device's. See docs/BRIDGE.md.\n\n\
-Examples:\n  taxel bridge --sim 2\n  taxel bridge /dev/ttyACM0 --connect tcp/localhost:7447\n  \
-taxel bridge --serial 0123ABCD --domain-id 3";
+/// Events the queue between the device readers and the publisher holds by default.
+pub const DEFAULT_QUEUE_CAPACITY: usize = 4096;
 
 /// What the bridge publishes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mode {
     /// rmw_zenoh's form: standard ROS 2 messages in CDR, type-hashed key expressions, liveliness
     /// tokens.
@@ -53,122 +42,58 @@ pub enum Mode {
     Plain,
 }
 
-/// Arguments of `taxel bridge`.
-#[derive(Debug, Clone, Parser)]
-#[command(name = "taxel-bridge", version, about = "Publish the pads into Zenoh (ROS 2 compatible)", long_about = LONG_ABOUT)]
-pub struct BridgeArgs {
-    /// The devices (ports and serial numbers; default: the only attached board).
-    #[command(flatten)]
-    pub board: MultiBoardArgs,
-    /// Run N simulated devices instead (no hardware needed).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=16), conflicts_with_all = ["ports", "serial"])]
-    pub sim: Option<u8>,
-    /// Scene of the simulated devices: a built-in name (default, gripper, glove) or a TOML file.
-    #[arg(long, value_name = "NAME|FILE", requires = "sim")]
-    pub sim_scene: Option<PathBuf>,
-    /// Pads on each simulated device (default: as many as the scene describes).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=8), requires = "sim")]
-    pub sim_pads: Option<u8>,
-    /// What to publish: ROS 2 messages as rmw_zenoh does (the default), or plain records.
-    #[arg(long, value_enum, default_value_t = Mode::Ros2)]
+/// Where the devices come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Devices {
+    /// These serial ports, in device order.
+    Ports(Vec<String>),
+    /// Simulated devices, each the firmware's own code on a pseudo-terminal, in real time.
+    Simulated {
+        /// How many.
+        count: u8,
+        /// Their scene: a built-in name or a file (`None`: the demo).
+        scene: Option<PathBuf>,
+        /// Pads on each (`None`: as many as the scene describes).
+        pads: Option<u8>,
+    },
+}
+
+/// Everything a run needs.
+#[derive(Debug, Clone)]
+pub struct BridgeConfig {
+    /// The devices.
+    pub devices: Devices,
+    /// What to publish.
     pub mode: Mode,
-    /// ROS_DOMAIN_ID: the first chunk of every key expression (default: $ROS_DOMAIN_ID, else 0).
-    #[arg(long, value_name = "ID", env = "ROS_DOMAIN_ID", default_value_t = 0)]
-    pub domain_id: u32,
-    /// Namespace of the pad topics.
-    #[arg(long, value_name = "NAMESPACE", default_value = DEFAULT_NAMESPACE)]
-    pub namespace: String,
-    /// Start of each pad's frame id, followed by device<d>_pad<p>.
-    #[arg(long, value_name = "PREFIX", default_value = DEFAULT_FRAME_PREFIX)]
-    pub frame_prefix: String,
-    /// The ROS 2 node the publishers belong to.
-    #[arg(long, value_name = "NAME", default_value = "taxel_bridge")]
-    pub node_name: String,
-    /// Topic of the devices' health.
-    #[arg(long, value_name = "TOPIC", default_value = "/diagnostics")]
-    pub diagnostics_topic: String,
-    /// Zenoh endpoint to listen on (e.g. tcp/127.0.0.1:7448); repeatable.
-    #[arg(long, value_name = "ENDPOINT")]
-    pub listen: Vec<String>,
-    /// Zenoh endpoint to connect to (rmw_zenoh's router: tcp/localhost:7447); repeatable.
-    #[arg(long, value_name = "ENDPOINT")]
-    pub connect: Vec<String>,
-    /// Do not look for other Zenoh sessions by UDP multicast (rmw_zenoh's default).
-    #[arg(long)]
-    pub no_multicast_scouting: bool,
-    /// A Zenoh configuration file (JSON5); the options above are applied on top of it.
-    #[arg(long, value_name = "FILE")]
-    pub zenoh_config: Option<PathBuf>,
-    /// Stop after this many seconds (default: run until Ctrl-C).
-    #[arg(long, value_name = "SECONDS")]
-    pub duration: Option<f64>,
-    /// Events (sample sets, device events) the queue between the device readers and the
-    /// publisher holds; beyond it the oldest sample sets are dropped and counted in the health.
-    #[arg(long, value_name = "EVENTS", default_value_t = 4096)]
+    /// Domain, namespace, frame ids, node and diagnostics topic.
+    pub naming: Naming,
+    /// The Zenoh session: what it listens on and connects to.
+    pub network: Network,
+    /// Stop after this many seconds (`None`: at the stop flag).
+    pub duration_s: Option<f64>,
+    /// Events the queue between the device readers and the publisher holds; beyond it the
+    /// oldest sample sets are dropped and counted in the health.
     pub queue_capacity: usize,
-    /// Write one line per published sample frame (device,pad,sequence,arrival_ns,published_ns).
-    #[arg(long, value_name = "FILE")]
+    /// Write one line per published sample frame here.
     pub timing_log: Option<PathBuf>,
-    /// Also write every published message to this MCAP file (ROS 2 schemas; Foxglove and
-    /// `ros2 bag` open it).
-    #[arg(long, value_name = "FILE")]
+    /// Also write every published message to this MCAP file.
     pub mcap: Option<PathBuf>,
-    /// How long to wait for the devices.
-    #[command(flatten)]
-    pub link: LinkArgs,
+    /// How long a device has to answer a request.
+    pub request_timeout: Duration,
 }
 
-fn zenoh_config(args: &BridgeArgs) -> anyhow::Result<zenoh::Config> {
-    let error = |error: zenoh::Error| anyhow::anyhow!("zenoh configuration: {error}");
-    let mut config = match &args.zenoh_config {
-        Some(path) => zenoh::Config::from_file(path).map_err(error)?,
-        None => zenoh::Config::default(),
-    };
-    let list = |endpoints: &[String]| {
-        let quoted: Vec<String> = endpoints
-            .iter()
-            .map(|endpoint| format!("{endpoint:?}"))
-            .collect();
-        format!("[{}]", quoted.join(","))
-    };
-    if !args.listen.is_empty() {
-        config
-            .insert_json5("listen/endpoints", &list(&args.listen))
-            .map_err(error)?;
-    }
-    if !args.connect.is_empty() {
-        config
-            .insert_json5("connect/endpoints", &list(&args.connect))
-            .map_err(error)?;
-    }
-    if args.no_multicast_scouting {
-        config
-            .insert_json5("scouting/multicast/enabled", "false")
-            .map_err(error)?;
-    }
-    Ok(config)
-}
-
-/// Runs `taxel bridge` until Ctrl-C, `--duration`, or every device stopped.
-pub fn run(args: &BridgeArgs) -> anyhow::Result<ExitCode> {
+/// Runs the bridge until `stop` is set, the duration has passed, or every device stopped.
+pub fn run(config: &BridgeConfig, stop: &AtomicBool) -> anyhow::Result<()> {
     // The host clock's origin comes before anything a device does: a stamp before the origin
     // would be the origin. (A simulated device is paced from its boot; its first sets map back
     // to it.)
     let clock = UnixClock::new();
-    let stop = Arc::new(AtomicBool::new(false));
-    let handler_stop = Arc::clone(&stop);
-    ctrlc::set_handler(move || handler_stop.store(true, Ordering::Relaxed))
-        .context("installing the Ctrl-C handler")?;
     let mut simulators = Vec::new();
-    let ports = match args.sim {
-        Some(count) => {
-            for device in 0..count {
-                let config = scene_config(
-                    args.sim_scene.as_deref(),
-                    args.sim_pads,
-                    Some(1.0),
-                    u64::from(device) + 1,
-                )?;
+    let ports = match &config.devices {
+        Devices::Simulated { count, scene, pads } => {
+            for device in 0..*count {
+                let config =
+                    scene_config(scene.as_deref(), *pads, Some(1.0), u64::from(device) + 1)?;
                 simulators.push(SimulatorThread::start(config, None)?);
             }
             simulators
@@ -176,9 +101,9 @@ pub fn run(args: &BridgeArgs) -> anyhow::Result<ExitCode> {
                 .map(|simulator| simulator.path().to_string_lossy().into_owned())
                 .collect()
         }
-        None => args.board.select_ports()?,
+        Devices::Ports(ports) => ports.clone(),
     };
-    let result = bridge_ports(args, &ports, clock, &stop);
+    let result = bridge_ports(config, &ports, clock, stop);
     for simulator in simulators {
         simulator.stop();
     }
@@ -300,37 +225,32 @@ fn closing_words(health: &DeviceHealth) -> String {
 }
 
 fn bridge_ports(
-    args: &BridgeArgs,
+    config: &BridgeConfig,
     ports: &[String],
     clock: UnixClock,
     stop: &AtomicBool,
-) -> anyhow::Result<ExitCode> {
+) -> anyhow::Result<()> {
     anyhow::ensure!(
-        args.mcap.is_none() || args.mode == Mode::Ros2,
+        config.mcap.is_none() || config.mode == Mode::Ros2,
         "--mcap records the ROS 2 messages: it needs --mode ros2"
     );
-    let mut devices = open_devices(ports, args.link.timeout())?;
-    let session = zenoh::open(zenoh_config(args)?)
+    let mut devices = open_devices(ports, config.request_timeout)?;
+    let session = zenoh::open(config.network.zenoh_config()?)
         .wait()
         .map_err(|error| anyhow::anyhow!("opening the Zenoh session: {error}"))?;
-    let naming = Naming {
-        domain_id: args.domain_id,
-        namespace: args.namespace.clone(),
-        frame_prefix: args.frame_prefix.clone(),
-        node_name: args.node_name.clone(),
-        diagnostics_topic: args.diagnostics_topic.clone(),
-    };
+    let naming = config.naming.clone();
     noteln!(
-        "bridging {} devices ({}) as node {} in domain {}, Zenoh session {}; Ctrl-C to stop",
+        "bridging {} devices ({}) as node {} in domain {}, Zenoh session {}; {}; no commands accepted; Ctrl-C to stop",
         ports.len(),
         ports.join(", "),
         naming.node_name,
         naming.domain_id,
-        session.zid()
+        session.zid(),
+        config.network.describe()
     );
     // The MCAP file is written under a temporary name and renamed once complete.
     let mut mcap_file = None;
-    let recorder = match &args.mcap {
+    let recorder = match &config.mcap {
         Some(path) => {
             let pending = PendingRename::beside(path)?;
             let file = std::fs::File::create(pending.path())
@@ -344,12 +264,12 @@ fn bridge_ports(
     };
     let mut ros = None;
     let mut plain = None;
-    let publisher: &mut dyn FramePublisher = match args.mode {
+    let publisher: &mut dyn FramePublisher = match config.mode {
         Mode::Ros2 => ros.insert(RosPublisher::new(session, naming, recorder)?),
-        Mode::Plain => plain.insert(PlainPublisher::new(session, &args.namespace)),
+        Mode::Plain => plain.insert(PlainPublisher::new(session, &config.naming.namespace)),
     };
     // Written under a temporary name and renamed when the bridge ends cleanly, as every file.
-    let (timing_log, timing_pending): (Option<TimingLog>, _) = match &args.timing_log {
+    let (timing_log, timing_pending): (Option<TimingLog>, _) = match &config.timing_log {
         Some(path) => {
             let (writer, pending) = taxel_host::output_file::OutputFile::create(path)?.into_parts();
             (Some(Box::new(writer)), Some(pending))
@@ -360,15 +280,15 @@ fn bridge_ports(
     // a port.
     devices.start()?;
     let queue = Arc::new(EventQueue::new(
-        args.queue_capacity,
+        config.queue_capacity,
         Overflow::DropOldestSet,
     ));
     let worker = Worker::start(devices.sessions, Arc::clone(&queue), Arc::new(clock))
         .context("starting the devices' reader threads")?;
     let mut relay = Relay::new(clock, devices.healths, devices.worker_devices);
     let mut publication = Publication::new(publisher, timing_log);
-    let deadline = args
-        .duration
+    let deadline = config
+        .duration_s
         .map(|seconds| Instant::now() + Duration::from_secs_f64(seconds.max(0.0)));
     let result = relay_events(
         &worker,
@@ -412,20 +332,5 @@ fn bridge_ports(
         counts.diagnostics,
         queue.dropped_sets()
     );
-    Ok(ExitCode::SUCCESS)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use clap::CommandFactory;
-
-    #[test]
-    fn command_line_definition_is_consistent() {
-        BridgeArgs::command().debug_assert();
-        let args = BridgeArgs::try_parse_from(["taxel-bridge", "--sim", "2"]).unwrap();
-        assert_eq!(args.sim, Some(2));
-        assert_eq!(args.mode, Mode::Ros2);
-        assert!(BridgeArgs::try_parse_from(["taxel-bridge", "/dev/x", "--sim", "2"]).is_err());
-    }
+    Ok(())
 }

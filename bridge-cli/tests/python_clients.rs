@@ -31,7 +31,7 @@ fn python() -> Option<String> {
 
 fn script(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/python")
+        .join("../bridge/tests/python")
         .join(name)
 }
 
@@ -75,6 +75,22 @@ fn a_python_zenoh_subscriber_decodes_what_the_scene_says() {
         &python,
         "subscribe_bridge.py",
         &["--port".to_owned(), free_port().to_string()],
+    );
+}
+
+#[test]
+fn with_no_network_option_the_bridge_is_loopback_only_and_reaches_the_local_router() {
+    let Some(python) = python() else {
+        return;
+    };
+    run_script(
+        &python,
+        "subscribe_bridge.py",
+        &[
+            "--default-network".to_owned(),
+            "--devices".to_owned(),
+            "1".to_owned(),
+        ],
     );
 }
 
