@@ -140,6 +140,12 @@ pub struct LinkArgs {
     pub timeout_ms: u64,
 }
 
+impl Default for LinkArgs {
+    fn default() -> Self {
+        Self { timeout_ms: 2000 }
+    }
+}
+
 impl LinkArgs {
     /// The timeout of every request.
     pub fn timeout(&self) -> std::time::Duration {

@@ -45,8 +45,6 @@ const REOPEN_AFTER_LOSS: Duration = Duration::from_millis(200);
 const RETRY_INTERVAL: Duration = Duration::from_millis(500);
 /// How often the view looks for a tare's reply.
 const TARE_POLL_INTERVAL: Duration = Duration::from_millis(100);
-/// How long the view's requests (identity, state, baselines) wait for their reply.
-const VIEW_REQUEST_TIMEOUT: Duration = Duration::from_millis(1000);
 
 /// What a job on a device's thread gave, looked at without waiting.
 enum Polled<T> {
@@ -125,6 +123,8 @@ pub struct LiveView {
     tare_sets: u16,
     record_dir: PathBuf,
     once: bool,
+    /// How long the view's requests (identity, state, baselines) wait for their reply.
+    request_timeout: Duration,
     recording: RecordingPhase,
     saved: Option<String>,
 }
@@ -178,6 +178,7 @@ impl LiveView {
             tare_sets: args.tare_sets,
             record_dir: args.record_dir.clone(),
             once: args.once,
+            request_timeout: args.link.timeout(),
             recording: RecordingPhase::Off,
             saved: None,
         })
@@ -295,7 +296,7 @@ impl LiveView {
             return;
         }
         slot.next_attempt = None;
-        slot.opening = Some(open_in_background(&slot.target, VIEW_REQUEST_TIMEOUT));
+        slot.opening = Some(open_in_background(&slot.target, self.request_timeout));
     }
 
     fn take_attempt(&mut self, device: usize, now: Instant) {

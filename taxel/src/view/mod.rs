@@ -49,7 +49,7 @@ use ratatui::layout::Rect;
 use ratatui::Terminal;
 
 use crate::layout::Layout;
-use taxel_args::MultiBoardArgs;
+use taxel_args::{LinkArgs, MultiBoardArgs};
 
 /// Sample sets `--once` waits for from every device (for a rate) before it prints, unless its
 /// timeout ends first.
@@ -114,7 +114,7 @@ estimating\" until about 2 s of frames came). Staleness is judged per device on 
 of arrival. --layout applies to device 0's pads (\"dev 0 left finger\"); the other devices get \
 the automatic grid. d chooses a device (▶), 0-7 show its pad in the detailed view, a all \
 devices again; --pad N shows device 0's pad N. --once prints a snapshot after 20 sets from \
-every device (or --timeout-ms).\n\n\
+every device (or --snapshot-wait-ms).\n\n\
 Examples:\n  taxel view /dev/ttyACM0\n  taxel view --once --width 80 --height 24 /dev/ttyACM0\n  \
 taxel view --layout gripper /dev/ttyACM0\n  taxel view --layout my-hand.toml --pad 2\n  \
 taxel view /dev/ttyACM0 /dev/ttyACM1\n  taxel view --serial 0A1B2C --serial 3D4E5F";
@@ -146,9 +146,12 @@ pub struct ViewArgs {
     /// Directory the record key writes recordings to.
     #[arg(long, value_name = "DIR", default_value = ".")]
     pub record_dir: PathBuf,
-    /// How long --once waits for samples, ms.
+    /// How long --once waits for the sample sets of its snapshot, ms.
     #[arg(long, value_name = "MS", default_value_t = 3000)]
-    pub timeout_ms: u64,
+    pub snapshot_wait_ms: u64,
+    /// How long to wait for the devices.
+    #[command(flatten)]
+    pub link: LinkArgs,
     /// The pads' names and places: a built-in layout (gripper, glove) or a TOML file.
     #[arg(long, value_name = "NAME|FILE")]
     pub layout: Option<String>,
@@ -170,7 +173,8 @@ impl ViewArgs {
             full_scale_kpa: 50.0,
             history_s: 10.0,
             record_dir: PathBuf::from("."),
-            timeout_ms: 3000,
+            snapshot_wait_ms: 3000,
+            link: LinkArgs::default(),
             layout: None,
             pad: None,
         }
@@ -227,7 +231,7 @@ pub fn run(args: &ViewArgs) -> anyhow::Result<ExitCode> {
 }
 
 /// `--once`: every device opened once, a snapshot after [`SNAPSHOT_SETS`] sets of each (or
-/// `--timeout-ms`). When no device could be opened, that is the error.
+/// `--snapshot-wait-ms`). When no device could be opened, that is the error.
 fn run_once(args: &ViewArgs, layout: Option<Layout>) -> anyhow::Result<ExitCode> {
     let mut live = LiveView::new(args, layout)?;
     live.tick();
@@ -240,7 +244,7 @@ fn run_once(args: &ViewArgs, layout: Option<Layout>) -> anyhow::Result<ExitCode>
             return Err(error);
         }
     }
-    let timeout = Duration::from_millis(args.timeout_ms);
+    let timeout = Duration::from_millis(args.snapshot_wait_ms);
     let deadline = Instant::now() + timeout;
     while Instant::now() < deadline
         && live.any_connected()
