@@ -5,7 +5,9 @@
 //!
 //! Recovery is part of the loop, per pad: a converter error, an all-zero read or a stuck channel
 //! flags that pad's sample, counts the event and re-initialises its converter, backing off while
-//! it keeps failing; a temperature sensor that stops answering degrades to the fallback source.
+//! it keeps failing; a temperature sensor that stops answering degrades to the fallback source,
+//! and the pad's model is told of every switch between the two, so that it applies the new
+//! sensor's level at once rather than taking the step between them for a glitch.
 //! The other pads keep their rate, and nothing here ever stops the stream.
 #![no_std]
 #![deny(missing_docs)]

@@ -63,6 +63,9 @@ pub struct PadAcquisition<I2C, D, T> {
     backoff: Backoff,
     primary_failing_cycles: Option<u16>,
     fallback_offset: FallbackOffset,
+    // The sensor of the last temperature read (None before the first): a switch to the other
+    // one is told to the model, which applies the new sensor's level at once.
+    last_temperature_sensor: Option<TemperatureOrigin>,
 }
 
 /// What one read of a pad did on the bus, for the loop's pacing.
@@ -102,6 +105,7 @@ where
                 offset_c: None,
                 cycles_since_check: config.fallback_offset_check_cycles,
             },
+            last_temperature_sensor: None,
         };
         if config.tare_sets_at_start > 0 {
             pad.model.start_tare(config.tare_sets_at_start);
@@ -198,6 +202,7 @@ where
                 *flags |= TaxelFlags::TEMPERATURE_FALLBACK;
             }
         }
+        self.note_temperature_sensor(temperature_origin);
         let timestamp_us = clock.now_us();
         let input = SampleInput {
             readings,
@@ -338,6 +343,24 @@ where
                 self.fallback_offset.learn(fallback_c, primary_c);
             }
         }
+    }
+
+    /// Tells the model when this set's temperature comes from another sensor than the last one
+    /// read: the step between the TMP117 and the die sensor (with its offset) is no glitch, so
+    /// the model applies the new sensor's level at once instead of flagging it while it
+    /// confirms it. A set without a temperature changes nothing (the model keeps the one in
+    /// use; the sensor that answers next is compared with the last that did).
+    fn note_temperature_sensor(&mut self, origin: TemperatureOrigin) {
+        if origin == TemperatureOrigin::None {
+            return;
+        }
+        if self
+            .last_temperature_sensor
+            .is_some_and(|last| last != origin)
+        {
+            self.model.temperature_source_changed();
+        }
+        self.last_temperature_sensor = Some(origin);
     }
 
     async fn read_temperature<F: TemperatureSource>(

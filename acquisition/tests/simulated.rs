@@ -38,13 +38,16 @@ impl Clock for SimulatedClock {
 }
 
 /// Stands in for the MCU's die sensor: the pad temperature plus a few degrees of self-heating.
-struct DieTemperature(Simulation);
+struct DieTemperature {
+    simulation: Simulation,
+    warmer_by_c: f32,
+}
 
 impl TemperatureSource for DieTemperature {
     type Error = ();
 
     async fn read_temperature_c(&mut self) -> Result<f32, ()> {
-        Ok(self.0.scene_point().temperature_c + 2.0)
+        Ok(self.simulation.scene_point().temperature_c + self.warmer_by_c)
     }
 }
 
@@ -52,6 +55,16 @@ type SimulatedAcquisition =
     Acquisition<SimI2c, SimDelay, Tmp117<SimI2c>, DieTemperature, SimulatedClock>;
 
 fn rig(simulation: &Simulation) -> SimulatedAcquisition {
+    rig_with(simulation, 2.0, AcquisitionConfig::default())
+}
+
+/// The rig with a die sensor `die_warmer_by_c` above the pad and `config` (its temperature
+/// retry interval set to 20 cycles).
+fn rig_with(
+    simulation: &Simulation,
+    die_warmer_by_c: f32,
+    config: AcquisitionConfig,
+) -> SimulatedAcquisition {
     let converter = Fdc1004::new(
         simulation.i2c(),
         simulation.delay(),
@@ -66,12 +79,15 @@ fn rig(simulation: &Simulation) -> SimulatedAcquisition {
     Acquisition::new(
         converter,
         Tmp117::new(simulation.i2c(), Address::Gnd),
-        DieTemperature(simulation.clone()),
+        DieTemperature {
+            simulation: simulation.clone(),
+            warmer_by_c: die_warmer_by_c,
+        },
         SimulatedClock(simulation.clone()),
         PadModel::new(calibration),
         AcquisitionConfig {
             primary_temperature_retry_cycles: 20,
-            ..AcquisitionConfig::default()
+            ..config
         },
         simulation.delay(),
     )
@@ -413,6 +429,70 @@ fn a_missing_temperature_sensor_degrades_to_the_fallback_and_comes_back() {
         let pressure = taxel.pressure_kpa().unwrap();
         assert!((pressure - 10.0).abs() < 0.15, "{pressure} on the fallback");
     }
+}
+
+/// The TMP117 is lost before the die sensor's offset was learned (offset checks off): the
+/// fallback reads 6 °C warm, a step no pad makes in one set. A change of sensor is no glitch:
+/// the model applies the die's level from its first set, and the TMP117's again when it is
+/// back, with no set flagged `temperature_implausible` (before, the model slewed towards the
+/// die's level at 5 °C/s, flagged all the while; the confirmation alone would flag 0.25 s).
+#[test]
+fn a_change_of_temperature_sensor_is_applied_at_once() {
+    let simulation = Simulation::new(SimulationConfig::default()).unwrap();
+    simulation.set_scene(
+        ScriptedScene::new(vec![
+            keyframe(0.0, [0.0; 4], 30.0),
+            keyframe(1.0, [0.0; 4], 30.0),
+            keyframe(1.5, [10.0, 0.0, 0.0, 0.0], 30.0),
+        ])
+        .unwrap(),
+    );
+    let mut acquisition = rig_with(
+        &simulation,
+        6.0,
+        AcquisitionConfig {
+            fallback_offset_check_cycles: 0,
+            ..AcquisitionConfig::default()
+        },
+    );
+    simulation.inject(
+        Fault::Nack(Device::Tmp117),
+        Window::Between {
+            start_us: 5_000_000,
+            end_us: 10_000_000,
+        },
+    );
+    let samples = run_until(&mut acquisition, &simulation, 15_000_000);
+    assert_eq!(acquisition.fallback_offset_c(0), None);
+    let mut switches = 0;
+    for pair in samples.windows(2) {
+        let (before, sample) = (&pair[0], &pair[1]);
+        let used = sample.output.temperature;
+        assert!(
+            !used.flags.contains(TaxelFlags::TEMPERATURE_IMPLAUSIBLE),
+            "{sample:?}"
+        );
+        // Every set with a temperature is corrected with its own reading, the first set of
+        // each sensor included.
+        if let Some(measured_c) = sample.input.temperature_c {
+            assert_eq!(used.temperature_c, measured_c, "{sample:?}");
+        }
+        if before.temperature_origin != sample.temperature_origin {
+            switches += 1;
+            let expected_c = match sample.temperature_origin {
+                TemperatureOrigin::Primary => 30.0,
+                _ => 36.0,
+            };
+            assert!(
+                (used.temperature_c - expected_c).abs() < 0.05,
+                "{} us: {} °C",
+                sample.timestamp_us,
+                used.temperature_c
+            );
+        }
+    }
+    // To the fallback and back.
+    assert_eq!(switches, 2);
 }
 
 #[test]

@@ -167,7 +167,7 @@ pub struct RosPublisher {
     next_entity_id: u32,
     pads: HashMap<(usize, u8), PadPublishers>,
     diagnostics: Option<TopicPublisher>,
-    geometry: PadGeometry,
+    geometries: HashMap<(usize, u8), PadGeometry>,
     recorder: Option<Recorder>,
 }
 
@@ -202,7 +202,7 @@ impl RosPublisher {
             next_entity_id: 1,
             pads: HashMap::new(),
             diagnostics: None,
-            geometry: PadGeometry::ARTICLE,
+            geometries: HashMap::new(),
             recorder,
         })
     }
@@ -273,6 +273,12 @@ impl RosPublisher {
             .ok_or_else(|| anyhow::anyhow!("pad publishers missing"))
     }
 
+    /// Pad `pad` of `device` has `geometry` (its PadInfo's): its pressure clouds place the
+    /// taxels there. Until this is called a pad has the built-in geometry.
+    pub fn set_geometry(&mut self, device: usize, pad: u8, geometry: PadGeometry) {
+        self.geometries.insert((device, pad), geometry);
+    }
+
     /// Completes the MCAP file, if there is one, and gives back its file (flushed) for the
     /// caller to put in place.
     pub fn finish(self) -> anyhow::Result<Option<File>> {
@@ -299,9 +305,12 @@ impl FramePublisher for RosPublisher {
         let Self {
             pads,
             recorder,
-            geometry,
+            geometries,
             ..
         } = self;
+        let geometry = geometries
+            .get(&(device, pad))
+            .unwrap_or(&PadGeometry::ARTICLE);
         let publishers = pads
             .get_mut(&(device, pad))
             .ok_or_else(|| anyhow::anyhow!("pad publishers missing"))?;

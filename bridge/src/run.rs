@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use sim_device::{scene_config, SimulatorThread};
 use taxel_host::console::error_message;
+use taxel_host::device_state::pad_geometry;
 use taxel_host::device_link::{open_serial, DeviceLink};
 use taxel_host::host_clock::UnixClock;
 use taxel_host::noteln;
@@ -265,7 +266,15 @@ fn bridge_ports(
     let mut ros = None;
     let mut plain = None;
     let publisher: &mut dyn FramePublisher = match config.mode {
-        Mode::Ros2 => ros.insert(RosPublisher::new(session, naming, recorder)?),
+        Mode::Ros2 => {
+            let publisher = ros.insert(RosPublisher::new(session, naming, recorder)?);
+            for (device, health) in devices.healths.iter().enumerate() {
+                for pad_info in &health.pads {
+                    publisher.set_geometry(device, pad_info.pad.get(), pad_geometry(pad_info)?);
+                }
+            }
+            publisher
+        }
         Mode::Plain => plain.insert(PlainPublisher::new(session, &config.naming.namespace)),
     };
     // Written under a temporary name and renamed when the bridge ends cleanly, as every file.

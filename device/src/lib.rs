@@ -39,7 +39,7 @@ use acquisition::{ProcessedSample, TemperatureOrigin};
 use calibration_store::RecordScope;
 use model_core::{
     pad_force, BaselineError, Calibration, ContactConfig, ContactDetector, ContactEvent,
-    PadGeometry, PadModel, TareStatus, Tier,
+    PadGeometry, PadModel, PadRole, TareStatus, Tier,
 };
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
@@ -143,7 +143,8 @@ pub struct DeviceConfig {
     pub counters_every_sets: u32,
     /// Whether streaming is on at start.
     pub streaming_at_start: bool,
-    /// Where the taxels are and how large, for force and centre of pressure.
+    /// Where the taxels are and how large, for force and centre of pressure: every pad's until
+    /// one is set for it (saved with its calibration, or `SetPadGeometry`).
     pub geometry: PadGeometry,
     /// When the pad counts as in contact.
     pub contact: ContactConfig,
@@ -171,14 +172,18 @@ struct PadReporting {
     channel: Option<u8>,
     temperature_sensor: TemperatureSensor,
     calibration_source: CalibrationSource,
+    role: PadRole,
+    geometry: PadGeometry,
     contact: ContactDetector,
     last_converter_reinits: u32,
     last_temperature_origin: Option<TemperatureOrigin>,
     announced_generation: Option<u32>,
+    // A tare was running at the pad's last sample set.
+    tare_running: bool,
 }
 
 impl PadReporting {
-    fn new(slot: &PadSlot, calibration_source: CalibrationSource, contact: ContactConfig) -> Self {
+    fn new(slot: &PadSlot, calibration_source: CalibrationSource, config: &DeviceConfig) -> Self {
         Self {
             channel: slot.channel.map(|channel| channel.index()),
             temperature_sensor: match slot.temperature {
@@ -191,10 +196,13 @@ impl PadReporting {
                 PadTemperature::DieOnly => TemperatureSensor::DieOnly,
             },
             calibration_source,
-            contact: ContactDetector::new(contact),
+            role: PadRole::Unspecified,
+            geometry: config.geometry,
+            contact: ContactDetector::new(config.contact),
             last_converter_reinits: 0,
             last_temperature_origin: None,
             announced_generation: None,
+            tare_running: false,
         }
     }
 }
@@ -214,6 +222,9 @@ pub struct Device<A, P> {
     announce_flash_corrupt: bool,
     pads: heapless::Vec<PadReporting, MAX_PADS>,
 }
+
+/// Every taxel of a pad, as a mask (bit n: taxel n).
+const ALL_TAXELS_MASK: u8 = (1 << model_core::TAXEL_COUNT) - 1;
 
 /// The pad whose calibration the Info frame shows.
 const FIRST_PAD: usize = 0;
@@ -237,7 +248,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 .copied()
                 .unwrap_or(CalibrationSource::Defaults);
             // Cannot fail: at most MAX_PADS slots are taken.
-            let _ = pads.push(PadReporting::new(slot, source, config.contact));
+            let _ = pads.push(PadReporting::new(slot, source, &config));
         }
         let announce_flash_corrupt = pads.iter().any(|pad: &PadReporting| {
             pad.calibration_source == CalibrationSource::DefaultsAfterCorruptFlash
@@ -330,6 +341,26 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             })
     }
 
+    /// Pad `pad`'s role and geometry from now on (boot: what was saved with its calibration);
+    /// false for a pad that does not exist.
+    pub fn set_pad_geometry(&mut self, pad: usize, role: PadRole, geometry: PadGeometry) -> bool {
+        match self.pads.get_mut(pad) {
+            Some(reporting) => {
+                reporting.role = role;
+                reporting.geometry = geometry;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Pad `pad`'s role and geometry, `None` for a pad that does not exist.
+    pub fn pad_geometry(&self, pad: usize) -> Option<(PadRole, PadGeometry)> {
+        self.pads
+            .get(pad)
+            .map(|reporting| (reporting.role, reporting.geometry))
+    }
+
     /// A pad's description, `None` for a pad that does not exist.
     pub fn pad_info(&self, pad: PadIndex) -> Option<PadInfoFrame> {
         let index = usize::from(pad.get());
@@ -342,6 +373,8 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             calibration_id: model.calibration().id(),
             calibration_source: reporting.calibration_source,
             model_tier: model.tier(),
+            role: reporting.role,
+            taxels: *reporting.geometry.taxels(),
         })
     }
 
@@ -436,7 +469,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             }
             reporting.last_temperature_origin = Some(sample.temperature_origin);
         }
-        let force = pad_force(&sample.output.taxels, &self.config.geometry);
+        let force = pad_force(&sample.output.taxels, &reporting.geometry);
         let contact_event = reporting.contact.update(&force, sample.timestamp_us);
         let frame = self.streaming.then(|| {
             let summary = pad_summary(&force, reporting.contact.in_contact());
@@ -462,6 +495,19 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 });
             }
         }
+        // A tare that just finished without every taxel says which taxels it could not tare.
+        let tare_running = matches!(model.tare_status(), TareStatus::Running { .. });
+        let tare_refused = match model.tare_status() {
+            TareStatus::Finished { tared_mask } if reporting.tare_running && !tare_running => {
+                let refused_mask = !tared_mask & ALL_TAXELS_MASK;
+                (refused_mask != 0).then_some(DeviceEvent::TareRefused {
+                    pad: wire_pad,
+                    refused_mask,
+                })
+            }
+            _ => None,
+        };
+        reporting.tare_running = tare_running;
         for event in events {
             self.send_event(host, sample.timestamp_us, event);
         }
@@ -487,7 +533,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             };
             self.send_event(host, timestamp_us, event);
         }
-        if let Some(event) = tare_finished {
+        for event in [tare_refused, tare_finished].into_iter().flatten() {
             self.send_event(host, sample.timestamp_us, event);
         }
     }
@@ -761,6 +807,14 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 .pad_info(pad)
                 .map(ReplyPayload::PadInfo)
                 .ok_or(ErrorCode::InvalidArgument),
+            Command::SetPadGeometry(record) => match record.geometry() {
+                Ok(geometry)
+                    if self.set_pad_geometry(usize::from(record.pad.get()), record.role, geometry) =>
+                {
+                    Ok(ReplyPayload::Ack)
+                }
+                _ => Err(ErrorCode::InvalidArgument),
+            },
         };
         Some(result)
     }

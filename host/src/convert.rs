@@ -18,7 +18,7 @@ use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use model_core::{Calibration, Tier};
+use model_core::{Calibration, PadGeometry, Tier};
 use wire::DeviceFrame;
 
 use crate::device_state::{BaselineChange, RecordedDeviceState, RecordedPadState};
@@ -71,6 +71,8 @@ pub struct PadOptions {
     pub tier: Tier,
     /// The baselines.
     pub tare: TareSource,
+    /// The taxels' centres and areas, for force and centre of pressure.
+    pub geometry: PadGeometry,
 }
 
 impl PadOptions {
@@ -102,10 +104,14 @@ impl PadOptions {
             }
             (None, _) => TareSource::Rows(1),
         };
+        // The device's geometry is what its force was computed with; without a recorded state,
+        // the built-in one (the device's too until a geometry is set).
+        let geometry = recorded.map_or(PadGeometry::ARTICLE, |recorded| recorded.geometry);
         Ok(Self {
             calibration,
             tier,
             tare,
+            geometry,
         })
     }
 }

@@ -117,6 +117,18 @@ pub fn event_words(event: &EventFrame) -> String {
                 format!("new baselines (tared: {})", tared.join(", "))
             }
         }
+        DeviceEvent::TareRefused { refused_mask, .. } => {
+            let refused: Vec<&str> = TAXEL_NAMES
+                .iter()
+                .enumerate()
+                .filter(|(taxel, _)| refused_mask & (1 << taxel) != 0)
+                .map(|(_, name)| *name)
+                .collect();
+            format!(
+                "the tare could not tare {} (loaded, not still, open or shorted); they keep their previous baseline, if any",
+                refused.join(", ")
+            )
+        }
         DeviceEvent::ContactStarted { pad } => format!("pad {}: contact started", pad.get()),
         DeviceEvent::ContactEnded { pad } => format!("pad {}: contact ended", pad.get()),
     };
@@ -125,7 +137,8 @@ pub fn event_words(event: &EventFrame) -> String {
     let pad = match event.event {
         DeviceEvent::ConverterReinitialised { pad, .. }
         | DeviceEvent::TemperatureSourceChanged { pad, .. }
-        | DeviceEvent::TareFinished { pad, .. } => Some(pad.get()).filter(|&pad| pad > 0),
+        | DeviceEvent::TareFinished { pad, .. }
+        | DeviceEvent::TareRefused { pad, .. } => Some(pad.get()).filter(|&pad| pad > 0),
         _ => None,
     };
     let pad = pad.map(|pad| format!("pad {pad}: ")).unwrap_or_default();

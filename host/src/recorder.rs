@@ -24,6 +24,7 @@ use taxel_ros2::pad_messages::{DEFAULT_FRAME_PREFIX, DEFAULT_NAMESPACE};
 use taxel_ros2::PadMessagesFile;
 use wire::SampleFrame;
 
+use crate::device_state::RecordedDeviceState;
 use crate::clock_sync::ClockEstimate;
 use crate::host_clock::UnixClock;
 use crate::output_file::{OutputFile, PendingRename};
@@ -206,6 +207,16 @@ impl Recorder {
     pub fn set_clock_us_per_s(&mut self, device: usize, clock_us_per_s: u32) {
         if let Some(record) = self.devices.get_mut(device) {
             record.stamper.set_clock_us_per_s(clock_us_per_s);
+        }
+    }
+
+    /// Device `device`'s pads have the geometries of `state` (what their PadInfo reports): the
+    /// MCAP file's pressure clouds place the taxels there.
+    pub fn set_pad_geometries(&mut self, device: usize, state: &RecordedDeviceState) {
+        if let Some((file, _)) = &mut self.mcap {
+            for pad in &state.pads {
+                file.set_geometry(device, pad.pad, pad.geometry);
+            }
         }
     }
 

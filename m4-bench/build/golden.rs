@@ -51,8 +51,6 @@ const CHARACTERISED_MAX_C: f64 = 55.0;
 const REFERENCE_TEMPERATURE_C: f64 = 25.0;
 /// Largest step of the measured temperature from the one in use that is applied as measured, °C.
 const MAX_PLAUSIBLE_STEP_C: f64 = 2.0;
-/// Largest move per sample set towards an implausible temperature, °C.
-const SLEW_C_PER_SET: f64 = 0.05;
 
 /// eps_r(T) / eps_r(25 °C): flat at or below 25 °C, linear to -3.24 % at 55 °C.
 pub fn permittivity_ratio(temperature_c: f64) -> f64 {
@@ -106,10 +104,11 @@ fn value_of(reading: TaxelReading) -> Value {
     }
 }
 
-/// Temperature used and its flags, as the model resolves it: clamped; a step further than
-/// [`MAX_PLAUSIBLE_STEP_C`] from the last valid temperature is flagged implausible and only
-/// moves the temperature in use by [`SLEW_C_PER_SET`]; when missing, the last valid one, else
-/// the fallback (the tare's), else 25 °C.
+/// Temperature used and its flags, as the model resolves one reading without a sample time:
+/// clamped; a step further than [`MAX_PLAUSIBLE_STEP_C`] from the last valid temperature is
+/// flagged implausible and not applied, the last valid temperature is kept (a single reading
+/// never confirms a new level); when missing, the last valid one, else the fallback (the
+/// tare's), else 25 °C.
 fn resolve_temperature(
     measured_c: Option<f32>,
     last_valid_c: Option<f64>,
@@ -127,7 +126,7 @@ fn resolve_temperature(
             let used = match last_valid_c {
                 Some(last) if (clamped - last).abs() > MAX_PLAUSIBLE_STEP_C => {
                     flags |= TaxelFlags::TEMPERATURE_IMPLAUSIBLE;
-                    last + (clamped - last).clamp(-SLEW_C_PER_SET, SLEW_C_PER_SET)
+                    last
                 }
                 _ => clamped,
             };
@@ -683,7 +682,7 @@ pub fn hard_cases(references: &References) -> Result<Vec<HardCase>, String> {
         },
         case(
             "temperature-jump",
-            "tare at 25 C, 20 kPa at 25 C, temperature 55 C at once: implausible, 25.05 C used",
+            "tare at 25 C, 20 kPa at 25 C, temperature 55 C at once: implausible, 25 C kept",
             grid,
             raw(20.0, 25.0),
             Some(55.0),

@@ -44,10 +44,10 @@ bitflags! {
         /// the offset last learned against the pad's sensor: less accurate than the pad's own.
         const TEMPERATURE_FALLBACK = 1 << 12;
         /// Warning: the measured temperature jumped further from the one in use than the pad can
-        /// change between two sample sets (more than
-        /// [`crate::temperature::MAX_PLAUSIBLE_STEP_C`]); it was not applied as measured, the
-        /// temperature in use moves towards it by at most
-        /// [`crate::temperature::SLEW_C_PER_SET`] per sample set.
+        /// change (more than [`crate::temperature::MAX_PLAUSIBLE_STEP_C`] plus
+        /// [`crate::temperature::MAX_RATE_C_PER_S`] of the time since that one was measured);
+        /// it was not applied, the sample was corrected with the temperature in use, until
+        /// consistent readings confirm the new level (see [`crate::temperature`]).
         const TEMPERATURE_IMPLAUSIBLE = 1 << 13;
         /// Warning: the taxel's baseline (C0 at 25 °C) differs from the C0 recorded in its
         /// calibration by more than [`crate::pad::TARE_FAR_FROM_CALIBRATION_RELATIVE`]: the pad

@@ -60,7 +60,7 @@ pub use flags::TaxelFlags;
 pub use inverse::{InverseCurve, TaxelInverses, Tier};
 pub use pad::{PadModel, PadOutput, SampleInput, TareStatus, TierUnavailable, BATCH_SAMPLE_SETS};
 pub use pad_force::{pad_force, pad_force_from_pressures, PadForce, PadForceFlags};
-pub use pad_geometry::{GeometryError, PadGeometry, TaxelGeometry};
+pub use pad_geometry::{GeometryError, PadGeometry, PadRole, TaxelGeometry};
 pub use reading::{ReadingValue, SplitCapacitance, TaxelReading};
 pub use taxel::{TaxelModel, TaxelOutput};
 pub use temperature::{TemperatureTracker, TemperatureUsed, REFERENCE_TEMPERATURE_C};

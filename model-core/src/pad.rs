@@ -275,6 +275,13 @@ impl PadModel {
         self.temperature.last_valid_c()
     }
 
+    /// The next temperature comes from another sensor (the acquisition switched between the
+    /// pad's sensor and the fallback): it is applied as measured, not judged as a jump (see
+    /// [`crate::temperature`]).
+    pub fn temperature_source_changed(&mut self) {
+        self.temperature.source_changed();
+    }
+
     /// Baselines per taxel.
     pub fn baselines(&self) -> &[Option<Baseline>; TAXEL_COUNT] {
         &self.baselines

@@ -42,6 +42,52 @@ pub const MAX_TAXEL_AREA_MM2: f32 = 10_000.0;
 /// 11 mm across).
 pub const MAX_CENTRE_OFFSET_MM: f32 = 100.0;
 
+/// What a pad is, for the layouts of the host's views (a glove's palm pad is drawn larger than
+/// its fingertips, a gripper's jaws side by side). Plain data: it changes no computation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum PadRole {
+    /// Not said.
+    #[default]
+    Unspecified,
+    /// The tip of a finger (of a glove or a robot hand).
+    Fingertip,
+    /// A finger's other segments.
+    Finger,
+    /// The palm.
+    Palm,
+    /// A jaw of a parallel gripper.
+    GripperJaw,
+}
+
+impl PadRole {
+    /// Every role, in wire order.
+    pub const ALL: [PadRole; 5] = [
+        PadRole::Unspecified,
+        PadRole::Fingertip,
+        PadRole::Finger,
+        PadRole::Palm,
+        PadRole::GripperJaw,
+    ];
+
+    /// Its name in files and on the command line.
+    pub const fn name(self) -> &'static str {
+        match self {
+            PadRole::Unspecified => "unspecified",
+            PadRole::Fingertip => "fingertip",
+            PadRole::Finger => "finger",
+            PadRole::Palm => "palm",
+            PadRole::GripperJaw => "gripper-jaw",
+        }
+    }
+
+    /// The role named `name` ([`PadRole::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|role| role.name() == name)
+    }
+}
+
 /// One taxel's place and size, as plain data.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
@@ -85,6 +131,14 @@ pub enum GeometryError {
         /// Taxel index, 0..4.
         taxel: u8,
     },
+    /// The taxel's centre is the centre of an earlier taxel: two electrodes cannot sit in one
+    /// place (a copy-paste error in a geometry file, typically).
+    CentresCoincide {
+        /// Taxel index, 0..4 (the later of the two).
+        taxel: u8,
+        /// The earlier taxel at the same centre.
+        earlier: u8,
+    },
 }
 
 impl fmt::Display for GeometryError {
@@ -100,6 +154,10 @@ impl fmt::Display for GeometryError {
             Self::CentreOutOfRange { taxel } => write!(
                 formatter,
                 "taxel {taxel}: the centre must be within {MAX_CENTRE_OFFSET_MM} mm of the pad centre"
+            ),
+            Self::CentresCoincide { taxel, earlier } => write!(
+                formatter,
+                "taxel {taxel}: its centre is taxel {earlier}'s; every taxel needs a place of its own"
             ),
         }
     }
@@ -157,7 +215,8 @@ impl Default for PadGeometry {
 impl PadGeometry {
     /// Validates four taxels in pad order (C11, C12, C21, C22): every value finite, every area
     /// within `0 < area ..= MAX_TAXEL_AREA_MM2`, every centre coordinate within
-    /// ±[`MAX_CENTRE_OFFSET_MM`]. The first taxel that fails is named in the error.
+    /// ±[`MAX_CENTRE_OFFSET_MM`], no two centres equal. The first taxel that fails is named in
+    /// the error.
     pub fn new(taxels: [TaxelGeometry; TAXEL_COUNT]) -> Result<Self, GeometryError> {
         for (index, taxel) in taxels.iter().enumerate() {
             let taxel_index = index as u8;
@@ -172,6 +231,16 @@ impl PadGeometry {
             };
             if !(within(taxel.x_mm) && within(taxel.y_mm)) {
                 return Err(GeometryError::CentreOutOfRange { taxel: taxel_index });
+            }
+            let earlier = taxels
+                .iter()
+                .take(index)
+                .position(|other| other.x_mm == taxel.x_mm && other.y_mm == taxel.y_mm);
+            if let Some(earlier) = earlier {
+                return Err(GeometryError::CentresCoincide {
+                    taxel: taxel_index,
+                    earlier: earlier as u8,
+                });
             }
         }
         Ok(Self { taxels })
@@ -208,6 +277,29 @@ impl TryFrom<UncheckedPadGeometry> for PadGeometry {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn two_taxels_in_one_place_are_refused() {
+        let mut taxels = *PadGeometry::ARTICLE.taxels();
+        taxels[3] = taxels[1];
+        assert_eq!(
+            PadGeometry::new(taxels),
+            Err(GeometryError::CentresCoincide {
+                taxel: 3,
+                earlier: 1
+            })
+        );
+        taxels[3].y_mm -= 0.001;
+        assert!(PadGeometry::new(taxels).is_ok());
+    }
+
+    #[test]
+    fn every_role_is_found_by_its_name() {
+        for role in PadRole::ALL {
+            assert_eq!(PadRole::from_name(role.name()), Some(role));
+        }
+        assert_eq!(PadRole::from_name("elbow"), None);
+    }
 
     #[test]
     fn the_default_passes_its_own_validation() {

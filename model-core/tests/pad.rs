@@ -498,19 +498,175 @@ fn a_new_calibration_re_derives_the_baselines() {
 }
 
 /// A one-set temperature glitch on an unloaded taxel: before the fix it read about 3.9 kPa with
-/// no flag; now it is flagged and the pressure barely moves.
+/// no flag; now it is flagged and not applied at all. The same holds for a glitch of a few sets.
 #[test]
 fn a_temperature_glitch_is_flagged_not_applied() {
     let mut pad = tared_pad(SENSOR_PF, 25.0);
     let unloaded = [TaxelReading::CapacitancePf(SENSOR_PF); 4];
-    let glitch = pad.process(&SampleInput::new(unloaded, Some(55.0))).taxels[0];
+    let glitch = pad.process(&SampleInput::new(unloaded, Some(55.0)));
+    assert_eq!(glitch.temperature.temperature_c, 25.0);
+    let glitch = glitch.taxels[0];
     assert!(glitch.flags().contains(TaxelFlags::TEMPERATURE_IMPLAUSIBLE));
-    let pressure = glitch.pressure_kpa().unwrap();
-    // 0.05 °C of slew: 0.05 x 0.108 %/°C = 5.4e-5 of dC/C0, under 0.01 kPa at 120 /kPa.
-    assert!(pressure < 0.01, "{pressure}");
+    assert_eq!(glitch.pressure_kpa(), Some(0.0));
     let after = one_taxel(&mut pad, SENSOR_PF, Some(25.0));
     assert_eq!(after.flags(), TaxelFlags::empty());
     assert_eq!(after.pressure_kpa(), Some(0.0));
+    // 0.2 s of 55 °C at 100 sets/s, shorter than the confirmation: still not applied.
+    pad.process(&SampleInput::new(unloaded, Some(25.0)).at_time_us(1_000_000));
+    for set in 1..=20u64 {
+        let input = SampleInput::new(unloaded, Some(55.0)).at_time_us(1_000_000 + set * 10_000);
+        let output = pad.process(&input);
+        assert_eq!(output.temperature.temperature_c, 25.0);
+        assert_eq!(output.taxels[0].pressure_kpa(), Some(0.0));
+    }
+    let back = pad.process(&SampleInput::new(unloaded, Some(25.0)).at_time_us(1_210_000));
+    assert_eq!(back.taxels[0].flags(), TaxelFlags::empty());
+}
+
+/// eps_r(T) / eps_r(25 °C) by the article's law as the README states it, written out here (not
+/// the model's `TemperatureLaw`): flat at or below 25 °C, linear to -3.24 % at 55 °C.
+fn documented_permittivity_ratio(temperature_c: f32) -> f32 {
+    if temperature_c <= 25.0 {
+        1.0
+    } else {
+        1.0 - 0.0324 * (temperature_c - 25.0) / 30.0
+    }
+}
+
+/// Table 1 points on the four taxels: (pressure kPa, cumulative dC/C0).
+const LOADS: [(f32, f32); 4] = [
+    (10.0, 0.0829),
+    (20.0, 0.1475),
+    (30.0, 0.1981),
+    (50.0, 0.2563),
+];
+
+/// The four taxels loaded as [`LOADS`] at a temperature, C = C0 (1 + dC/C0) k(T).
+fn loaded_at(temperature_c: f32) -> [TaxelReading; 4] {
+    LOADS.map(|(_, relative_change)| {
+        TaxelReading::CapacitancePf(
+            SENSOR_PF * (1.0 + relative_change) * documented_permittivity_ratio(temperature_c),
+        )
+    })
+}
+
+/// The issue's recording: readings step from 25 to 55 °C and stay there, under load, at 100
+/// sets/s with sample times. Before the fix the pad followed at 5 °C/s, flagged and up to 6 kPa
+/// off for seconds; now the step is applied 0.25 s after it (within the 0.5 s asked), the sets
+/// before are flagged, and every set after reads the table's pressures: the calibration at the
+/// documented law's ratio, computed independently of the model.
+#[test]
+fn a_persistent_temperature_step_is_applied_within_half_a_second() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    let period_us = 10_000;
+    let step_us = 2_000_000;
+    let mut accepted_us = None;
+    let mut worst_after_kpa = 0.0f32;
+    let mut worst_during_kpa = 0.0f32;
+    for set in 0..400u64 {
+        let time_us = step_us - 100 * period_us + set * period_us;
+        let temperature_c = if time_us < step_us { 25.0 } else { 55.0 };
+        let output = pad.process(
+            &SampleInput::new(loaded_at(temperature_c), Some(temperature_c)).at_time_us(time_us),
+        );
+        let implausible = output.taxels[0]
+            .flags()
+            .contains(TaxelFlags::TEMPERATURE_IMPLAUSIBLE);
+        let transition = time_us >= step_us && accepted_us.is_none();
+        if transition && !implausible {
+            accepted_us = Some(time_us);
+        }
+        let in_transition = transition && implausible;
+        for (taxel, (expected_kpa, _)) in output.taxels.iter().zip(LOADS) {
+            let pressure_kpa = taxel.pressure_kpa().unwrap();
+            let error_kpa = (pressure_kpa - expected_kpa).abs();
+            if in_transition {
+                assert_eq!(
+                    taxel.flags(),
+                    TaxelFlags::TEMPERATURE_IMPLAUSIBLE,
+                    "{time_us} us"
+                );
+                worst_during_kpa = worst_during_kpa.max(error_kpa);
+            } else {
+                // The top point is at the curve's end: over_range may or may not be set there.
+                assert!(
+                    taxel.flags().difference(TaxelFlags::OVER_RANGE).is_empty(),
+                    "{time_us} us: {taxel:?}"
+                );
+                assert!(
+                    error_kpa < 0.01,
+                    "{time_us} us: {pressure_kpa} kPa for {expected_kpa}"
+                );
+                worst_after_kpa = worst_after_kpa.max(error_kpa);
+            }
+        }
+    }
+    let accepted_after_us = accepted_us.unwrap() - step_us;
+    println!(
+        "applied {accepted_after_us} us after the step; worst error during the transition \
+         {worst_during_kpa:.3} kPa, otherwise {worst_after_kpa:.5} kPa"
+    );
+    assert!(accepted_after_us <= 500_000);
+    assert_eq!(accepted_after_us, 250_000);
+    assert_eq!(pad.last_valid_temperature_c(), Some(55.0));
+}
+
+/// The same step without sample times is applied at its twelfth set (0.12–0.48 s at the
+/// device's 25–100 sets/s) and reads the table's pressures from then on.
+#[test]
+fn without_times_a_persistent_step_is_applied_at_the_set_count() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    for set in 1..=30 {
+        let output = pad.process(&SampleInput::new(loaded_at(55.0), Some(55.0)));
+        let implausible = output.taxels[0]
+            .flags()
+            .contains(TaxelFlags::TEMPERATURE_IMPLAUSIBLE);
+        assert_eq!(implausible, set < 12, "set {set}");
+        if !implausible {
+            for (taxel, (expected_kpa, _)) in output.taxels.iter().zip(LOADS) {
+                let pressure_kpa = taxel.pressure_kpa().unwrap();
+                assert!(
+                    (pressure_kpa - expected_kpa).abs() < 0.01,
+                    "set {set}: {pressure_kpa}"
+                );
+            }
+        }
+    }
+}
+
+/// The acquisition switching to another sensor (the die sensor with its offset, or the TMP117
+/// back) tells the model, which applies the new sensor's level at once: no set flagged, the
+/// pressures corrected at the new reading from the first set.
+#[test]
+fn a_temperature_source_change_is_applied_at_once() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    let mut time_us = 1_000_000;
+    let mut next = |pad: &mut PadModel, temperature_c: f32| {
+        time_us += 10_000;
+        pad.process(
+            &SampleInput::new(loaded_at(temperature_c), Some(temperature_c)).at_time_us(time_us),
+        )
+    };
+    next(&mut pad, 25.0);
+    for temperature_c in [33.0, 25.0, 55.0] {
+        pad.temperature_source_changed();
+        let output = next(&mut pad, temperature_c);
+        assert_eq!(output.temperature.temperature_c, temperature_c);
+        for (taxel, (expected_kpa, _)) in output.taxels.iter().zip(LOADS) {
+            assert!(!taxel.flags().contains(TaxelFlags::TEMPERATURE_IMPLAUSIBLE));
+            let pressure_kpa = taxel.pressure_kpa().unwrap();
+            assert!(
+                (pressure_kpa - expected_kpa).abs() < 0.01,
+                "{temperature_c}: {pressure_kpa}"
+            );
+        }
+    }
+    // Without the change the same jump is a glitch.
+    let output = next(&mut pad, 25.0);
+    assert_eq!(output.temperature.temperature_c, 55.0);
+    assert!(output.taxels[0]
+        .flags()
+        .contains(TaxelFlags::TEMPERATURE_IMPLAUSIBLE));
 }
 
 /// A capacitance no converter can produce is invalid input, a fault: before the fix 1e30 pF

@@ -30,7 +30,7 @@ pub struct PadMessagesFile<W: Write + Seek> {
     recorder: McapRecorder<W>,
     namespace: String,
     frame_prefix: String,
-    geometry: PadGeometry,
+    geometries: BTreeMap<(usize, u8), PadGeometry>,
     pads: BTreeMap<(usize, u8), PadChannels>,
     messages: u64,
 }
@@ -42,10 +42,16 @@ impl<W: Write + Seek> PadMessagesFile<W> {
             recorder: McapRecorder::new(output)?,
             namespace: namespace.to_owned(),
             frame_prefix: frame_prefix.to_owned(),
-            geometry: PadGeometry::ARTICLE,
+            geometries: BTreeMap::new(),
             pads: BTreeMap::new(),
             messages: 0,
         })
+    }
+
+    /// Pad `pad` of `device` has `geometry` (the one its PadInfo reports): its pressure clouds
+    /// place the taxels there. Until this is called a pad has the built-in geometry.
+    pub fn set_geometry(&mut self, device: usize, pad: u8, geometry: PadGeometry) {
+        self.geometries.insert((device, pad), geometry);
     }
 
     /// Messages written so far.
@@ -67,7 +73,11 @@ impl<W: Write + Seek> PadMessagesFile<W> {
             stamp: Time::from_unix_ns(stamp_ns),
             frame_id: channels.frame_id.clone(),
         };
-        let cloud = pressure_cloud(sample, header.clone(), &self.geometry);
+        let geometry = self
+            .geometries
+            .get(&(device, sample.pad.get()))
+            .unwrap_or(&PadGeometry::ARTICLE);
+        let cloud = pressure_cloud(sample, header.clone(), geometry);
         self.recorder.write_cdr(
             channels.pressure,
             sample.sequence,

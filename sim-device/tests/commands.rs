@@ -225,10 +225,41 @@ fn a_tare_while_the_pad_is_pressed_is_refused_as_not_still() {
     let mut host = Host::new();
     // Host::new ran 20 sets of 10 ms; run to 3.2 s, into the press.
     host.steps(300);
-    assert_eq!(
-        host.request(Command::Tare { sample_sets: 32 }),
-        Err(ErrorCode::TareNotStill)
-    );
+    let mut encoded = [0u8; 64];
+    let length = wire::encode_frame(
+        &Request {
+            request_id: 600,
+            command: Command::Tare { sample_sets: 32 },
+        },
+        &mut encoded,
+    )
+    .unwrap();
+    host.send_bytes(&encoded[..length]);
+    // The pad's TareRefused names the moving taxel, C11, before the reply refuses the tare.
+    let mut refused = None;
+    let mut reply = None;
+    for _ in 0..200 {
+        for frame in host.steps(1) {
+            match frame {
+                DeviceFrame::Event(EventFrame {
+                    event: DeviceEvent::TareRefused { pad, refused_mask },
+                    ..
+                }) => {
+                    assert!(reply.is_none(), "the event comes before the reply");
+                    refused = Some((pad.get(), refused_mask));
+                }
+                DeviceFrame::Reply(frame) if frame.request_id == 600 => reply = Some(frame.result),
+                _ => {}
+            }
+        }
+        if reply.is_some() {
+            break;
+        }
+    }
+    assert_eq!(reply, Some(Err(ErrorCode::TareNotStill)));
+    let (pad, refused_mask) = refused.expect("a TareRefused event");
+    assert_eq!(pad, 0);
+    assert_eq!(refused_mask & 0b0001, 0b0001, "C11 moved: {refused_mask:04b}");
     // Held at 3 kPa from 4 s: still, so it tares (a deliberate tare under a static load).
     host.steps(100);
     assert_eq!(

@@ -19,7 +19,7 @@ use model_core::{
     TAXEL_COUNT,
 };
 use support::{encoded, sample, taxel_binary};
-use taxel_host::device_state::{BaselineChange, RecordedDeviceState};
+use taxel_host::device_state::{BaselineChange, RecordedDeviceState, RecordedPadState};
 use taxel_host::schema::{header, PadReading, PadRow, RowReader, RowWriter};
 use wire::{DeviceFrame, TemperatureSource};
 
@@ -611,12 +611,14 @@ fn each_device_is_converted_with_its_recorded_state_unless_told_otherwise() {
         [TaxelReading::CapacitancePf(4.6); TAXEL_COUNT],
         Some(25.0),
     ));
-    let mut state = RecordedDeviceState::new(&support::info(1), &calibration);
-    state.baselines = vec![BaselineChange {
+    let mut state = RecordedDeviceState::new(&support::info(1));
+    let mut pad = RecordedPadState::new(&wire::testing::pad_info_frame(0), &calibration).unwrap();
+    pad.baselines = vec![BaselineChange {
         from_sequence: 0,
         taxels: model.baseline_records(),
     }];
-    assert!(state.baselines[0].taxels.iter().all(Option::is_some));
+    assert!(pad.baselines[0].taxels.iter().all(Option::is_some));
+    state.add_pad(pad);
     state
         .write(&directory.path().join("input.csv.dev0.device.json"))
         .unwrap();

@@ -284,7 +284,7 @@ fn a_tare_during_a_recording_is_followed_by_the_conversion() {
     // commanded tare is the last change, after set 100 of the recording.
     let recorded = read_rows(&csv_path);
     assert_eq!(recorded.len(), 250);
-    let changes = &device_state.baselines;
+    let changes = &device_state.pad_state(0).unwrap().baselines;
     assert!(changes.len() >= 2, "{changes:?}");
     let last = &changes[changes.len() - 1];
     assert!(last.from_sequence > changes[changes.len() - 2].from_sequence);

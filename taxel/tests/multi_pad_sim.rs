@@ -245,8 +245,8 @@ fn two_devices_with_several_pads_are_recorded_on_one_timeline() {
             .join(format!("both.csv.dev{device}.device.json"));
         let state = RecordedDeviceState::read(&path).unwrap();
         assert_eq!(state.pad_count, pad_count, "device {device}");
-        let pads: Vec<u8> = state.other_pads.iter().map(|pad| pad.pad).collect();
-        assert_eq!(pads, (1..pad_count).collect::<Vec<_>>(), "device {device}");
+        let pads: Vec<u8> = state.pads.iter().map(|pad| pad.pad).collect();
+        assert_eq!(pads, (0..pad_count).collect::<Vec<_>>(), "device {device}");
         assert!(state.pads_without_state().is_empty(), "device {device}");
     }
 }

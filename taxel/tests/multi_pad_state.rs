@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 use model_core::{BaselineRecord, Calibration, TaxelFlags, TAXEL_COUNT};
 use taxel_host::calibration_transfer::{pull, pull_baselines, upload_to_pads};
 use taxel_host::device_link::DeviceLink;
-use taxel_host::device_state::{BaselineChange, RecordedDeviceState};
+use taxel_host::device_state::{BaselineChange, RecordedDeviceState, RecordedPadState};
 use taxel_host::schema::{PadReading, PadRow, RowReader, RowWriter};
 use taxel_host::session::{DeviceSession, SessionConfig, SessionEvent};
 use wire::{
@@ -177,16 +177,17 @@ fn a_pad_with_its_own_calibration_is_recorded_and_converted_with_it() {
     let state_path = directory.path().join("rec.csv.dev0.device.json");
     let state = RecordedDeviceState::read(&state_path).unwrap();
     assert_eq!(state.pad_count, 2);
-    assert_eq!(state.calibration.id, sim_device::FACTORY_CALIBRATION_ID);
-    assert_eq!(state.other_pads.len(), 1);
-    let pad_1 = &state.other_pads[0];
+    let pad_0 = &state.pads[0];
+    assert_eq!(pad_0.calibration.id, sim_device::FACTORY_CALIBRATION_ID);
+    assert_eq!(state.pads.len(), 2);
+    let pad_1 = &state.pads[1];
     assert_eq!(pad_1.pad, 1);
     assert_eq!(pad_1.calibration.id, PAD_1_CALIBRATION_ID);
     assert_eq!(
         pad_1.calibration().unwrap(),
         another_calibration(&pad_0_calibration)
     );
-    assert_eq!(pad_1.tier, state.tier);
+    assert_eq!(pad_1.tier, pad_0.tier);
     assert_eq!(pad_1.baselines.len(), 1);
     assert!(pad_1.baselines[0].taxels.iter().all(Option::is_some));
     assert!(state.pads_without_state().is_empty());
@@ -282,7 +283,7 @@ fn a_tare_during_a_recording_lands_in_each_pads_own_history() {
     };
     let mut session = DeviceSession::open(link, config).unwrap();
     assert_eq!(
-        session.state().unwrap().other_pads[0].calibration.id,
+        session.state().unwrap().pads[1].calibration.id,
         PAD_1_CALIBRATION_ID
     );
     let csv_path = directory.path().join("tare.csv");
@@ -410,9 +411,8 @@ fn a_tare_during_a_recording_lands_in_each_pads_own_history() {
     let without_tare = directory.path().join("without-tare.csv");
     std::fs::copy(&csv_path, &without_tare).unwrap();
     let mut truncated = state.clone();
-    truncated.baselines.pop();
-    for other in &mut truncated.other_pads {
-        other.baselines.pop();
+    for pad in &mut truncated.pads {
+        pad.baselines.pop();
     }
     truncated
         .write(&directory.path().join("without-tare.csv.dev0.device.json"))
@@ -477,13 +477,17 @@ fn two_pad_device() -> FakeDevice {
                     ))),
                 })
             }
+            // Pad 0 as the Info frame says; pad 1 with a calibration and tier of its own.
             WireCommand::PadInfo { pad } => ReplyPayload::PadInfo(PadInfoFrame {
-                pad,
-                channel: Some(pad.get()),
                 temperature_sensor: wire::TemperatureSensor::DieOnly,
-                calibration_id: 9,
+                calibration_id: if pad.get() == 0 { 0 } else { 9 },
                 calibration_source: wire::CalibrationSource::Host,
-                model_tier: wire::Tier::Linear,
+                model_tier: if pad.get() == 0 {
+                    wire::Tier::MonotoneCubic
+                } else {
+                    wire::Tier::Linear
+                },
+                ..wire::testing::pad_info_frame(pad.get())
             }),
             _ => ReplyPayload::Ack,
         };
@@ -529,8 +533,9 @@ fn every_pads_state_is_read_and_a_tare_is_followed_on_its_own_pad() {
     };
     let mut session = DeviceSession::open(link, config).unwrap();
     let state = session.state().unwrap().clone();
-    assert_eq!(state.calibration.id, 0);
-    assert_eq!(state.tier, "monotone-cubic");
+    let pad_0 = state.pad_state(0).unwrap();
+    assert_eq!(pad_0.calibration.id, 0);
+    assert_eq!(pad_0.tier, "monotone-cubic");
     let pad_1 = state.pad_state(1).unwrap();
     assert_eq!(pad_1.calibration.id, 9);
     assert_eq!(pad_1.tier, "linear");
@@ -669,7 +674,14 @@ fn a_pad_without_a_recorded_state_converts_with_the_defaults_and_says_so() {
     }
     writer.into_inner().flush().unwrap();
     // Pad 0's state only, with a calibration of its own (20 % lower pressures).
-    let state = RecordedDeviceState::new(&info(2), &another_calibration(&Calibration::default()));
+    let mut state = RecordedDeviceState::new(&info(2));
+    state.add_pad(
+        RecordedPadState::new(
+            &wire::testing::pad_info_frame(0),
+            &another_calibration(&Calibration::default()),
+        )
+        .unwrap(),
+    );
     assert_eq!(state.pads_without_state(), [1]);
     state
         .write(&directory.path().join("rec.csv.dev0.device.json"))

@@ -6,13 +6,14 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::DecodeError;
 use crate::{PadIndex, TAXEL_COUNT};
+use model_core::{GeometryError, PadGeometry, PadRole, TaxelGeometry};
 
 /// The most calibration points one taxel calibration holds.
 pub const CALIBRATION_POINTS_MAX: usize = 16;
 
 /// The number of [`Command`] variants; a discriminant at or above it is
 /// [`ErrorCode::UnknownCommand`].
-pub const COMMAND_COUNT: u32 = 15;
+pub const COMMAND_COUNT: u32 = 16;
 
 /// The discriminants of the commands whose arguments are typed values ([`SampleRate`], [`Tier`],
 /// [`PadIndex`]) that refuse numbers outside their range when they are decoded.
@@ -21,6 +22,7 @@ const SET_MODEL_TIER_DISCRIMINANT: u32 = 6;
 const READ_CALIBRATION_DISCRIMINANT: u32 = 8;
 const READ_BASELINE_DISCRIMINANT: u32 = 13;
 const PAD_INFO_DISCRIMINANT: u32 = 14;
+const SET_PAD_GEOMETRY_DISCRIMINANT: u32 = 15;
 
 /// Why the device refused a request.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -242,6 +244,36 @@ pub enum Command {
         /// The pad.
         pad: PadIndex,
     },
+    /// Replaces one pad's geometry and role in RAM (version 5): what its force and centre of
+    /// pressure are computed with from the next sample set on, and what `PadInfo` reports.
+    /// Saved to flash with the pad's calibration by [`Command::SaveCalibration`]. Replies Ack;
+    /// [`ErrorCode::InvalidArgument`] for a pad the device lacks or a geometry
+    /// [`model_core::PadGeometry::new`] refuses (an area not above 0, a centre out of range,
+    /// two centres equal, a value not finite).
+    SetPadGeometry(PadGeometryRecord),
+}
+
+/// One pad's geometry and role, as [`Command::SetPadGeometry`] carries it and
+/// [`crate::PadInfoFrame`] reports it: plain data, validated by the device.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PadGeometryRecord {
+    /// The pad.
+    pub pad: PadIndex,
+    /// What the pad is (for the host's layouts).
+    pub role: PadRole,
+    /// Each taxel's electrode centre and area, in pad order (C11, C12, C21, C22).
+    pub taxels: [TaxelGeometry; TAXEL_COUNT],
+}
+
+impl PadGeometryRecord {
+    /// The largest body: pad 1 + role 1 + 4 × (x, y, area) f32.
+    pub const MAX_LEN: usize = 1 + 1 + TAXEL_COUNT * 3 * 4;
+
+    /// The validated geometry, or the reason it is refused.
+    pub fn geometry(&self) -> Result<PadGeometry, GeometryError> {
+        PadGeometry::new(self.taxels)
+    }
 }
 
 impl Command {
@@ -259,6 +291,9 @@ impl Command {
                 Err(ErrorCode::InvalidArgument)
             }
             Command::WriteCalibration(record) => record.check(),
+            Command::SetPadGeometry(record) if record.geometry().is_err() => {
+                Err(ErrorCode::InvalidArgument)
+            }
             _ => Ok(()),
         }
     }
@@ -307,6 +342,7 @@ impl Request {
                                 | READ_CALIBRATION_DISCRIMINANT
                                 | READ_BASELINE_DISCRIMINANT
                                 | PAD_INFO_DISCRIMINANT
+                                | SET_PAD_GEOMETRY_DISCRIMINANT
                         )
                     );
                     Err(DecodeError::InvalidRequest {

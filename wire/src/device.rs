@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::command::{ErrorCode, SampleRate, TaxelCalibrationRecord, Tier};
 use crate::sample::{PadIndex, SampleFrame, TemperatureSource};
+use model_core::{PadRole, TaxelGeometry};
 
 /// A frame from the device to the host.
 #[derive(Debug, Clone, PartialEq)]
@@ -156,8 +157,9 @@ pub enum TemperatureSensor {
     DieOnly,
 }
 
-/// One pad: where it is and what it runs with (version 3).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+/// One pad: where it is, what it runs with, and its geometry (version 3; the role and geometry
+/// since version 5).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PadInfoFrame {
     /// The pad.
@@ -172,11 +174,17 @@ pub struct PadInfoFrame {
     pub calibration_source: CalibrationSource,
     /// Its model tier.
     pub model_tier: Tier,
+    /// What the pad is (for the host's layouts).
+    pub role: PadRole,
+    /// Each taxel's electrode centre and area in the pad's frame, in pad order: what the
+    /// device computes the pad's force and centre of pressure with.
+    pub taxels: [TaxelGeometry; crate::TAXEL_COUNT],
 }
 
 impl PadInfoFrame {
-    /// The largest body: pad 1 + channel 2 + sensor 2 + id 5 + source 1 + tier 1.
-    pub const MAX_BODY_LEN: usize = 1 + 2 + 2 + 5 + 1 + 1;
+    /// The largest body: pad 1 + channel 2 + sensor 2 + id 5 + source 1 + tier 1 + role 1
+    /// + 4 × (x, y, area) f32.
+    pub const MAX_BODY_LEN: usize = 1 + 2 + 2 + 5 + 1 + 1 + 1 + crate::TAXEL_COUNT * 3 * 4;
 }
 
 /// A taxel's baseline as the model holds it: the tared capacitance, split into two parts that
@@ -222,16 +230,13 @@ impl ReplyFrame {
     /// The largest encoded frame, delimiter included (more than one USB packet).
     pub const MAX_ENCODED_LEN: usize = crate::frame_encoded_len_bound(Self::MAX_BODY_LEN);
     /// The largest encoded frame of every reply except calibration replies: a reply carrying
-    /// an Info frame (its body, 33 bytes since version 4, is the largest of Info, Counters,
-    /// ModelTier and Baseline).
+    /// a PadInfo frame (its body, 60 bytes since version 5, is the largest of Info, Counters,
+    /// ModelTier, Baseline and PadInfo).
     pub const MAX_ENCODED_LEN_WITHOUT_CALIBRATION: usize = crate::frame_encoded_len_bound(
-        3 + 1
-            + 1
-            + if InfoFrame::MAX_BODY_LEN > CountersFrame::MAX_BODY_LEN {
-                InfoFrame::MAX_BODY_LEN
-            } else {
-                CountersFrame::MAX_BODY_LEN
-            },
+        3 + 1 + 1 + max(
+            PadInfoFrame::MAX_BODY_LEN,
+            max(InfoFrame::MAX_BODY_LEN, CountersFrame::MAX_BODY_LEN),
+        ),
     );
     /// The most calibration points a calibration reply can carry and still fit one 63-byte
     /// frame in the worst case of its other fields (an unloaded capacitance included).
@@ -280,6 +285,16 @@ pub enum DeviceEvent {
         /// The pad.
         pad: PadIndex,
     },
+    /// A pad's tare finished without a new baseline for every taxel (version 5): the taxels
+    /// named were loaded, not still, open or shorted, and keep their previous baseline if they
+    /// had one ([`DeviceEvent::TareFinished`]'s mask says which taxels have one). Sent before
+    /// the tare's reply, whether the tare was asked for or ran at boot.
+    TareRefused {
+        /// The pad.
+        pad: PadIndex,
+        /// Bit n set: taxel n got no new baseline.
+        refused_mask: u8,
+    },
 }
 
 /// An asynchronous device event with the time it happened.
@@ -313,5 +328,13 @@ impl DeviceFrame {
             DeviceFrame::Reply(_) => crate::kind::REPLY,
             DeviceFrame::Event(_) => crate::kind::EVENT,
         }
+    }
+}
+
+const fn max(a: usize, b: usize) -> usize {
+    if a > b {
+        a
+    } else {
+        b
     }
 }

@@ -31,7 +31,7 @@ mod usb;
 pub use checksum::{crc16, CRC_ALGORITHM};
 pub use command::{
     Command, ErrorCode, Request, SampleRate, TaxelCalibrationRecord, TaxelCalibrationWire, Tier,
-    UseCase, CALIBRATION_POINTS_MAX, COMMAND_COUNT,
+    UseCase, CALIBRATION_POINTS_MAX, COMMAND_COUNT, PadGeometryRecord,
 };
 pub use device::{
     BaselineWire, CalibrationSource, CountersFrame, DeviceEvent, DeviceFrame, EventFrame,
@@ -39,6 +39,7 @@ pub use device::{
     TemperatureSensor,
 };
 pub use error::{DecodeError, EncodeError};
+pub use model_core::{PadGeometry, PadRole, TaxelGeometry};
 pub use frame::{
     decode_frame, encode_frame, frame_encoded_len_bound, DeviceFrameDecoder, Frame, FrameDecoder,
     RequestDecoder, WireMessage, CRC_LEN, HEADER_LEN, MAX_FRAME_ENCODED_LEN, MAX_PAYLOAD_LEN,
@@ -63,8 +64,10 @@ pub use postcard::Error as PostcardError;
 /// `WriteCalibration` and of the calibration reply; postcard bodies carry no field names, so a
 /// version-1 peer could not tell, and every frame of version 2 says so instead. Version 3 made
 /// the device several pads: a sample frame per pad with its index, force, centre of pressure
-/// and contact; contact events; the pad count in the info frame.
-pub const PROTOCOL_VERSION: u8 = 4;
+/// and contact; contact events; the pad count in the info frame. Version 4 added the device
+/// clock's rate to the info frame; version 5 each pad's role and geometry to `PadInfo` and the
+/// `SetPadGeometry` command.
+pub const PROTOCOL_VERSION: u8 = 5;
 
 /// The number of taxels on the pad: C11, C12, C21, C22 in this order (row, column).
 pub const TAXEL_COUNT: usize = 4;

@@ -3,7 +3,8 @@
 //! syntax: `SampleFrame { sequence: 7, ..testing::sample_frame(0) }`.
 
 use crate::{
-    CalibrationSource, FirmwareVersion, InfoFrame, PadIndex, PadInfoFrame, PadSummary, SampleFrame,
+    CalibrationSource, FirmwareVersion, InfoFrame, PadGeometry, PadIndex, PadInfoFrame, PadRole,
+    PadSummary, SampleFrame,
     SampleRate, TaxelSample, TemperatureSensor, TemperatureSource, Tier, PROTOCOL_VERSION,
 };
 
@@ -54,7 +55,7 @@ pub fn info_frame(pad_count: u8) -> InfoFrame {
 }
 
 /// Pad `pad`'s PadInfo (clamped to the largest pad index): on multiplexer channel `pad`, its own
-/// TMP117 at 0x48, the built-in default calibration, the default tier.
+/// TMP117 at 0x48, the built-in default calibration, the default tier, the article's geometry.
 pub fn pad_info_frame(pad: u8) -> PadInfoFrame {
     let pad = pad_index(pad);
     PadInfoFrame {
@@ -64,6 +65,8 @@ pub fn pad_info_frame(pad: u8) -> PadInfoFrame {
         calibration_id: 0,
         calibration_source: CalibrationSource::Defaults,
         model_tier: Tier::MonotoneCubic,
+        role: PadRole::Unspecified,
+        taxels: *PadGeometry::ARTICLE.taxels(),
     }
 }
 

@@ -68,6 +68,11 @@ fn command_discriminants_are_the_documented_ones() {
         Command::PadInfo {
             pad: PadIndex::default(),
         },
+        Command::SetPadGeometry(wire::PadGeometryRecord {
+            pad: PadIndex::default(),
+            role: wire::PadRole::Palm,
+            taxels: *wire::PadGeometry::ARTICLE.taxels(),
+        }),
     ];
     assert_eq!(commands.len() as u32, COMMAND_COUNT);
     for (discriminant, command) in commands.into_iter().enumerate() {
@@ -215,6 +220,24 @@ fn arguments_out_of_range_are_invalid() {
         .check_arguments(),
         invalid
     );
+    let geometry = |taxels| {
+        Command::SetPadGeometry(wire::PadGeometryRecord {
+            pad: PadIndex::default(),
+            role: wire::PadRole::Fingertip,
+            taxels,
+        })
+    };
+    let article = *wire::PadGeometry::ARTICLE.taxels();
+    assert_eq!(geometry(article).check_arguments(), Ok(()));
+    let mut zero_area = article;
+    zero_area[2].area_mm2 = 0.0;
+    let mut same_place = article;
+    same_place[1] = same_place[0];
+    let mut not_finite = article;
+    not_finite[3].x_mm = f32::NAN;
+    for broken in [zero_area, same_place, not_finite] {
+        assert_eq!(geometry(broken).check_arguments(), invalid, "{broken:?}");
+    }
     assert_eq!(Command::SetUseCase(use_case()).check_arguments(), Ok(()));
     for broken in [
         UseCase {

@@ -270,8 +270,8 @@ fn request_results(bytes: &[u8]) -> Vec<Result<Request, DecodeError>> {
 
 #[test]
 fn device_side_answers_requests_it_cannot_parse_when_the_id_is_known() {
-    // request id 300 = varint AC 02; command discriminant 15 does not exist.
-    let unknown = raw_frame(PROTOCOL_VERSION, kind::REQUEST, &[0xAC, 0x02, 15]);
+    // request id 300 = varint AC 02; command discriminant 16 does not exist.
+    let unknown = raw_frame(PROTOCOL_VERSION, kind::REQUEST, &[0xAC, 0x02, 16]);
     let results = request_results(&unknown);
     let expected = DecodeError::InvalidRequest {
         request_id: 300,

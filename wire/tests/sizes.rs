@@ -52,8 +52,10 @@ fn worst_case_of_every_frame_has_the_documented_length() {
         reply_len(ReplyPayload::Counters(worst_case_counters())),
         reply_len(ReplyPayload::ModelTier(Tier::Polynomial)),
         reply_len(ReplyPayload::Baseline(worst_case_baseline())),
+        reply_len(ReplyPayload::PadInfo(worst_case_pad_info())),
     ];
-    assert_eq!(other_replies[1], 44, "the Info reply is the longest");
+    assert_eq!(other_replies[1], 44, "the Info reply");
+    assert_eq!(other_replies[5], 72, "the PadInfo reply is the longest");
     assert_eq!(
         other_replies.iter().max(),
         Some(&ReplyFrame::MAX_ENCODED_LEN_WITHOUT_CALIBRATION)
@@ -142,6 +144,10 @@ proptest! {
                 if record.calibration.points.len() > ReplyFrame::CALIBRATION_POINTS_IN_ONE_PACKET =>
             {
                 ReplyFrame::MAX_ENCODED_LEN
+            }
+            // Since version 5 a PadInfo reply carries the pad's geometry: two packets.
+            DeviceFrame::Reply(ReplyFrame { result: Ok(ReplyPayload::PadInfo(_)), .. }) => {
+                ReplyFrame::MAX_ENCODED_LEN_WITHOUT_CALIBRATION
             }
             DeviceFrame::Reply(_) => ONE_SHORT_PACKET,
         };

@@ -11,6 +11,7 @@ use model_core::{
 use super::{PadOptions, TareSource};
 use crate::device_state::BaselineChange;
 use crate::schema::PadReading;
+use wire::TemperatureSource;
 
 /// Flags a recording's sample frames carry that come from the acquisition, not the model, and
 /// so must be kept when the model runs again.
@@ -141,6 +142,8 @@ pub(super) struct PadRun {
     tare_watch: TareWatch,
     geometry: PadGeometry,
     contact: ContactDetector,
+    // The sensor that gave the last temperature (TMP117 or the MCU's), as the device tells it.
+    last_temperature_sensor: Option<TemperatureSource>,
 }
 
 impl PadRun {
@@ -150,7 +153,8 @@ impl PadRun {
             model: new_model(options)?,
             baselines: RecordedBaselines::new(&options.tare),
             tare_watch: TareWatch::default(),
-            geometry: PadGeometry::ARTICLE,
+            geometry: options.geometry,
+            last_temperature_sensor: None,
             contact: ContactDetector::new(ContactConfig::DEFAULT),
         })
     }
@@ -167,6 +171,7 @@ impl PadRun {
     ) -> PadReading {
         self.baselines
             .before_sample(&mut self.model, Some(sequence));
+        self.note_temperature_sensor(reading.temperature_source);
         let output = self.model.process(&reading_input(reading, timed));
         self.tare_watch.observe(&self.model);
         let force = pad_force(&output.taxels, &self.geometry);
@@ -181,6 +186,22 @@ impl PadRun {
             contact: summary.contact,
             ..*reading
         }
+    }
+
+    /// As the device does: a change between the TMP117 and the MCU's sensor is no glitch, so
+    /// the model applies the new sensor's level at once; a set without a new reading (none, or
+    /// the last one held) changes nothing.
+    fn note_temperature_sensor(&mut self, source: TemperatureSource) {
+        if !matches!(source, TemperatureSource::Tmp117 | TemperatureSource::McuInternal) {
+            return;
+        }
+        if self
+            .last_temperature_sensor
+            .is_some_and(|last| last != source)
+        {
+            self.model.temperature_source_changed();
+        }
+        self.last_temperature_sensor = Some(source);
     }
 
     /// The tare's problems, at the end.

@@ -108,6 +108,9 @@ pub fn run(args: &RecordArgs) -> anyhow::Result<ExitCode> {
     let mut recorder = Recorder::create(paths.clone(), sessions.len(), clock, args.samples)?;
     for (device, session) in sessions.iter_mut().enumerate() {
         recorder.set_clock_us_per_s(device, session.info().clock_us_per_s);
+        if let Some(state) = session.state() {
+            recorder.set_pad_geometries(device, state);
+        }
         session.link_mut().set_raw_log(recorder.raw_log(device)?);
         session
             .start()

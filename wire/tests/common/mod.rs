@@ -257,9 +257,20 @@ pub fn pad_info() -> impl Strategy<Value = wire::PadInfoFrame> {
         any::<u32>(),
         calibration_source(),
         tier(),
+        pad_role(),
+        taxel_geometries(any_f32().boxed()),
     )
         .prop_map(
-            |(pad, channel, temperature_sensor, calibration_id, calibration_source, model_tier)| {
+            |(
+                pad,
+                channel,
+                temperature_sensor,
+                calibration_id,
+                calibration_source,
+                model_tier,
+                role,
+                taxels,
+            )| {
                 wire::PadInfoFrame {
                     pad,
                     channel,
@@ -267,9 +278,33 @@ pub fn pad_info() -> impl Strategy<Value = wire::PadInfoFrame> {
                     calibration_id,
                     calibration_source,
                     model_tier,
+                    role,
+                    taxels,
                 }
             },
         )
+}
+
+pub fn pad_role() -> impl Strategy<Value = wire::PadRole> {
+    prop::sample::select(wire::PadRole::ALL.to_vec())
+}
+
+pub fn taxel_geometries(
+    float: BoxedStrategy<f32>,
+) -> impl Strategy<Value = [wire::TaxelGeometry; 4]> {
+    prop::array::uniform4((float.clone(), float.clone(), float).prop_map(|(x_mm, y_mm, area_mm2)| {
+        wire::TaxelGeometry {
+            x_mm,
+            y_mm,
+            area_mm2,
+        }
+    }))
+}
+
+pub fn pad_geometry_record() -> impl Strategy<Value = wire::PadGeometryRecord> {
+    (pad_index(), pad_role(), taxel_geometries(any_f32().boxed())).prop_map(
+        |(pad, role, taxels)| wire::PadGeometryRecord { pad, role, taxels },
+    )
 }
 
 pub fn reply_frame() -> impl Strategy<Value = ReplyFrame> {
@@ -292,6 +327,8 @@ pub fn device_event() -> impl Strategy<Value = DeviceEvent> {
             .prop_map(|(pad, tared_mask)| DeviceEvent::TareFinished { pad, tared_mask }),
         pad_index().prop_map(|pad| DeviceEvent::ContactStarted { pad }),
         pad_index().prop_map(|pad| DeviceEvent::ContactEnded { pad }),
+        (pad_index(), any::<u8>())
+            .prop_map(|(pad, refused_mask)| DeviceEvent::TareRefused { pad, refused_mask }),
     ]
 }
 
@@ -354,6 +391,7 @@ pub fn command() -> impl Strategy<Value = Command> {
         (pad_index(), any::<u8>())
             .prop_map(|(pad, taxel_index)| Command::ReadBaseline { pad, taxel_index }),
         pad_index().prop_map(|pad| Command::PadInfo { pad }),
+        pad_geometry_record().prop_map(Command::SetPadGeometry),
     ]
 }
 
@@ -502,6 +540,12 @@ pub fn worst_case_pad_info() -> wire::PadInfoFrame {
         calibration_id: u32::MAX,
         calibration_source: CalibrationSource::DefaultsAfterCorruptFlash,
         model_tier: Tier::Polynomial,
+        role: wire::PadRole::GripperJaw,
+        taxels: [wire::TaxelGeometry {
+            x_mm: f32::MAX,
+            y_mm: f32::MIN,
+            area_mm2: f32::NAN,
+        }; 4],
     }
 }
 
