@@ -11,6 +11,7 @@
 //! | [`Fault::Saturated`] | a conversion of the taxel's input | the result is a saturation code |
 //! | [`Fault::Shorted`] | a conversion of the taxel's input | the input is a (negative) capacitance |
 //! | [`Fault::OpenLead`] | a conversion of the taxel's input | the input is the lead alone |
+//! | [`Fault::FrozenResult`] | a conversion of the taxel's input | DONE sets, the result stays |
 //! | [`Fault::TemperatureStuck`] | a TEMP_RESULT read | TEMP_RESULT reads a fixed value |
 //! | [`Fault::Unplugged`] | a transaction reaching the pad | the pad NACKs, then comes back reset |
 //! | [`Fault::MuxChannelStuck`] | a transaction on the bus | the switch ignores the register |
@@ -97,6 +98,13 @@ pub enum Fault {
         taxel: usize,
         /// Capacitance seen by the converter, pF (`None`: the parasitic capacitance).
         capacitance_pf: Option<f32>,
+    },
+    /// The taxel's conversions complete and set DONE but leave its result register as it was:
+    /// the channel repeats one code (the "locked channel" users report in repeat mode; a
+    /// software reset zeroes the results, after which it repeats 0).
+    FrozenResult {
+        /// Taxel 0..4 (= CIN1..CIN4).
+        taxel: usize,
     },
     /// TMP117 TEMP_RESULT reads this register value whatever the temperature (conversions and
     /// Data_Ready go on).

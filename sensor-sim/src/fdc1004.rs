@@ -235,6 +235,19 @@ impl Fdc1004Model {
 
         let conf = self.conf_meas[measurement];
         let positive_input = self.effective_input((conf >> CHA_SHIFT) & 0b111);
+        let frozen = positive_input.is_some_and(|input| {
+            environment
+                .faults
+                .take(time_us, |fault| {
+                    matches!(fault, Fault::FrozenResult { taxel } if *taxel == input).then_some(())
+                })
+                .is_some()
+        });
+        if frozen {
+            environment.counters.frozen_conversions += 1;
+            self.complete_measurement(measurement, environment);
+            return;
+        }
         let negative_field = (conf >> CHB_SHIFT) & 0b111;
         let capdac = (conf >> CAPDAC_SHIFT) & 0b1_1111;
         let point = environment.scene.sample(time_us);
@@ -274,6 +287,11 @@ impl Fdc1004Model {
             environment.counters.saturated_codes += 1;
         }
         self.results[measurement] = code;
+        self.complete_measurement(measurement, environment);
+    }
+
+    /// Sets measurement `measurement`'s DONE bit and counts its conversion.
+    fn complete_measurement(&mut self, measurement: usize, environment: &mut Environment<'_>) {
         self.done |= done_bit(measurement);
         environment.counters.conversions += 1;
         environment.counters.conversions_per_measurement[measurement] += 1;

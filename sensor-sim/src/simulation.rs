@@ -33,7 +33,8 @@ pub struct Counters {
     /// NACKs of an address where no device is connected (none there, or behind an open
     /// multiplexer channel).
     pub nacks_unknown_address: u64,
-    /// FDC1004 conversions completed (result written, DONE set).
+    /// FDC1004 conversions completed (DONE set; the result written unless
+    /// [`Fault::FrozenResult`] kept the previous one).
     pub conversions: u64,
     /// FDC1004 conversions completed per measurement 1..4.
     pub conversions_per_measurement: [u64; 4],
@@ -47,6 +48,9 @@ pub struct Counters {
     pub shorted_conversions: u64,
     /// FDC1004 input conversions replaced by [`Fault::OpenLead`].
     pub open_conversions: u64,
+    /// FDC1004 conversions that left their result as it was ([`Fault::FrozenResult`]; they
+    /// are counted in `conversions` too).
+    pub frozen_conversions: u64,
     /// MEASn_MSB reads zeroed by [`Fault::ZeroReads`].
     pub zero_reads_injected: u64,
     /// Software resets (FDC1004 RST and TMP117 Soft_Reset).

@@ -148,6 +148,52 @@ fn saturation_on_one_channel() {
 }
 
 #[test]
+fn a_frozen_channel_repeats_its_code_while_done_still_sets() {
+    // With noise, a live channel's code changes at every conversion.
+    let config = SimulationConfig {
+        bus_frequency_hz: None,
+        ..SimulationConfig::default()
+    };
+    let (simulation, mut bus) = running(config).unwrap();
+    let before = read_all(&mut bus);
+    let start_us = simulation.now_us();
+    simulation.inject(
+        Fault::FrozenResult { taxel: 1 },
+        Window::Between {
+            start_us,
+            end_us: start_us + 100_000,
+        },
+    );
+    for _ in 0..5 {
+        simulation.advance_us(10_000);
+        assert_eq!(
+            read_register(&mut bus, FDC1004, FDC_CONF),
+            Ok(0x0DF0 | DONE_ALL),
+            "DONE sets for the frozen measurement too"
+        );
+        let codes = read_all(&mut bus);
+        assert_eq!(codes[1], before[1]);
+        for measurement in [0, 2, 3] {
+            assert_ne!(codes[measurement], before[measurement]);
+        }
+    }
+    let counters = simulation.counters();
+    assert_eq!(counters.frozen_conversions, 5);
+    assert_eq!(
+        counters.conversions_per_measurement[1],
+        counters.conversions_per_measurement[0]
+    );
+    // A software reset zeroes the register, which then stays at 0 while the fault lasts.
+    write_register(&mut bus, FDC1004, FDC_CONF, RST).unwrap();
+    start_all(&mut bus, RATE_400).unwrap();
+    simulation.advance_us(10_000);
+    assert_eq!(read_all(&mut bus)[1], 0);
+    // Over: the channel converts again.
+    simulation.advance_us(100_000);
+    assert!(read_all(&mut bus)[1] > 2_000_000);
+}
+
+#[test]
 fn shorted_electrodes_read_negative_or_saturate_low_with_a_capdac() {
     let (simulation, mut bus) = running(exact_config()).unwrap();
     simulation.inject(Fault::shorted(0), Window::From { start_us: 0 });

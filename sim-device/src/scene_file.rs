@@ -46,12 +46,25 @@ use serde::Deserialize;
 pub const DEFAULT_SCENE_TOML: &str = include_str!("../scenes/default.toml");
 
 /// The built-in scenes by name: the demo pad, a two-finger gripper grasping an object that
-/// slips, and a glove (five fingertips and the palm) grasping with the whole hand while one
-/// fingertip shorts.
-pub const BUILT_IN_SCENES: [(&str, &str); 3] = [
+/// slips, a glove (five fingertips and the palm) grasping with the whole hand while one
+/// fingertip shorts, and three scenes of one pad that go through faults so that a client sees
+/// every event and flag a scene can cause: the TMP117 lost and back and temperature jumps
+/// (`temperature-fallback`), every converter and taxel fault with the converter's recovery
+/// (`converter-faults`), and a tare at power-on that leaves a taxel out (`tare-refused`). Each
+/// file's header lists what the device sends and when.
+pub const BUILT_IN_SCENES: [(&str, &str); 6] = [
     ("default", DEFAULT_SCENE_TOML),
     ("gripper", include_str!("../scenes/gripper.toml")),
     ("glove", include_str!("../scenes/glove.toml")),
+    (
+        "temperature-fallback",
+        include_str!("../scenes/temperature-fallback.toml"),
+    ),
+    (
+        "converter-faults",
+        include_str!("../scenes/converter-faults.toml"),
+    ),
+    ("tare-refused", include_str!("../scenes/tare-refused.toml")),
 ];
 
 /// A fault a scene can inject.
@@ -64,13 +77,19 @@ pub enum FaultKind {
     Open,
     /// The taxel's converter channel saturates high.
     Saturated,
+    /// The taxel's converter channel freezes: its conversions complete but its result repeats
+    /// one code, which the device flags STUCK and cures by re-initialising the converter.
+    Frozen,
     /// The converter does not acknowledge on the bus.
     ConverterNack,
     /// The converter's DONE bits never set.
     DoneStuck,
     /// The converter's result registers read zero.
     ZeroReads,
-    /// The temperature sensor does not acknowledge on the bus.
+    /// The pad's own temperature sensor (TMP117) does not acknowledge on the bus: the device
+    /// falls back to the MCU's die sensor, and back to the TMP117 when it answers again. The
+    /// pads of a scene of several pads have none of their own (they share the TMP117 on the
+    /// main bus), so there it changes nothing.
     TemperatureSensorGone,
     /// The pad's board is unplugged: its converter and temperature sensor do not answer, and
     /// come back powered on afresh.
@@ -102,6 +121,7 @@ impl SceneFault {
                 taxel: self.taxel,
                 high: true,
             },
+            FaultKind::Frozen => Fault::FrozenResult { taxel: self.taxel },
             FaultKind::ConverterNack => Fault::Nack(Device::Fdc1004),
             FaultKind::DoneStuck => Fault::DoneStuck,
             FaultKind::ZeroReads => Fault::ZeroReads,
@@ -336,6 +356,44 @@ mod tests {
             .iter()
             .any(|fault| fault.kind == FaultKind::Shorted));
         assert_eq!(pad.scene.point_at_s(62.0).temperature_c, 45.0);
+    }
+
+    #[test]
+    fn the_fault_scenes_use_every_fault_kind() {
+        let mut kinds = Vec::new();
+        for name in ["temperature-fallback", "converter-faults", "tare-refused"] {
+            let scene = SceneFile::built_in(name).unwrap();
+            assert_eq!(scene.name, name);
+            assert_eq!(scene.pads.len(), 1, "{name}: one pad, with its own TMP117");
+            // The tare at power-on happens once, so the scene about it does not start over.
+            assert_eq!(scene.repeat, name != "tare-refused", "{name}");
+            let pad = scene.pad(0).unwrap();
+            // Faults end before the pass does, so that the next pass starts clean.
+            assert!(pad
+                .faults
+                .iter()
+                .all(|fault| fault.end_s < scene.period_s()));
+            kinds.extend(pad.faults.iter().map(|fault| fault.kind));
+        }
+        for kind in [
+            FaultKind::Shorted,
+            FaultKind::Open,
+            FaultKind::Saturated,
+            FaultKind::Frozen,
+            FaultKind::ConverterNack,
+            FaultKind::DoneStuck,
+            FaultKind::ZeroReads,
+            FaultKind::TemperatureSensorGone,
+            FaultKind::Unplugged,
+        ] {
+            assert!(kinds.contains(&kind), "{kind:?}");
+        }
+        let frozen = "[[keyframe]]\ntime_s = 0.0\npressure_kpa = [0.0, 0.0, 0.0, 0.0]\ntemperature_c = 25.0\n[[fault]]\nkind = \"frozen\"\ntaxel = 3\nstart_s = 1.0\nend_s = 2.0\n";
+        let scene = SceneFile::parse(frozen).unwrap();
+        assert_eq!(
+            scene.pads[0].faults[0].fault(),
+            Fault::FrozenResult { taxel: 3 }
+        );
     }
 
     #[test]

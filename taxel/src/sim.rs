@@ -28,6 +28,12 @@ a TMP117 on the main bus, found by the firmware's discovery as a real board's wo
 fingertips and the palm in a whole-hand grasp, one fingertip shorting) are built in; a scene \
 file of several pads ([[pad]] tables) gives the board as many pads, and --pads N makes every \
 one of N pads play a scene of one pad.\n\n\
+Faults: --scene temperature-fallback (the TMP117 lost and back, temperature jumps, beyond 55 \
+degC), --scene converter-faults (shorted, open, saturated and frozen channels, a converter \
+that stops answering, stalls or reads zeros, the pad's board unplugged) and --scene \
+tare-refused (a taxel left out of the tare at power-on) make the device send every event and \
+flag a scene can cause; docs/PROTOCOL.md (sections 5.5 and 7) says which comes \
+when.\n\n\
 It prints the terminal's path (e.g. /dev/pts/7); open it with `taxel view PATH`, `taxel record \
 PATH -o out.csv`, pyserial or a terminal. It answers the same commands as the firmware. \
 Scene files are TOML: see sim-device/scenes/default.toml (one pad) and \
@@ -39,7 +45,7 @@ taxel sim --pads 8";
 pub const DEMO_LONG_ABOUT: &str = "The simulated device and the live view together: see the \
 pad work without hardware.\n\n\
 The simulated device (see `taxel sim --help`) plays the built-in demo scene, or --scene \
-gripper, glove or FILE, and the live view (see `taxel view --help`) shows it: the 2x2 heat map with kPa and flags, the \
+gripper, glove, temperature-fallback, converter-faults, tare-refused or FILE, and the live view (see `taxel view --help`) shows it: the 2x2 heat map with kPa and flags, the \
 pressure of each taxel over the last seconds, the temperature and the rates.\n\n\
 Keys: t = tare (keep the pad unloaded), p = pause the display, r = start/stop recording to a \
 file, m = drop a marker into the recording, q = quit.\n\n\
@@ -49,7 +55,8 @@ at the concentrated-load short and exits)";
 /// Arguments of `taxel sim`.
 #[derive(Debug, Clone, Args)]
 pub struct SimArgs {
-    /// Scene: a built-in name (default, gripper, glove) or a TOML file; default: the demo.
+    /// Scene: a built-in name (default, gripper, glove, temperature-fallback,
+    /// converter-faults, tare-refused) or a TOML file; default: the demo.
     #[arg(long, value_name = "NAME|FILE")]
     pub scene: Option<PathBuf>,
     /// Pads on the simulated board (1-8), each playing the scene; default: as many as the
@@ -79,7 +86,8 @@ pub struct SimArgs {
 /// Arguments of `taxel demo`.
 #[derive(Debug, Clone, Args)]
 pub struct DemoArgs {
-    /// Scene: a built-in name (default, gripper, glove) or a TOML file; default: the demo.
+    /// Scene: a built-in name (default, gripper, glove, temperature-fallback,
+    /// converter-faults, tare-refused) or a TOML file; default: the demo.
     #[arg(long, value_name = "NAME|FILE")]
     pub scene: Option<PathBuf>,
     /// Simulated seconds per wall-clock second.
