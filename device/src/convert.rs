@@ -4,7 +4,7 @@ use acquisition::{Counters, ProcessedSample, TemperatureOrigin};
 use fdc1004::Rate;
 use heapless::Vec;
 use model_core::{
-    BaselineRecord, Calibration, CurvePoint, PadForce, PadForceFlags, PadModel, SplitCapacitance,
+    BaselineRecord, Calibration, CurvePoint, PadContact, PadModel, SplitCapacitance,
     TaxelCalibrationSpec,
 };
 use wire::{
@@ -46,12 +46,12 @@ pub fn wire_temperature_source(sample: &ProcessedSample, pad: &PadModel) -> Temp
 }
 
 /// The wire's summary of a pad's force and contact.
-pub fn pad_summary(force: &PadForce, contact: bool) -> PadSummary {
+pub fn pad_summary(contact: &PadContact) -> PadSummary {
     PadSummary {
-        force_n: force.force_n,
-        centre_of_pressure_mm: force.centre_of_pressure_mm.map(|(x_mm, y_mm)| [x_mm, y_mm]),
-        partial: force.flags.contains(PadForceFlags::PARTIAL),
-        contact,
+        force_n: contact.force_n(),
+        centre_of_pressure_mm: contact.centre_of_pressure_mm(),
+        partial: contact.partial(),
+        contact: contact.in_contact,
     }
 }
 

@@ -38,8 +38,8 @@ use acquisition::discovery::{PadSlot, PadTemperature, MAX_PADS};
 use acquisition::{ProcessedSample, TemperatureOrigin};
 use calibration_store::RecordScope;
 use model_core::{
-    pad_force, BaselineError, Calibration, ContactConfig, ContactDetector, ContactEvent,
-    PadGeometry, PadModel, PadRole, TareStatus, Tier,
+    BaselineError, Calibration, ContactConfig, ContactEvent, ForceAndContact, PadGeometry,
+    PadModel, PadRole, TareStatus, Tier,
 };
 use wire::{
     CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, FirmwareVersion,
@@ -172,9 +172,7 @@ struct PadReporting {
     channel: Option<u8>,
     temperature_sensor: TemperatureSensor,
     calibration_source: CalibrationSource,
-    role: PadRole,
-    geometry: PadGeometry,
-    contact: ContactDetector,
+    force_and_contact: ForceAndContact,
     last_converter_reinits: u32,
     last_temperature_origin: Option<TemperatureOrigin>,
     announced_generation: Option<u32>,
@@ -196,9 +194,11 @@ impl PadReporting {
                 PadTemperature::DieOnly => TemperatureSensor::DieOnly,
             },
             calibration_source,
-            role: PadRole::Unspecified,
-            geometry: config.geometry,
-            contact: ContactDetector::new(config.contact),
+            force_and_contact: ForceAndContact::new(
+                PadRole::Unspecified,
+                config.geometry,
+                config.contact,
+            ),
             last_converter_reinits: 0,
             last_temperature_origin: None,
             announced_generation: None,
@@ -346,8 +346,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
     pub fn set_pad_geometry(&mut self, pad: usize, role: PadRole, geometry: PadGeometry) -> bool {
         match self.pads.get_mut(pad) {
             Some(reporting) => {
-                reporting.role = role;
-                reporting.geometry = geometry;
+                reporting.force_and_contact.set_geometry(role, geometry);
                 true
             }
             None => false,
@@ -356,9 +355,10 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
 
     /// Pad `pad`'s role and geometry, `None` for a pad that does not exist.
     pub fn pad_geometry(&self, pad: usize) -> Option<(PadRole, PadGeometry)> {
-        self.pads
-            .get(pad)
-            .map(|reporting| (reporting.role, reporting.geometry))
+        self.pads.get(pad).map(|reporting| {
+            let pad = &reporting.force_and_contact;
+            (pad.role(), *pad.geometry())
+        })
     }
 
     /// A pad's description, `None` for a pad that does not exist.
@@ -373,8 +373,8 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             calibration_id: model.calibration().id(),
             calibration_source: reporting.calibration_source,
             model_tier: model.tier(),
-            role: reporting.role,
-            taxels: *reporting.geometry.taxels(),
+            role: reporting.force_and_contact.role(),
+            taxels: *reporting.force_and_contact.geometry().taxels(),
         })
     }
 
@@ -469,10 +469,11 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
             }
             reporting.last_temperature_origin = Some(sample.temperature_origin);
         }
-        let force = pad_force(&sample.output.taxels, &reporting.geometry);
-        let contact_event = reporting.contact.update(&force, sample.timestamp_us);
+        let contact = reporting
+            .force_and_contact
+            .update(&sample.output.taxels, sample.timestamp_us);
         let frame = self.streaming.then(|| {
-            let summary = pad_summary(&force, reporting.contact.in_contact());
+            let summary = pad_summary(&contact);
             sample_frame(sample, model, wire_pad, summary)
         });
         // A tare, a restore or a new calibration installs baselines and changes the generation
@@ -522,7 +523,7 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                     self.host_counters.sample_frames_dropped.saturating_add(1);
             }
         }
-        if let Some(event) = contact_event {
+        if let Some(event) = contact.event {
             let (timestamp_us, event) = match event {
                 ContactEvent::Started { timestamp_us } => {
                     (timestamp_us, DeviceEvent::ContactStarted { pad: wire_pad })
@@ -809,7 +810,11 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 .ok_or(ErrorCode::InvalidArgument),
             Command::SetPadGeometry(record) => match record.geometry() {
                 Ok(geometry)
-                    if self.set_pad_geometry(usize::from(record.pad.get()), record.role, geometry) =>
+                    if self.set_pad_geometry(
+                        usize::from(record.pad.get()),
+                        record.role,
+                        geometry,
+                    ) =>
                 {
                     Ok(ReplyPayload::Ack)
                 }

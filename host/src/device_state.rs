@@ -349,9 +349,11 @@ mod tests {
         assert!(error.to_string().contains("pad 0"), "{error}");
         let mut state = RecordedDeviceState::new(&info(1));
         state.add_pad(pad_state(0, 0, &Calibration::default()));
-        let text = serde_json::to_string(&state)
-            .unwrap()
-            .replacen("\"area_mm2\":25.0", "\"area_mm2\":-1.0", 1);
+        let text = serde_json::to_string(&state).unwrap().replacen(
+            "\"area_mm2\":25.0",
+            "\"area_mm2\":-1.0",
+            1,
+        );
         assert!(serde_json::from_str::<RecordedDeviceState>(&text).is_err());
     }
 

@@ -24,8 +24,8 @@ use taxel_ros2::pad_messages::{DEFAULT_FRAME_PREFIX, DEFAULT_NAMESPACE};
 use taxel_ros2::PadMessagesFile;
 use wire::SampleFrame;
 
-use crate::device_state::RecordedDeviceState;
 use crate::clock_sync::ClockEstimate;
+use crate::device_state::RecordedDeviceState;
 use crate::host_clock::UnixClock;
 use crate::output_file::{OutputFile, PendingRename};
 use crate::pad_set::PadSet;

@@ -61,7 +61,7 @@ fn grid() -> Option<Grid> {
         [raw(PARASITIC_PF + SENSOR_PF); 4],
         Some(25.0),
     ));
-    let model = pad.taxels()[0].clone();
+    let model = pad.taxel(0)?.clone();
     let taxel_calibration = pad.calibration().taxels()[0].clone();
     let inverses = TaxelInverses::new(taxel_calibration.curve());
     let baseline = pad.baselines()[0]?;

@@ -215,6 +215,19 @@ impl ContactDetector {
         *self = Self::new(self.config);
     }
 
+    /// Takes the state as `in_contact`, with nothing pending, as of a set whose force was
+    /// `force` (its excluded taxels count as excluded when the contact started): for a host that
+    /// starts reading a stream in the middle, from the device's contact bit.
+    pub fn assume(&mut self, in_contact: bool, force: &PadForce) {
+        self.in_contact = in_contact;
+        self.pending_sets = 0;
+        self.excluded_at_start = if in_contact {
+            force.flags.excluded()
+        } else {
+            PadForceFlags::empty()
+        };
+    }
+
     /// Takes one sample set's force, measured at `timestamp_us` on the device clock, µs. Returns
     /// the event when this set confirms a change of state (see the module for the rules).
     pub fn update(&mut self, force: &PadForce, timestamp_us: u64) -> Option<ContactEvent> {

@@ -3,9 +3,10 @@
 //! a reading can be wrong, and several inversion tiers with measured speed and error.
 //!
 //! `no_std`, no allocation, no HAL: the same code runs in the firmware, in the desktop simulator
-//! and in the host tools. A host converting a recording can call [`PadModel::process_all`]
-//! instead of [`PadModel::process`] set by set: the same outputs bit for bit, with the tier's
-//! inverses of many sets computed together, which a superscalar core runs faster.
+//! and in the host tools. With the feature `batch`, a host converting a recording can call
+//! `PadModel::process_all` instead of [`PadModel::process`] set by set: the same outputs bit for
+//! bit, with the tier's inverses of many sets computed together, which a superscalar core runs
+//! faster.
 //!
 //! ```
 //! use model_core::{Calibration, PadModel, SampleInput, TaxelReading};
@@ -41,8 +42,11 @@ pub mod flags;
 pub mod inverse;
 pub mod monotone_cubic;
 pub mod pad;
+#[cfg(feature = "batch")]
+pub mod pad_batch;
 pub mod pad_force;
 pub mod pad_geometry;
+pub mod pad_pipeline;
 pub mod reading;
 pub mod taxel;
 pub mod temperature;
@@ -58,9 +62,12 @@ pub use calibration::{
 pub use contact::{ContactConfig, ContactConfigError, ContactDetector, ContactEvent};
 pub use flags::TaxelFlags;
 pub use inverse::{InverseCurve, TaxelInverses, Tier};
-pub use pad::{PadModel, PadOutput, SampleInput, TareStatus, TierUnavailable, BATCH_SAMPLE_SETS};
+pub use pad::{PadModel, PadOutput, SampleInput, TareStatus, TierUnavailable};
+#[cfg(feature = "batch")]
+pub use pad_batch::BATCH_SAMPLE_SETS;
 pub use pad_force::{pad_force, pad_force_from_pressures, PadForce, PadForceFlags};
 pub use pad_geometry::{GeometryError, PadGeometry, PadRole, TaxelGeometry};
+pub use pad_pipeline::{ForceAndContact, PadContact, PadPipeline, PadReport};
 pub use reading::{ReadingValue, SplitCapacitance, TaxelReading};
 pub use taxel::{TaxelModel, TaxelOutput};
 pub use temperature::{TemperatureTracker, TemperatureUsed, REFERENCE_TEMPERATURE_C};

@@ -2,11 +2,11 @@
 //! the chosen tier. One call per converter cycle turns four readings into four pressures.
 
 use crate::baseline::{Baseline, BaselineError, BaselineRecord, BaselineTracking, TareAccumulator};
-use crate::calibration::{Calibration, TaxelCalibration, TAXEL_COUNT};
+use crate::calibration::{Calibration, FaultThresholds, TaxelCalibration, TAXEL_COUNT};
 use crate::conditioning::NOMINAL_SENSOR_PF;
 use crate::flags::TaxelFlags;
 use crate::inverse::{ActiveInverse, TaxelInverses, Tier};
-use crate::reading::{ReadingValue, TaxelReading};
+use crate::reading::{ReadingValue, SplitCapacitance, TaxelReading};
 use crate::taxel::{TaxelModel, TaxelOutput};
 use crate::temperature::{TemperatureTracker, TemperatureUsed};
 use crate::use_case::{select_tier_for_taxels, SelectionError, TaxelEvidence, TierChoice, UseCase};
@@ -16,10 +16,6 @@ use crate::use_case::{select_tier_for_taxels, SelectionError, TaxelEvidence, Tie
 /// of static load at the tare on the article's curve, or the article's 5.7 % loss after 5000
 /// cycles).
 pub const TARE_FAR_FROM_CALIBRATION_RELATIVE: f32 = 0.05;
-
-/// Most sample sets [`PadModel::process_all`] holds at once: enough independent inverses to
-/// keep a host core busy, little enough for its stack.
-pub const BATCH_SAMPLE_SETS: usize = 64;
 
 /// One converter cycle's input.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -84,30 +80,112 @@ pub enum TareStatus {
     },
 }
 
+/// One taxel's state in the pad's model: its converter for the tier in use, its baseline with
+/// the flag that baseline carries, and what the last tare said about it.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct TaxelState {
+    pub(crate) model: TaxelModel,
+    baseline: Option<Baseline>,
+    // BASELINE_FAR_FROM_CALIBRATION, set with the baseline (`PadModel::set_baseline`).
+    baseline_flags: TaxelFlags,
+    last_tare_error: Option<BaselineError>,
+}
+
+impl TaxelState {
+    fn new(model: TaxelModel) -> Self {
+        Self {
+            model,
+            baseline: None,
+            baseline_flags: TaxelFlags::empty(),
+            last_tare_error: None,
+        }
+    }
+
+    /// The taxel's output for one reading, its pressure (when in range) given by
+    /// `in_range(dC/C0)`, and its capacitance when it may go into a tare. Baseline tracking
+    /// moves the baseline here.
+    #[inline(always)]
+    fn convert(
+        &mut self,
+        calibration: &TaxelCalibration,
+        reading: &TaxelReading,
+        flags: TaxelFlags,
+        conditions: &Conditions,
+        tracking: &BaselineTracking,
+        in_range: impl FnOnce(&TaxelModel, f32) -> f32,
+    ) -> (TaxelOutput, Option<SplitCapacitance>) {
+        let value = reading.value();
+        let model = &self.model;
+        let output = model
+            .convert_with(
+                calibration,
+                value,
+                self.baseline.as_ref(),
+                conditions.inverse_permittivity_ratio,
+                &conditions.thresholds,
+                |relative_change| in_range(model, relative_change),
+            )
+            .with_flags(flags | conditions.temperature_flags | self.baseline_flags);
+        let unusable_for_tare = TaxelFlags::FAULTS.difference(TaxelFlags::NOT_TARED);
+        let tare = match value {
+            ReadingValue::Capacitance(capacitance)
+                if !output.flags().intersects(unusable_for_tare) =>
+            {
+                Some(capacitance)
+            }
+            _ => None,
+        };
+        let tracking_hit_limit = match (output.relative_change(), self.baseline.as_mut()) {
+            (Some(relative_change), Some(baseline)) if !output.flags().is_fault() => {
+                tracking.update(baseline, relative_change)
+            }
+            _ => false,
+        };
+        let output = if tracking_hit_limit {
+            output.with_flags(TaxelFlags::BASELINE_TRACKING_LIMIT)
+        } else {
+            output
+        };
+        (output, tare)
+    }
+}
+
+/// What every taxel of one sample set is converted under.
+struct Conditions {
+    inverse_permittivity_ratio: f32,
+    thresholds: FaultThresholds,
+    temperature_flags: TaxelFlags,
+}
+
+/// The tare: never asked for, averaging, or finished.
+#[derive(Debug, Clone, PartialEq)]
+enum Tare {
+    Never,
+    Running(TareAccumulator),
+    Finished { tared_mask: u8 },
+}
+
 /// The model of the whole pad.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PadModel {
     calibration: Calibration,
-    taxels: [TaxelModel; TAXEL_COUNT],
-    baselines: [Option<Baseline>; TAXEL_COUNT],
-    // BASELINE_FAR_FROM_CALIBRATION per taxel, set with the baseline (`set_baseline`).
-    baseline_flags: [TaxelFlags; TAXEL_COUNT],
+    taxels: [TaxelState; TAXEL_COUNT],
     baseline_generation: u32,
     tier: Tier,
     tracking: BaselineTracking,
     temperature: TemperatureTracker,
-    tare: Option<TareAccumulator>,
-    tare_status: TareStatus,
-    last_tare_errors: [Option<BaselineError>; TAXEL_COUNT],
+    tare: Tare,
 }
 
-// A device reads up to eight pads, each with its own model, within 32 KiB of static RAM on the
-// Cortex-M4F, so the model keeps only the tier in use. On a 32-bit target its parts are the
-// calibration (668 bytes), four taxel models of 204 (the table tier's is the largest; the default
-// tier's needs 124) and 428 of baselines, tare and temperature state. Growing it should be a
-// decision, not an accident.
+// A device reads up to eight pads, each with its own model, in the firmware's static RAM
+// (budget 64 KiB on the Cortex-M4F), so the model keeps only the tier in use. On a 32-bit
+// target its parts are the calibration (668 bytes), four taxel states of 256 (the table tier's
+// model, the largest at 204 — the default tier's needs 124 — with its baseline, flag and last
+// tare result), the tare of 176 and the temperature state. Grouping each taxel's state in one
+// struct cost 8 bytes of padding per pad (1,912 before). Growing it should be a decision, not
+// an accident.
 #[cfg(target_pointer_width = "32")]
-const _: () = assert!(core::mem::size_of::<PadModel>() <= 1_912);
+const _: () = assert!(core::mem::size_of::<PadModel>() <= 1_920);
 
 /// A tier the calibration cannot provide.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -117,19 +195,18 @@ pub struct TierUnavailable(pub Tier);
 impl PadModel {
     /// A model with the default tier, no baselines and tracking off.
     pub fn new(calibration: Calibration) -> Self {
-        let taxels = calibration.taxels().each_ref().map(TaxelModel::new);
+        let taxels = calibration
+            .taxels()
+            .each_ref()
+            .map(|calibration| TaxelState::new(TaxelModel::new(calibration)));
         Self {
             calibration,
             taxels,
-            baselines: [None; TAXEL_COUNT],
-            baseline_flags: [TaxelFlags::empty(); TAXEL_COUNT],
             baseline_generation: 0,
             tier: Tier::default(),
             tracking: BaselineTracking::default(),
             temperature: TemperatureTracker::default(),
-            tare: None,
-            tare_status: TareStatus::Never,
-            last_tare_errors: [None; TAXEL_COUNT],
+            tare: Tare::Never,
         }
     }
 
@@ -142,19 +219,33 @@ impl PadModel {
     pub fn set_calibration(&mut self, calibration: Calibration) {
         let tier = self.tier;
         let records = self.baseline_records();
+        let last_tare_errors = self.last_tare_errors();
+        let tare = core::mem::replace(&mut self.tare, Tare::Never);
         *self = Self {
             tracking: self.tracking,
             temperature: self.temperature,
-            tare: self.tare.take(),
-            tare_status: self.tare_status,
-            last_tare_errors: self.last_tare_errors,
+            tare,
             baseline_generation: self.baseline_generation.wrapping_add(1),
             ..Self::new(calibration)
         };
+        for (taxel, error) in self.taxels.iter_mut().zip(last_tare_errors) {
+            taxel.last_tare_error = error;
+        }
         self.restore_baselines(&records);
         if self.set_tier(tier).is_err() {
             self.tier = Tier::default();
         }
+    }
+
+    /// Each taxel's model with its calibration, in pad order.
+    #[cfg(feature = "batch")]
+    pub(crate) fn taxel_models(
+        &self,
+    ) -> impl Iterator<Item = (&TaxelModel, &TaxelCalibration)> + '_ {
+        self.taxels
+            .iter()
+            .map(|taxel| &taxel.model)
+            .zip(self.calibration.taxels())
     }
 
     /// The calibration in use.
@@ -162,9 +253,9 @@ impl PadModel {
         &self.calibration
     }
 
-    /// The taxel models.
-    pub fn taxels(&self) -> &[TaxelModel; TAXEL_COUNT] {
-        &self.taxels
+    /// Taxel `index`'s model (`None` outside 0..4).
+    pub fn taxel(&self, index: usize) -> Option<&TaxelModel> {
+        self.taxels.get(index).map(|taxel| &taxel.model)
     }
 
     /// Selects an inversion tier for all taxels, building it from the calibration; when a curve
@@ -187,7 +278,9 @@ impl PadModel {
         let [Some(a), Some(b), Some(c), Some(d)] = inverses else {
             return Err(TierUnavailable(tier));
         };
-        self.taxels = [a, b, c, d].map(TaxelModel::from_inverse);
+        for (taxel, inverse) in self.taxels.iter_mut().zip([a, b, c, d]) {
+            taxel.model = TaxelModel::from_inverse(inverse);
+        }
         self.tier = tier;
         Ok(())
     }
@@ -222,11 +315,12 @@ impl PadModel {
             curve: calibrations[0].curve(),
             sensor_pf: NOMINAL_SENSOR_PF,
         });
-        for ((evidence, calibration), baseline) in
-            evidence.iter_mut().zip(calibrations).zip(&self.baselines)
+        for ((evidence, calibration), taxel) in
+            evidence.iter_mut().zip(calibrations).zip(&self.taxels)
         {
             evidence.curve = calibration.curve();
-            evidence.sensor_pf = baseline
+            evidence.sensor_pf = taxel
+                .baseline
                 .as_ref()
                 .map_or(NOMINAL_SENSOR_PF, Baseline::sensor_pf);
         }
@@ -253,21 +347,25 @@ impl PadModel {
 
     /// Starts a tare over the next `sample_sets` sample sets (the pad must be unloaded).
     pub fn start_tare(&mut self, sample_sets: u16) {
-        let accumulator = TareAccumulator::new(sample_sets);
-        self.tare_status = TareStatus::Running {
-            remaining: accumulator.remaining(),
-        };
-        self.tare = Some(accumulator);
+        self.tare = Tare::Running(TareAccumulator::new(sample_sets));
     }
 
     /// State of the tare.
     pub fn tare_status(&self) -> TareStatus {
-        self.tare_status
+        match &self.tare {
+            Tare::Never => TareStatus::Never,
+            Tare::Running(accumulator) => TareStatus::Running {
+                remaining: accumulator.remaining(),
+            },
+            Tare::Finished { tared_mask } => TareStatus::Finished {
+                tared_mask: *tared_mask,
+            },
+        }
     }
 
     /// Why the last tare failed per taxel (None = succeeded or never ran).
     pub fn last_tare_errors(&self) -> [Option<BaselineError>; TAXEL_COUNT] {
-        self.last_tare_errors
+        self.taxels.each_ref().map(|taxel| taxel.last_tare_error)
     }
 
     /// The last valid temperature seen, °C (None until one arrives).
@@ -283,8 +381,8 @@ impl PadModel {
     }
 
     /// Baselines per taxel.
-    pub fn baselines(&self) -> &[Option<Baseline>; TAXEL_COUNT] {
-        &self.baselines
+    pub fn baselines(&self) -> [Option<Baseline>; TAXEL_COUNT] {
+        self.taxels.each_ref().map(|taxel| taxel.baseline)
     }
 
     /// A number that changes (wrapping) whenever a baseline is installed or the calibration is
@@ -320,8 +418,9 @@ impl PadModel {
 
     /// The baselines as plain records (to keep them across an MCU reset).
     pub fn baseline_records(&self) -> [Option<BaselineRecord>; TAXEL_COUNT] {
-        self.baselines
-            .map(|baseline| baseline.as_ref().map(Baseline::record))
+        self.taxels
+            .each_ref()
+            .map(|taxel| taxel.baseline.as_ref().map(Baseline::record))
     }
 
     /// Sets one taxel's baseline directly (e.g. restored from a recording).
@@ -338,13 +437,10 @@ impl PadModel {
                     baseline.sensor_pf() / law.permittivity_ratio(baseline.temperature_c());
                 !((tared_pf / calibrated_pf - 1.0).abs() <= TARE_FAR_FROM_CALIBRATION_RELATIVE)
             });
-        if let (Some(slot), Some(flags)) = (
-            self.baselines.get_mut(taxel),
-            self.baseline_flags.get_mut(taxel),
-        ) {
-            *slot = Some(baseline);
+        if let Some(state) = self.taxels.get_mut(taxel) {
+            state.baseline = Some(baseline);
             self.baseline_generation = self.baseline_generation.wrapping_add(1);
-            *flags = if far_from_calibration {
+            state.baseline_flags = if far_from_calibration {
                 TaxelFlags::BASELINE_FAR_FROM_CALIBRATION
             } else {
                 TaxelFlags::empty()
@@ -361,104 +457,20 @@ impl PadModel {
         })
     }
 
-    /// [`PadModel::process`] of every sample set in turn, handing each output to `each` in
-    /// order: the same outputs bit for bit (tested), faster when a host converts a recording,
-    /// because the tier's inverses of up to [`BATCH_SAMPLE_SETS`] sets run together per taxel
-    /// (nothing the sets change depends on them). It holds those sets' outputs on the stack
-    /// (about 7 KB): a host's path; the device calls `process`.
-    pub fn process_all<I>(&mut self, samples: I, mut each: impl FnMut(&PadOutput))
-    where
-        I: IntoIterator<Item = SampleInput>,
-    {
-        let mut samples = samples.into_iter();
-        let unset = PadOutput {
-            taxels: [TaxelOutput::fault(TaxelFlags::empty(), None); TAXEL_COUNT],
-            temperature: TemperatureUsed {
-                temperature_c: 0.0,
-                permittivity_ratio: 1.0,
-                flags: TaxelFlags::empty(),
-            },
-        };
-        let mut outputs = [(unset, 0u8); BATCH_SAMPLE_SETS];
-        loop {
-            let mut count = 0;
-            for (slot, sample) in outputs.iter_mut().zip(samples.by_ref()) {
-                // The pressures of in-range taxels are left to `invert_batch`.
-                let mut needs_inverse = 0u8;
-                let output = self.process_with(&sample, |taxel, _, _, _| {
-                    needs_inverse |= 1 << taxel;
-                    0.0
-                });
-                *slot = (output, needs_inverse);
-                count += 1;
-            }
-            let outputs = outputs.get_mut(..count).unwrap_or_default();
-            if outputs.is_empty() {
-                return;
-            }
-            self.invert_batch(outputs);
-            for (output, _) in outputs.iter() {
-                each(output);
-            }
-        }
-    }
-
-    /// Fills in the pressures [`PadModel::process_all`] left to the inverse, taxel by taxel
-    /// across the sets.
-    fn invert_batch(&self, outputs: &mut [(PadOutput, u8)]) {
-        for (taxel, (model, calibration)) in self
-            .taxels
-            .iter()
-            .zip(self.calibration.taxels())
-            .enumerate()
-        {
-            let needs = |needs_inverse: u8| needs_inverse & (1 << taxel) != 0;
-            let mut values = [0.0f32; BATCH_SAMPLE_SETS];
-            let mut count = 0;
-            for (output, needs_inverse) in outputs.iter() {
-                if let (true, Some(slot), Some(value)) = (
-                    needs(*needs_inverse),
-                    values.get_mut(count),
-                    output
-                        .taxels
-                        .get(taxel)
-                        .and_then(TaxelOutput::relative_change),
-                ) {
-                    *slot = value;
-                    count += 1;
-                }
-            }
-            let values = values.get_mut(..count).unwrap_or_default();
-            model.inverse().pressures_kpa(calibration.curve(), values);
-            let mut pressures_kpa = values.iter();
-            for (output, needs_inverse) in outputs.iter_mut() {
-                if !needs(*needs_inverse) {
-                    continue;
-                }
-                if let (Some(slot), Some(pressure_kpa)) =
-                    (output.taxels.get_mut(taxel), pressures_kpa.next())
-                {
-                    *slot = slot.with_pressure_kpa(*pressure_kpa);
-                }
-            }
-        }
-    }
-
     /// A sample set's outputs and state changes, the pressure of an in-range taxel (`0 < dC/C0
     /// <= top`) given by `in_range(taxel, model, calibration, dC/C0)`: the tier's inverse, or a
     /// placeholder when a batch of inverses fills the pressures in afterwards (nothing here
     /// depends on them).
     #[inline(always)]
-    fn process_with(
+    pub(crate) fn process_with(
         &mut self,
         sample: &SampleInput,
         mut in_range: impl FnMut(usize, &TaxelModel, &TaxelCalibration, f32) -> f32,
     ) -> PadOutput {
         let tare_temperature_c = self
-            .baselines
+            .taxels
             .iter()
-            .flatten()
-            .next()
+            .find_map(|taxel| taxel.baseline.as_ref())
             .map(Baseline::temperature_c);
         let temperature = self.temperature.resolve_at(
             sample.temperature_c,
@@ -466,63 +478,29 @@ impl PadModel {
             self.calibration.temperature_law(),
             sample.time_us,
         );
-        let inverse_permittivity_ratio = 1.0 / temperature.permittivity_ratio;
-        let thresholds = *self.calibration.thresholds();
-        let mut tare_capacitances = [None; TAXEL_COUNT];
-        // Every slot is written below (equal-length arrays, zipped).
-        let mut taxels = [TaxelOutput::fault(TaxelFlags::NOT_TARED, None); TAXEL_COUNT];
-        let unusable_for_tare = TaxelFlags::FAULTS.difference(TaxelFlags::NOT_TARED);
-        let per_taxel = taxels
-            .iter_mut()
-            .zip(&sample.readings)
-            .zip(&sample.reading_flags)
-            .zip(&self.taxels)
-            .zip(self.calibration.taxels())
-            .zip(self.baselines.iter_mut())
-            .zip(&self.baseline_flags)
-            .zip(tare_capacitances.iter_mut());
-        for (
-            taxel,
-            (
-                (
-                    (((((slot, reading), reading_flags), model), calibration), baseline),
-                    baseline_flags,
-                ),
-                tare,
+        let conditions = Conditions {
+            inverse_permittivity_ratio: 1.0 / temperature.permittivity_ratio,
+            thresholds: *self.calibration.thresholds(),
+            temperature_flags: temperature.flags,
+        };
+        let tracking = self.tracking;
+        let mut taxels = self.taxels.iter_mut().zip(self.calibration.taxels());
+        let mut inputs = sample.readings.iter().zip(sample.reading_flags);
+        // Four taxels, four calibrations, four readings: every call finds its three.
+        let converted = core::array::from_fn(|index| match (taxels.next(), inputs.next()) {
+            (Some((taxel, calibration)), Some((reading, flags))) => taxel.convert(
+                calibration,
+                reading,
+                flags,
+                &conditions,
+                &tracking,
+                |model, relative_change| in_range(index, model, calibration, relative_change),
             ),
-        ) in per_taxel.enumerate()
-        {
-            let value = reading.value();
-            let output = model
-                .convert_with(
-                    calibration,
-                    value,
-                    baseline.as_ref(),
-                    inverse_permittivity_ratio,
-                    &thresholds,
-                    |relative_change| in_range(taxel, model, calibration, relative_change),
-                )
-                .with_flags(*reading_flags | temperature.flags | *baseline_flags);
-            if let ReadingValue::Capacitance(capacitance) = value {
-                if !output.flags().intersects(unusable_for_tare) {
-                    *tare = Some(capacitance);
-                }
-            }
-            let tracking_hit_limit = match (output.relative_change(), baseline) {
-                (Some(relative_change), Some(baseline)) if !output.flags().is_fault() => {
-                    self.tracking.update(baseline, relative_change)
-                }
-                _ => false,
-            };
-            *slot = if tracking_hit_limit {
-                output.with_flags(TaxelFlags::BASELINE_TRACKING_LIMIT)
-            } else {
-                output
-            };
-        }
-        self.advance_tare(&tare_capacitances, temperature.temperature_c);
+            _ => (TaxelOutput::fault(TaxelFlags::NOT_TARED, None), None),
+        });
+        self.advance_tare(&converted.map(|(_, tare)| tare), temperature.temperature_c);
         PadOutput {
-            taxels,
+            taxels: converted.map(|(output, _)| output),
             temperature,
         }
     }
@@ -532,13 +510,10 @@ impl PadModel {
         capacitances: &[Option<crate::reading::SplitCapacitance>; TAXEL_COUNT],
         temperature_c: f32,
     ) {
-        let Some(accumulator) = self.tare.as_mut() else {
+        let Tare::Running(accumulator) = &mut self.tare else {
             return;
         };
         if !accumulator.add(capacitances, temperature_c) {
-            self.tare_status = TareStatus::Running {
-                remaining: accumulator.remaining(),
-            };
             return;
         }
         let parasitic_pf = parasitic_pf(&self.calibration);
@@ -557,12 +532,11 @@ impl PadModel {
                 }
                 Err(error) => Some(error),
             };
-            if let Some(slot) = self.last_tare_errors.get_mut(taxel) {
-                *slot = error;
+            if let Some(state) = self.taxels.get_mut(taxel) {
+                state.last_tare_error = error;
             }
         }
-        self.tare = None;
-        self.tare_status = TareStatus::Finished { tared_mask };
+        self.tare = Tare::Finished { tared_mask };
     }
 }
 

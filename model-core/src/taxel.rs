@@ -60,6 +60,7 @@ impl TaxelOutput {
     }
 
     /// The same output with the pressure an inverse gave (a batch of inverses fills them in).
+    #[cfg(feature = "batch")]
     pub(crate) fn with_pressure_kpa(mut self, pressure_kpa: f32) -> Self {
         self.pressure_kpa = pressure_kpa;
         self

@@ -83,7 +83,9 @@ fn topic_counts(path: &Path) -> HashMap<String, usize> {
     counts
 }
 
-fn assert_reprocessed_equal(csv: &Path) {
+/// Converts `csv` with its device states and checks every row equals the device's; returns the
+/// rows in contact and the changes of contact compared.
+fn assert_reprocessed_equal(csv: &Path) -> (usize, usize) {
     let converted = csv.with_extension("converted.csv");
     taxel(&[
         "convert",
@@ -113,9 +115,64 @@ fn assert_reprocessed_equal(csv: &Path) {
             "{recorded:?}"
         );
         assert_eq!(device.partial, host.partial, "{recorded:?}");
+        assert_eq!(device.contact, host.contact, "{recorded:?}");
         compared += 1;
     }
     assert!(compared > 0);
+    let in_contact = recorded
+        .iter()
+        .filter(|row| row.reading.as_ref().is_some_and(|reading| reading.contact))
+        .count();
+    let mut changes = 0;
+    let mut last: HashMap<(u32, u8), bool> = HashMap::new();
+    for row in &recorded {
+        if let Some(reading) = &row.reading {
+            let before = last.insert((row.device, row.pad), reading.contact);
+            changes += usize::from(before.is_some_and(|before| before != reading.contact));
+        }
+    }
+    (in_contact, changes)
+}
+
+/// The device's contact, through presses that start and end during the recording and a
+/// recording that starts during a contact, is what re-processing with the device's state gives,
+/// set by set.
+#[test]
+fn reprocessing_gives_the_devices_contact_set_by_set() {
+    let directory = tempfile::tempdir().unwrap();
+    // The demo scene presses C11 with 3 kPa (0.075 N, above the 0.05 N threshold) from 4 to
+    // 8 s, slides a press across the pad from 9 to 16 s, presses the whole pad from 18 to 30 s
+    // and again from 30 s: 20 s recorded from anywhere in its first 25 s hold several changes.
+    let simulator = SimulatorProcess::start(directory.path(), "sim.txt", &["--speed", "10"]);
+    let (csv, _) = record(
+        directory.path(),
+        "presses",
+        &[simulator.port.as_str()],
+        2000,
+    );
+    let (in_contact, changes) = assert_reprocessed_equal(&csv);
+    assert!(in_contact > 100, "{in_contact} rows in contact");
+    assert!(changes >= 2, "{changes} changes of contact");
+    // A recording that starts in the middle of a contact: its first rows say so, and the
+    // re-processing follows from there.
+    let rows = rows(&csv);
+    let first_in_contact = rows
+        .iter()
+        .position(|row| row.reading.as_ref().is_some_and(|reading| reading.contact))
+        .unwrap();
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header_line = lines.next().unwrap();
+    let tail: Vec<&str> = lines.skip(first_in_contact + 20).collect();
+    let cut = directory.path().join("cut.csv");
+    std::fs::write(&cut, format!("{header_line}\n{}\n", tail.join("\n"))).unwrap();
+    std::fs::copy(
+        directory.path().join("presses.csv.dev0.device.json"),
+        directory.path().join("cut.csv.dev0.device.json"),
+    )
+    .unwrap();
+    let (in_contact, _) = assert_reprocessed_equal(&cut);
+    assert!(in_contact > 0);
 }
 
 #[test]

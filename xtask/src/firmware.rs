@@ -12,7 +12,7 @@ use crate::m4;
 /// multi-pad budget, since one firmware (1 to 8 pads, found at boot) ships for every board.
 pub const FLASH_BUDGET_BYTES: u64 = 128 * 1024;
 /// Static RAM budget (.data, .bss, .uninit; the stack comes on top), for state of 8 pads.
-pub const STATIC_RAM_BUDGET_BYTES: u64 = 32 * 1024;
+pub const STATIC_RAM_BUDGET_BYTES: u64 = 64 * 1024;
 
 /// The profile `cargo fw-build` uses.
 pub const PROFILE: &str = "firmware";

@@ -300,7 +300,11 @@ fn replay(steps: u32) -> Result<(Latency, u64)> {
     let mut model_to_frame_ns = Vec::with_capacity(steps as usize);
     let mut mismatches = 0;
     let config = device::BOARD.device;
-    let mut contact = model_core::ContactDetector::new(config.contact);
+    let mut force_and_contact = model_core::ForceAndContact::new(
+        model_core::PadRole::Unspecified,
+        config.geometry,
+        config.contact,
+    );
     for step in 0..WARM_UP_STEPS + steps {
         let mut pad = device
             .device_mut()
@@ -315,9 +319,8 @@ fn replay(steps: u32) -> Result<(Latency, u64)> {
         let started = Instant::now();
         let mut replayed = sample;
         replayed.output = pad.process(&sample.input);
-        let force = model_core::pad_force(&replayed.output.taxels, &config.geometry);
-        contact.update(&force, replayed.timestamp_us);
-        let summary = device::pad_summary(&force, contact.in_contact());
+        let contact = force_and_contact.update(&replayed.output.taxels, replayed.timestamp_us);
+        let summary = device::pad_summary(&contact);
         let frame = device::sample_frame(&replayed, &pad, wire::PadIndex::default(), summary);
         let length =
             device::encode_outgoing(&Outgoing::Frame(DeviceFrame::Sample(frame)), &mut buffer);

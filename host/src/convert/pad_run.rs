@@ -4,7 +4,7 @@
 //! and what the tare said. One [`PadRun`] per pad of each device.
 
 use model_core::{
-    pad_force, BaselineRecord, ContactConfig, ContactDetector, PadGeometry, PadModel, SampleInput,
+    BaselineRecord, ContactConfig, ForceAndContact, PadModel, PadPipeline, PadRole, SampleInput,
     TareStatus, TaxelFlags, TaxelReading, TAXEL_COUNT, TAXEL_NAMES,
 };
 
@@ -134,35 +134,40 @@ impl TareWatch {
     }
 }
 
-/// One pad's model, baselines, force, contact and tare watch over a stream.
+/// One pad's pipeline (model, geometry, contact), baselines and tare watch over a stream.
 #[derive(Debug)]
 pub(super) struct PadRun {
-    model: PadModel,
+    pipeline: PadPipeline,
     baselines: RecordedBaselines,
     tare_watch: TareWatch,
-    geometry: PadGeometry,
-    contact: ContactDetector,
     // The sensor that gave the last temperature (TMP117 or the MCU's), as the device tells it.
     last_temperature_sensor: Option<TemperatureSource>,
+    // No reading has been processed yet.
+    first: bool,
 }
 
 impl PadRun {
     /// A fresh run with a pad's calibration, tier and baselines.
     pub(super) fn new(options: &PadOptions) -> anyhow::Result<Self> {
+        let force_and_contact = ForceAndContact::new(
+            PadRole::Unspecified,
+            options.geometry,
+            ContactConfig::DEFAULT,
+        );
         Ok(Self {
-            model: new_model(options)?,
+            pipeline: PadPipeline::new(new_model(options)?, force_and_contact),
             baselines: RecordedBaselines::new(&options.tare),
             tare_watch: TareWatch::default(),
-            geometry: options.geometry,
             last_temperature_sensor: None,
-            contact: ContactDetector::new(ContactConfig::DEFAULT),
+            first: true,
         })
     }
 
     /// Runs one reading of set `sequence` through the pad's pipeline: what the device would
-    /// have sent (its capacitances and temperature kept).
-    /// The pad's outputs of `reading`, set `sequence`; with `timed` the model reads the
-    /// reading's device time, else it takes the time between sets as unknown.
+    /// have sent (its capacitances and temperature kept). With `timed` the model reads the
+    /// reading's device time, else it takes the time between sets as unknown. The first
+    /// reading's recorded contact bit is taken as the contact state the stream started in (a
+    /// recording can start during a contact).
     pub(super) fn process(
         &mut self,
         sequence: u32,
@@ -170,20 +175,28 @@ impl PadRun {
         timed: bool,
     ) -> PadReading {
         self.baselines
-            .before_sample(&mut self.model, Some(sequence));
+            .before_sample(self.pipeline.model_mut(), Some(sequence));
         self.note_temperature_sensor(reading.temperature_source);
-        let output = self.model.process(&reading_input(reading, timed));
-        self.tare_watch.observe(&self.model);
-        let force = pad_force(&output.taxels, &self.geometry);
-        self.contact.update(&force, reading.device_time_us);
-        let summary = device::pad_summary(&force, self.contact.in_contact());
+        let mut input = reading_input(reading);
+        if timed {
+            input = input.at_time_us(reading.device_time_us);
+        }
+        let report = self.pipeline.process(&input);
+        self.tare_watch.observe(self.pipeline.model());
+        let mut contact = report.contact;
+        if std::mem::take(&mut self.first) {
+            self.pipeline
+                .force_and_contact_mut()
+                .assume_contact(reading.contact, &contact.force);
+            contact.in_contact = reading.contact;
+        }
         PadReading {
-            pressure_kpa: output.taxels.map(|taxel| taxel.pressure_kpa()),
-            flags: output.taxels.map(|taxel| taxel.flags()),
-            force_n: summary.force_n,
-            centre_of_pressure_mm: summary.centre_of_pressure_mm,
-            partial: summary.partial,
-            contact: summary.contact,
+            pressure_kpa: report.output.taxels.map(|taxel| taxel.pressure_kpa()),
+            flags: report.output.taxels.map(|taxel| taxel.flags()),
+            force_n: contact.force_n(),
+            centre_of_pressure_mm: contact.centre_of_pressure_mm(),
+            partial: contact.partial(),
+            contact: contact.in_contact,
             ..*reading
         }
     }
@@ -192,14 +205,17 @@ impl PadRun {
     /// the model applies the new sensor's level at once; a set without a new reading (none, or
     /// the last one held) changes nothing.
     fn note_temperature_sensor(&mut self, source: TemperatureSource) {
-        if !matches!(source, TemperatureSource::Tmp117 | TemperatureSource::McuInternal) {
+        if !matches!(
+            source,
+            TemperatureSource::Tmp117 | TemperatureSource::McuInternal
+        ) {
             return;
         }
         if self
             .last_temperature_sensor
             .is_some_and(|last| last != source)
         {
-            self.model.temperature_source_changed();
+            self.pipeline.model_mut().temperature_source_changed();
         }
         self.last_temperature_sensor = Some(source);
     }
@@ -207,21 +223,18 @@ impl PadRun {
     /// The tare's problems, at the end.
     pub(super) fn warnings(self) -> Vec<String> {
         let mut warnings = self.baselines.warnings;
-        warnings.extend(self.tare_watch.finish(&self.model));
+        warnings.extend(self.tare_watch.finish(self.pipeline.model()));
         warnings
     }
 }
 
 /// The model input of a recorded reading: its capacitances and temperature, the acquisition's
 /// flags kept, and a converter error (or an empty capacitance) read as no reading.
-fn reading_input(reading: &PadReading, timed: bool) -> SampleInput {
+fn reading_input(reading: &PadReading) -> SampleInput {
     let mut input = SampleInput::new(
         [TaxelReading::Unavailable; TAXEL_COUNT],
         reading.temperature_c.filter(|value| !value.is_nan()),
     );
-    if timed {
-        input = input.at_time_us(reading.device_time_us);
-    }
     for taxel in 0..TAXEL_COUNT {
         let acquisition_flags = reading.flags[taxel].intersection(ACQUISITION_FLAGS);
         input.reading_flags[taxel] = acquisition_flags;

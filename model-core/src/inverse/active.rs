@@ -1,5 +1,5 @@
 //! The one tier a taxel model keeps: only what that tier needs beyond the calibration's points,
-//! so that a pad's model stays small (eight pads share 32 KiB of RAM on the device). Another
+//! so that a pad's model stays small (eight pads share the device's static RAM). Another
 //! tier is built again from the calibration when it is chosen.
 
 use super::cubic::CubicKnots;

@@ -29,8 +29,10 @@ of any number of devices and pads), or with --raw one device's raw byte log (FIL
 Recordings of earlier versions of taxel are not read. Every pad of every device runs through \
 the pad pipeline again — the model with its calibration, tier and baselines, force and centre of \
 pressure, the contact detector — each with its own state: device n's is read from FILE.dev<n>.\
-device.json beside the recording (calibration, tier, and the baselines with the set each applies \
-from), so that converting with the defaults reproduces what the devices computed. --calibration, \
+device.json beside the recording (calibration, tier, geometry, and the baselines with the set each \
+applies from), and a pad's contact detector starts in the contact state of the pad's first row \
+(a recording can start during a contact), so that converting with the defaults reproduces what \
+the devices computed. --calibration, \
 --tier and --tare-rows replace those parts for every pad; --no-device-state ignores the states \
 (the built-in calibration, the default tier and a tare on the first readable row). The state \
 files used, and every pad without a recorded state of its own (converted with those defaults), \
