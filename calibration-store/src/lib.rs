@@ -1,25 +1,26 @@
 //! The pads' calibrations kept in NOR flash, for the firmware (over embassy-stm32's flash) and for
 //! the desktop simulator and tests (over `RamFlash`, with the `ram-flash` feature).
 //!
-//! Two layers:
-//! - [`encode_scoped_record`] / [`decode_saved_record`]: a [`CalibrationSpec`], the pads it is
-//!   for and its save counter as `[format version = 3][save counter u32 LE][postcard body]
-//!   [CRC-32/ISO-HDLC little-endian]` for every pad, or `[4][pad][save counter]...` for one pad,
-//!   at most [`MAX_RECORD_LEN`] bytes. Decoding also reads version 2 (written by earlier firmware:
-//!   the body without the taxels' calibrated C0, which loads as none), refuses anything that is
-//!   not an intact record of a calibration that validates, with a typed [`RecordError`], and
-//!   never panics.
-//! - [`CalibrationStore`]: those records as items in a flash range of two erase pages, in the
-//!   on-flash format of the `sequential-storage` 8.0.2 map the earlier firmware used (read and
-//!   written by this crate: no sequential-storage code runs). Loading returns a pad's valid
-//!   record with the highest save counter (its own or one for every pad), wherever it is; saving
-//!   appends beside an erased page or moves to the other page with every record a pad still
-//!   loads, and erases nothing those records need until they and the new one read back. So bit
-//!   flips, truncation or a power loss in the middle of a save leave the previous or the
-//!   new calibration, or the defaults with the corrupt flag ([`LoadOutcome::Corrupt`]): never an
-//!   older calibration, never an unsaved one, whichever way an interrupted page erase leaves the
-//!   page (from its start, from its end, or random bits). The `store` module's documentation
-//!   gives the format and the power-loss argument.
+//! Three layers:
+//! - [`encode_body`] / [`decode_body`]: what a pad's record holds, a [`CalibrationSpec`] as
+//!   `[body format version = 1][postcard]`, at most [`MAX_BODY_LEN`] bytes. Decoding refuses
+//!   anything that is not a calibration that validates, with a typed [`RecordError`], and never
+//!   panics. This is the only place that knows what a body is.
+//! - the on-flash format ([`format`] documents it): two erase pages, each with a header
+//!   (magic "TXCS", format version [`STORE_FORMAT_VERSION`], generation, CRC-32) and a commit
+//!   word, then records `[body length][its complement][save counter][pads][CRC-32][body]`, one
+//!   per pad or one for every pad ([`RecordScope`]).
+//! - [`CalibrationStore`]: loading gives a pad its newest record (highest save counter) in the
+//!   current page (the complete page with the highest generation); saving appends to that page,
+//!   or moves every record still in use and the new one into the other page, makes it current
+//!   only once it reads back, and only then erases the old one. So a power loss in the middle of
+//!   a save leaves every pad its previous calibration or, for the pads the save is for, the new
+//!   one: never an older calibration, never an unsaved one, whichever way an interrupted page
+//!   erase leaves the page (from its start, from its end, or random bits). A damaged record is
+//!   skipped (its pad falls back to its previous record, if the page still holds it) and a pad
+//!   with nothing intact left loads the defaults with the corrupt flag
+//!   ([`LoadOutcome::Corrupt`]). The `store` module's documentation gives the power-loss
+//!   argument.
 //!
 //! [`CalibrationSpec`]: model_core::CalibrationSpec
 #![no_std]
@@ -27,22 +28,23 @@
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 mod erase_hook;
+pub mod format;
+mod page;
 #[cfg(feature = "ram-flash")]
 mod ram_flash;
 mod record;
 mod store;
 
 pub use erase_hook::EraseHook;
+pub use format::{
+    RecordScope, MAX_PADS, MAX_RECORD_LEN, RECORD_CRC_ALGORITHM, STORE_FORMAT_VERSION,
+};
 #[cfg(feature = "ram-flash")]
 pub use ram_flash::{
     OperationKind, PowerLossReport, RamFlash, RamFlashError, Tear, RAM_FLASH_WORD_SIZE,
 };
-pub use record::{
-    decode_record, decode_saved_record, encode_record, encode_scoped_record, RecordError,
-    RecordScope, SavedRecord, MAX_BODY_LEN, MAX_PADS, MAX_RECORD_LEN, PAD_RECORD_FORMAT_VERSION,
-    RECORD_CRC_ALGORITHM, RECORD_FORMAT_VERSION,
-};
+pub use record::{decode_body, encode_body, RecordError, BODY_FORMAT_VERSION, MAX_BODY_LEN};
 pub use store::{
-    CalibrationKey, CalibrationStore, CorruptReason, LoadOutcome, RegionError, StoreError,
-    CALIBRATION_KEY, STM32F411_CALIBRATION_RANGE,
+    CalibrationStore, CorruptReason, LoadOutcome, RegionError, StoreError,
+    STM32F411_CALIBRATION_RANGE,
 };

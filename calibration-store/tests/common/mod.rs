@@ -1,5 +1,8 @@
 //! Shared test helpers: a deterministic proptest configuration, calibration specs (distinct,
-//! worst-case, and a strategy over valid ones), the test flash geometries and store shortcuts.
+//! worst-case, and a strategy over valid ones), the test flash geometries and store shortcuts,
+//! the reference of what every pad must load after a list of saves, and the on-flash format
+//! re-declared from its documentation (to check the store's bytes and to place records the
+//! store would not write).
 // Every test file uses a different subset of these helpers.
 #![allow(dead_code)]
 #![allow(
@@ -12,7 +15,9 @@
 use core::future::Future;
 use core::ops::Range;
 
-use calibration_store::{CalibrationStore, LoadOutcome, RamFlash, RamFlashError};
+use calibration_store::{
+    CalibrationStore, LoadOutcome, RamFlash, RamFlashError, RecordScope, MAX_PADS,
+};
 use embedded_storage_async::nor_flash::NorFlash;
 use heapless::Vec;
 use model_core::calibration::{
@@ -116,26 +121,6 @@ pub fn worst_case_spec(id: u32) -> CalibrationSpec {
     }
 }
 
-/// `spec` with no calibrated C0 on any taxel: what a version-2 record can hold.
-pub fn without_c0(mut spec: CalibrationSpec) -> CalibrationSpec {
-    for taxel in &mut spec.taxels {
-        taxel.unloaded_sensor_pf = None;
-    }
-    spec
-}
-
-/// The small-page flash as the previous firmware's store (record format version 2) left it after
-/// saving `spec(5)` and then `without_c0(worst_case_spec(7))`: produced by that store's code.
-pub fn version_2_flash() -> Box<SmallFlash> {
-    let image: &[u8; 3 * SMALL_PAGE] = include_bytes!("../data/v2-flash-small-pages.bin");
-    Box::new(SmallFlash::from_bytes(*image))
-}
-
-/// The newest calibration in [`version_2_flash`], saved with save counter 1.
-pub fn version_2_flash_newest() -> CalibrationSpec {
-    without_c0(worst_case_spec(7))
-}
-
 /// `spec(id)` for even ids and `worst_case_spec(id)` for odd ones: records of both lengths.
 pub fn mixed_spec(id: u32) -> CalibrationSpec {
     if id.is_multiple_of(2) {
@@ -161,8 +146,7 @@ fn curve() -> impl Strategy<Value = Vec<CurvePoint, MAX_CURVE_POINTS>> {
     )
 }
 
-/// No calibrated C0 (the default, and every version-2 record), or one anywhere in the valid
-/// range (0, MAX_MEASURABLE_PF].
+/// No calibrated C0 (the default), or one anywhere in the valid range (0, MAX_MEASURABLE_PF].
 fn unloaded_sensor_pf() -> impl Strategy<Value = Option<f32>> {
     prop_oneof![
         Just(None),
@@ -230,5 +214,146 @@ pub fn describe(outcome: &LoadOutcome<RamFlashError>) -> String {
         LoadOutcome::Stored(spec) => format!("Stored(id {})", spec.id),
         LoadOutcome::Absent => "Absent".into(),
         LoadOutcome::Corrupt(reason) => format!("Corrupt({reason:?})"),
+    }
+}
+
+/// The saves that completed, in order: the reference of what every pad loads (the last save
+/// that covers it).
+#[derive(Debug, Clone, Default)]
+pub struct History(pub std::vec::Vec<(RecordScope, CalibrationSpec)>);
+
+impl History {
+    /// What `pad` must load (a pad index of `MAX_PADS` or more: only saves for every pad).
+    pub fn expected(&self, pad: u8) -> Option<&CalibrationSpec> {
+        self.0
+            .iter()
+            .rev()
+            .find_map(|(scope, spec)| scope.covers(pad).then_some(spec))
+    }
+
+    /// The outcomes pads 0 to `MAX_PADS` (the last standing for any index beyond) must load.
+    pub fn outcomes(&self) -> std::vec::Vec<LoadOutcome<RamFlashError>> {
+        (0..=MAX_PADS)
+            .map(|pad| match self.expected(pad) {
+                Some(spec) => LoadOutcome::Stored(spec.clone()),
+                None => LoadOutcome::Absent,
+            })
+            .collect()
+    }
+
+    /// This history with one more save.
+    pub fn with(&self, scope: RecordScope, spec: &CalibrationSpec) -> Self {
+        let mut saves = self.0.clone();
+        saves.push((scope, spec.clone()));
+        Self(saves)
+    }
+}
+
+/// A store over the two pages after the first page of `flash` (the first page checks that
+/// nothing is written outside the range).
+pub fn store_of<const SIZE: usize, const PAGE: usize>(
+    flash: &mut RamFlash<SIZE, PAGE>,
+) -> CalibrationStore<&mut RamFlash<SIZE, PAGE>> {
+    CalibrationStore::new(flash, PAGE as u32..SIZE as u32).unwrap()
+}
+
+/// "Reboot" (power on, a new store on the same bytes) and load every pad, then an index past
+/// the last (which only records for every pad cover).
+pub fn load_every_pad<const SIZE: usize, const PAGE: usize>(
+    flash: &mut RamFlash<SIZE, PAGE>,
+) -> std::vec::Vec<LoadOutcome<RamFlashError>> {
+    flash.power_cycle();
+    (0..=MAX_PADS)
+        .map(|pad| block_on(store_of(flash).load(pad)))
+        .collect()
+}
+
+/// The on-flash format as its documentation gives it, for a flash of 4-byte words.
+pub mod layout {
+    use crc::{Crc, CRC_32_ISO_HDLC};
+    use model_core::calibration::CalibrationSpec;
+
+    /// The flash word of `RamFlash` (and of the F411).
+    pub const WORD: usize = 4;
+    /// The page header (16 bytes), then the commit word.
+    pub const COMMIT_AT: usize = 16;
+    /// Where the first record of a page starts.
+    pub const RECORDS_AT: usize = COMMIT_AT + WORD;
+    /// A record's header, before its body.
+    pub const RECORD_HEADER_LEN: usize = 16;
+    /// The pads byte of a record for every pad.
+    pub const EVERY_PAD: u8 = 0xFF;
+
+    const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+
+    /// A page header: "TXCS", the format version, three erased bytes, the generation and the
+    /// CRC-32 of the 12 bytes before it.
+    pub fn page_header(format_version: u8, generation: u32) -> Vec<u8> {
+        let mut header = b"TXCS".to_vec();
+        header.extend_from_slice(&[format_version, 0xFF, 0xFF, 0xFF]);
+        header.extend_from_slice(&generation.to_le_bytes());
+        let crc = CRC.checksum(&header);
+        header.extend_from_slice(&crc.to_le_bytes());
+        header
+    }
+
+    /// A record padded to the word: body length, its complement, save counter, pads byte, three
+    /// erased bytes, the CRC-32 of those 12 bytes and the body, the body.
+    pub fn record(body: &[u8], save_counter: u32, pads: u8) -> Vec<u8> {
+        let length = body.len() as u16;
+        let mut record = length.to_le_bytes().to_vec();
+        record.extend_from_slice(&(!length).to_le_bytes());
+        record.extend_from_slice(&save_counter.to_le_bytes());
+        record.extend_from_slice(&[pads, 0xFF, 0xFF, 0xFF]);
+        let mut digest = CRC.digest();
+        digest.update(&record);
+        digest.update(body);
+        record.extend_from_slice(&digest.finalize().to_le_bytes());
+        record.extend_from_slice(body);
+        while !record.len().is_multiple_of(WORD) {
+            record.push(0xFF);
+        }
+        record
+    }
+
+    /// A body: the body format version (1) and the postcard calibration.
+    pub fn body(spec: &CalibrationSpec) -> Vec<u8> {
+        let mut buffer = [0u8; 1024];
+        let mut body = vec![1];
+        body.extend_from_slice(postcard::to_slice(spec, &mut buffer).unwrap());
+        body
+    }
+
+    /// Writes into `page` (erased, as bytes) a complete page (header, commit word) of
+    /// `format_version` and `generation` holding `records`.
+    pub fn write_page(page: &mut [u8], format_version: u8, generation: u32, records: &[Vec<u8>]) {
+        page[..16].copy_from_slice(&page_header(format_version, generation));
+        page[COMMIT_AT..RECORDS_AT].fill(0x00);
+        let mut address = RECORDS_AT;
+        for record in records {
+            page[address..address + record.len()].copy_from_slice(record);
+            address += record.len();
+        }
+    }
+
+    /// Where the erased space after the records of `page` starts (the first slot whose 16
+    /// header bytes read erased).
+    pub fn free_start(page: &[u8]) -> usize {
+        let mut address = RECORDS_AT;
+        loop {
+            let header = &page[address..address + RECORD_HEADER_LEN];
+            if header.iter().all(|&byte| byte == 0xFF) {
+                return address;
+            }
+            let length = u16::from_le_bytes([header[0], header[1]]);
+            assert_eq!(!length, u16::from_le_bytes([header[2], header[3]]));
+            address += (RECORD_HEADER_LEN + usize::from(length)).next_multiple_of(WORD);
+        }
+    }
+
+    /// Appends `record` after the records of `page`.
+    pub fn append(page: &mut [u8], record: &[u8]) {
+        let start = free_start(page);
+        page[start..start + record.len()].copy_from_slice(record);
     }
 }
