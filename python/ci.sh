@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The Python package's CI step: a fresh virtual environment, `pip install ./python` as a user
-# would, the command-line tool the tests compare against, then the pytest suite.
+# The Python package's CI step: rustfmt and clippy of the extension crate, a fresh virtual
+# environment, `pip install ./python` as a user would, `mypy --strict` on the package and the
+# examples, the command-line tool the tests compare against, then the pytest suite.
 # Usage (from anywhere): bash python/ci.sh
 # Environment: PYTHON (default python3), TAXEL_PY_VENV (default: a temporary directory, removed
 # afterwards), CARGO_TARGET_DIR (honoured by both builds).
@@ -31,9 +32,17 @@ echo "== python: virtual environment in $venv"
 "$python" -m venv "$venv" || fail "creating the virtual environment with $python"
 "$venv/bin/python" -m pip install --quiet --upgrade pip || fail "upgrading pip"
 
-echo "== python: pip install ./python[test] (pytest, pandas)"
+echo "== python: pip install ./python[test] (pytest, pandas, pandas-stubs, mypy)"
 (cd "$repository" && "$venv/bin/python" -m pip install --quiet "./python[test]") \
   || fail "pip install ./python"
+
+echo "== python: mypy --strict on the installed package's public API and on python/examples"
+# From the tests' directory, so that `-p taxel` is the installed package (its stubs), not the
+# source tree.
+(cd "$python_dir/tests" \
+  && "$venv/bin/python" -m mypy --config-file "$python_dir/pyproject.toml" --cache-dir /dev/null -p taxel \
+  && "$venv/bin/python" -m mypy --config-file "$python_dir/pyproject.toml" --cache-dir /dev/null "$python_dir"/examples/*.py) \
+  || fail "mypy --strict"
 
 echo "== python: the taxel command-line tool (the tests compare the package with it)"
 (cd "$repository" && cargo build --locked -p taxel --bin taxel) || fail "cargo build -p taxel"

@@ -2,6 +2,7 @@
 //! capacitances, temperature law, thresholds) read from and written to the calibration files of
 //! `taxel calibrate`, or fitted from reference loads with the same code and report.
 
+use std::ffi::CString;
 use std::path::PathBuf;
 
 use model_core::{Calibration as ModelCalibration, TAXEL_COUNT, TAXEL_NAMES};
@@ -10,8 +11,10 @@ use numpy::PyUntypedArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use taxel_host::calibrate::{
-    cross_validate, curve_points, fit_calibration, reference_data, LoadRow, TierFitError,
+    cross_validate, curve_points, fit_calibration, reference_data, LoadRow, ReferenceData,
+    TierFitError,
 };
+use taxel_host::calibrate_report::{conditioning_report, cross_validation_table, levels_table};
 use taxel_host::calibration_file;
 
 use crate::arrays::{c_order_values, float64_c_array};
@@ -24,6 +27,54 @@ struct LeaveOneOut {
     result: TierFitError,
 }
 
+/// The report of a fit as `taxel calibrate` prints it on stdout, and its warnings (which the
+/// command prints on stderr, with "warning: " before each): the host library's
+/// `calibrate_report::fit_report` prints its warnings itself, which a Python package must not
+/// do, so the report is put together here from the same parts (a test compares it with the
+/// command's output).
+fn fit_report(
+    data: &ReferenceData,
+    calibration: &ModelCalibration,
+    budget_kpa: f32,
+) -> (String, Vec<String>) {
+    let mut text = format!(
+        "{} rows, {} levels; C0 - Cp per taxel (pF, at 25 °C): {}\n",
+        data.rows.len(),
+        data.levels.len(),
+        data.unloaded_sensor_pf
+            .iter()
+            .map(|pf| format!("{pf:.6}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    text.push_str("\nMean dC/C0 per level (the curve points):\n");
+    text.push_str(&levels_table(data));
+    let results: [Vec<TierFitError>; TAXEL_COUNT] =
+        std::array::from_fn(|taxel| cross_validate(&curve_points(data, taxel)));
+    text.push_str(
+        "\nPressure error per tier, kPa (predicted - applied): fit_max at the points with \
+         the full curve; loo = leave-one-out over the interior levels (folds = levels where \
+         the tier was available):\n",
+    );
+    text.push_str(&cross_validation_table(&results));
+    let (conditioning, warnings) =
+        conditioning_report(calibration, &data.unloaded_sensor_pf, budget_kpa);
+    text.push_str(
+        "\nConditioning: rms pressure noise from 0.5 fF of converter noise, worst point of \
+         each interval:\n",
+    );
+    text.push_str(&conditioning);
+    let warnings = warnings
+        .into_iter()
+        .map(|warning| {
+            warning
+                .strip_prefix("warning: ")
+                .map_or(warning.clone(), str::to_owned)
+        })
+        .collect();
+    (text, warnings)
+}
+
 /// A calibration: per taxel the curve of dC/C0 against pressure, the parasitic and unloaded
 /// capacitances; the temperature law; the fault thresholds. Files are the JSON files
 /// ``taxel calibrate`` writes and ``taxel convert --calibration`` reads.
@@ -32,6 +83,7 @@ pub struct Calibration {
     model: ModelCalibration,
     report: Option<String>,
     leave_one_out: Vec<LeaveOneOut>,
+    warnings: Vec<String>,
 }
 
 impl Calibration {
@@ -41,6 +93,7 @@ impl Calibration {
             model,
             report: None,
             leave_one_out: Vec::new(),
+            warnings: Vec::new(),
         }
     }
 
@@ -96,8 +149,11 @@ impl Calibration {
     /// (N,) applied pressures (several rows at 0 kPa give C0), ``capacitance_pf`` (N, 4)
     /// measured capacitances, ``temp_c`` (N,) pad temperatures (NaN or omitted: none). Any
     /// array-like is accepted (lists, numpy arrays of any numeric type and memory layout,
-    /// pandas Series and DataFrames) and read as float64 in row order. The result's :attr:`fit_report` is the command's report and :attr:`leave_one_out` its
-    /// cross-validation of every tier.
+    /// pandas Series and DataFrames) and read as float64 in row order. The result's
+    /// :attr:`fit_report` is the command's report and :attr:`leave_one_out` its
+    /// cross-validation of every tier; what the command prints as warnings (rows outside the
+    /// temperature law's range, intervals where converter noise exceeds ``budget_kpa``) is
+    /// issued as :class:`taxel.TaxelWarning` warnings and kept in :attr:`fit_warnings`.
     #[staticmethod]
     #[pyo3(signature = (pressure_kpa, capacitance_pf, temp_c=None, id=1, parasitic_pf=0.0, budget_kpa=model_core::UseCase::GRIPPER.error_budget_kpa))]
     fn fit(
@@ -165,11 +221,21 @@ impl Calibration {
                     .filter(|value| value.is_finite()),
             });
         }
-        let fitted = py.allow_threads(|| -> anyhow::Result<Self> {
+        let fitted = py.allow_threads(|| -> anyhow::Result<(Self, Vec<String>)> {
             let law = ModelCalibration::default().temperature_law().clone();
             let data = reference_data(&loads, [f64::from(parasitic_pf); TAXEL_COUNT], &law)?;
+            let mut warnings = Vec::new();
+            if data.rows_temperature_clamped > 0 {
+                warnings.push(format!(
+                    "{} row(s) outside the characterised {}..{} °C were corrected as if at the nearest end",
+                    data.rows_temperature_clamped,
+                    law.characterised_min_c(),
+                    law.characterised_max_c()
+                ));
+            }
             let model = fit_calibration(&data, id, parasitic_pf)?;
-            let report = taxel_host::calibrate_report::fit_report(&data, &model, budget_kpa);
+            let (report, conditioning_warnings) = fit_report(&data, &model, budget_kpa);
+            warnings.extend(conditioning_warnings);
             let leave_one_out = (0..TAXEL_COUNT)
                 .flat_map(|taxel| {
                     cross_validate(&curve_points(&data, taxel))
@@ -180,13 +246,34 @@ impl Calibration {
                         })
                 })
                 .collect();
-            Ok(Self {
-                model,
-                report: Some(report),
-                leave_one_out,
-            })
+            Ok((
+                Self {
+                    model,
+                    report: Some(report),
+                    leave_one_out,
+                    warnings: warnings.clone(),
+                },
+                warnings,
+            ))
         });
-        fitted.map_err(|error| anyhow_error(&error, ErrorKind::Calibration))
+        let (fitted, warnings) =
+            fitted.map_err(|error| anyhow_error(&error, ErrorKind::Calibration))?;
+        let category = py.import("taxel._errors")?.getattr("TaxelWarning")?;
+        for warning in warnings {
+            let message = CString::new(warning)
+                .map_err(|error| taxel_error(ErrorKind::Calibration, error.to_string()))?;
+            PyErr::warn(py, &category, &message, 1)?;
+        }
+        Ok(fitted)
+    }
+
+    /// The warnings of :meth:`fit` (also issued as :class:`taxel.TaxelWarning` warnings when it
+    /// ran): rows whose temperature was outside the characterised range, and calibration
+    /// intervals where the converter's noise moves the pressure by more than the budget.
+    /// Empty for a calibration that was not fitted here.
+    #[getter]
+    fn fit_warnings(&self) -> Vec<String> {
+        self.warnings.clone()
     }
 
     /// The calibration id (reported by a device that uses it).

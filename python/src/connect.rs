@@ -10,13 +10,14 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use anyhow::Context;
 use pyo3::prelude::*;
 use taxel_host::device_link::DeviceLink;
-use taxel_host::host_clock::MonotonicClock;
+use taxel_host::host_clock::{MonotonicClock, UnixClock};
 use taxel_host::session::{DeviceSession, SessionConfig};
 use taxel_host::worker::{EventQueue, Overflow, Worker};
 
-use crate::device::{Link, SLICE};
+use crate::control::{Link, SLICE};
 use crate::errors::{anyhow_error, taxel_error, ErrorKind};
 use crate::stream::Stream;
+use crate::timeline::Timeline;
 
 /// Waits for `receiver` until `deadline` in slices with the GIL released, raising on Ctrl-C;
 /// `None` when nothing came (or the sender went away).
@@ -50,7 +51,7 @@ pub fn wait_interruptibly<T: Send>(
 }
 
 /// The host clock now, Unix seconds.
-fn unix_now_s() -> f64 {
+pub fn unix_now_s() -> f64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0.0, |elapsed| elapsed.as_secs_f64())
@@ -90,7 +91,10 @@ pub fn start_interruptibly(
                         Arc::new(MonotonicClock::new()),
                     )
                     .context("starting the device's reader thread")?;
-                    Ok((worker, Arc::new(Stream::new(queue, origin_unix_s, info))))
+                    Ok((
+                        worker,
+                        Arc::new(Stream::new(queue, queue_sets, origin_unix_s, info)),
+                    ))
                 });
             let _ = sender.send(started);
         })
@@ -107,6 +111,70 @@ pub fn start_interruptibly(
             format!(
                 "the device did not finish connecting (identity and stream start) within {} ms{slow_hint}",
                 timeout.as_millis()
+            ),
+        )),
+    }
+}
+
+/// Opens every device's session, starts their streams and one worker reading them all, on a
+/// thread of its own, waited for as [`start_interruptibly`] does (`timeout` per device). Each
+/// device's arrivals are stamped with `clock`, which must have started before the links were
+/// opened. `names` name the devices in errors.
+pub fn start_many_interruptibly(
+    py: Python<'_>,
+    links: Vec<Link>,
+    names: Vec<String>,
+    timeout: Duration,
+    queue_sets: usize,
+    clock: UnixClock,
+    slow_hint: &str,
+) -> PyResult<(Worker<Link>, Arc<Timeline>)> {
+    let count = u32::try_from(links.len().max(1)).unwrap_or(u32::MAX);
+    let deadline = Instant::now() + timeout * count + 2 * SLICE;
+    let (sender, receiver) = mpsc::channel();
+    thread::Builder::new()
+        .name("taxel-connect".into())
+        .spawn(move || {
+            let config = SessionConfig {
+                request_timeout: timeout,
+                follow_state: false,
+            };
+            let started = (|| -> anyhow::Result<(Worker<Link>, Arc<Timeline>)> {
+                let mut sessions = Vec::new();
+                for (link, name) in links.into_iter().zip(&names) {
+                    let session = DeviceSession::open(DeviceLink::new(link), config)
+                        .with_context(|| format!("the device {name}"))?;
+                    sessions.push(session);
+                }
+                for (session, name) in sessions.iter_mut().zip(&names) {
+                    session
+                        .start()
+                        .with_context(|| format!("starting the stream of {name}"))?;
+                }
+                let infos = sessions.iter().map(|session| *session.info()).collect();
+                let queue = Arc::new(EventQueue::new(queue_sets, Overflow::DropOldestSet));
+                let worker = Worker::start(sessions, Arc::clone(&queue), Arc::new(clock))
+                    .context("starting the devices' reader threads")?;
+                Ok((
+                    worker,
+                    Arc::new(Timeline::new(queue, clock, infos, names).with_queue_sets(queue_sets)),
+                ))
+            })();
+            let _ = sender.send(started);
+        })
+        .map_err(|error| {
+            taxel_error(
+                ErrorKind::Other,
+                format!("starting the connection: {error}"),
+            )
+        })?;
+    match wait_interruptibly(py, receiver, deadline)? {
+        Some(started) => started.map_err(|error| anyhow_error(&error, ErrorKind::Other)),
+        None => Err(taxel_error(
+            ErrorKind::Timeout,
+            format!(
+                "the devices did not finish connecting (identity and stream start) within {} ms{slow_hint}",
+                (timeout * count).as_millis()
             ),
         )),
     }

@@ -15,6 +15,7 @@ use wire::TemperatureSource;
 use crate::arrays::{c_order_values, float64_c_array};
 use crate::calibration::Calibration;
 use crate::errors::{taxel_error, ErrorKind};
+use crate::interrupt::SignalCheck;
 
 /// The input columns, checked: `capacitance_pf` (rows × pads × 4), `temperature_c`
 /// (rows × pads), `time_s` (rows) when given.
@@ -41,9 +42,7 @@ fn pad_row(inputs: &Inputs<'_>, row: usize, pad: usize) -> PadRow {
     let missing =
         inputs.pads > 1 && temperature.is_nan() && capacitances.iter().all(|value| value.is_nan());
     // A time given is non-negative (checked): the time cell of a recording, in µs.
-    let device_time_us = inputs
-        .time_s
-        .map_or(0, |times| (times[row] * 1.0e6) as u64);
+    let device_time_us = inputs.time_s.map_or(0, |times| (times[row] * 1.0e6) as u64);
     PadRow {
         host_time_us: 0,
         device: 0,
@@ -69,21 +68,33 @@ fn pad_row(inputs: &Inputs<'_>, row: usize, pad: usize) -> PadRow {
     }
 }
 
+/// Why a conversion stopped.
+enum Stopped {
+    /// The engine refused a row.
+    Engine(anyhow::Error),
+    /// A signal handler raised (Ctrl-C: `KeyboardInterrupt`).
+    Interrupted(PyErr),
+}
+
 /// Runs every row of every pad through `engine`, in set order, into `outputs` (a missing frame's
-/// pressures NaN and flags 0).
+/// pressures NaN and flags 0), looking for Ctrl-C as it goes.
 fn run_rows(
     engine: &mut ConversionEngine,
     inputs: &Inputs<'_>,
     outputs: &mut Outputs,
-) -> anyhow::Result<()> {
+) -> Result<(), Stopped> {
     let rows = inputs.temperature_c.len() / inputs.pads.max(1);
+    let mut signals = SignalCheck::new();
     for row in 0..rows {
+        signals.tick().map_err(Stopped::Interrupted)?;
         for pad in 0..inputs.pads {
             let mut pad_row = pad_row(inputs, row, pad);
             if inputs.time_s.is_some() {
-                engine.convert(&mut pad_row)?;
+                engine.convert(&mut pad_row).map_err(Stopped::Engine)?;
             } else {
-                engine.convert_untimed(&mut pad_row)?;
+                engine
+                    .convert_untimed(&mut pad_row)
+                    .map_err(Stopped::Engine)?;
             }
             let first = (row * inputs.pads + pad) * TAXEL_COUNT;
             for taxel in 0..TAXEL_COUNT {
@@ -205,9 +216,12 @@ pub fn convert_arrays<'py>(
                 flags: vec![0u16; rows * taxels],
             };
             run_rows(&mut engine, &inputs, &mut outputs)?;
-            anyhow::Ok((outputs, engine.finish()))
+            Ok((outputs, engine.finish()))
         })
-        .map_err(|error| taxel_error(ErrorKind::Convert, error_message(&error)))?;
+        .map_err(|stopped| match stopped {
+            Stopped::Engine(error) => taxel_error(ErrorKind::Convert, error_message(&error)),
+            Stopped::Interrupted(error) => error,
+        })?;
     let Outputs {
         pressure_kpa,
         flags,

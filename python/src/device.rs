@@ -1,65 +1,45 @@
 //! `taxel.Device`: one board (or, through `taxel.Simulator`, the simulated device) as a Python
-//! object: its identity, sample sets one at a time or collected in the background, and its
-//! commands. The host library's worker reads the device on a thread of its own (the one stream
+//! object: its identity, sample sets one at a time or collected in the background, its events,
+//! and its commands. The host library's worker reads the device on a thread of its own (the one stream
 //! loop, `taxel_host::session`); every wait here releases the GIL and looks for Ctrl-C every
 //! [`SLICE`].
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use pyo3::exceptions::{PyStopIteration, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use taxel_host::device_link::{open_serial, select_port, RequestError, DEFAULT_PID, DEFAULT_VID};
+use taxel_host::device_link::{
+    open_serial, select_port, LinkStatistics, RequestError, DEFAULT_PID, DEFAULT_VID,
+};
 use taxel_host::session::DeviceSession;
-use taxel_host::worker::Worker;
-use wire::{Command, PadIndex, ReplyPayload, SampleRate};
+use taxel_host::stream_accounting::StreamAccounting;
+use wire::{Command, InfoFrame, PadIndex, ReplyPayload, SampleRate};
 
-use crate::buffering::{Buffer, Buffering};
+use crate::buffering::Buffer;
 use crate::calibration::Calibration;
-use crate::connect::{start_interruptibly, wait_interruptibly};
+use crate::connect::start_interruptibly;
+use crate::control::{closed_error, data_loss_message, Backend, Control, Link, Transport, SLICE};
 use crate::errors::{anyhow_error, taxel_error, ErrorKind};
-use crate::locking::lock;
-use crate::sample_set::SampleSet;
-use crate::stream::{Stream, QUEUE_SETS};
-
-/// A byte stream to a device.
-pub trait Transport: std::io::Read + std::io::Write + Send {}
-
-impl<T: std::io::Read + std::io::Write + Send> Transport for T {}
-
-/// The link a device is read over.
-pub type Link = Box<dyn Transport>;
-
-/// How long a blocking call waits with the GIL released before it looks for Ctrl-C.
-pub const SLICE: Duration = Duration::from_millis(50);
+use crate::events::DeviceEvent;
+use crate::sample_set::{SampleSet, SetRecord};
+use crate::stream::{SetSource, Stream, QUEUE_SETS};
 
 /// The read timeout of a serial port: one poll of the link waits at most this.
-const PORT_READ_TIMEOUT: Duration = Duration::from_millis(20);
+pub const PORT_READ_TIMEOUT: Duration = Duration::from_millis(20);
 
-/// What stops the thing behind a device when it closes (the simulated device's thread).
-pub trait Backend: Send + Sync {
-    /// Stops it and waits.
-    fn stop(&mut self);
-}
-
-/// A board or the simulated device, with its sample sets and commands (see the package's
-/// documentation). Use it as a context manager, or call :meth:`close`.
+/// A board or the simulated device, with its sample sets, events and commands (see the
+/// package's documentation). Use it as a context manager, or call :meth:`close`.
 ///
 /// Every method may be called from any thread: :meth:`close` from another thread or from a
 /// signal handler ends a :meth:`read` blocked in this one (it raises :class:`taxel.LinkError`
 /// within about 50 ms).
 #[pyclass(frozen, subclass, module = "taxel")]
 pub struct Device {
-    // Behind locks of their own so that every method takes `&self`: a method holding a mutable
-    // borrow of the object would make `close()` from another thread fail with "Already
-    // borrowed" while a `read()` waits.
-    worker: Mutex<Option<Worker<Link>>>,
+    control: Control,
     stream: Arc<Stream>,
-    buffering: Mutex<Option<Buffering>>,
-    backend: Mutex<Option<Box<dyn Backend>>>,
-    timeout: Duration,
     pads: usize,
     port_name: String,
 }
@@ -83,6 +63,56 @@ pub fn timeout_from_s(timeout_s: f64) -> PyResult<Duration> {
         )));
     }
     Ok(Duration::from_secs_f64(timeout_s))
+}
+
+/// A device's identity as a dict.
+pub fn info_dict<'py>(
+    py: Python<'py>,
+    info: &InfoFrame,
+    port: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    let version = info.firmware_version;
+    dict.set_item("protocol_version", info.protocol_version)?;
+    dict.set_item(
+        "firmware_version",
+        format!("{}.{}.{}", version.major, version.minor, version.patch),
+    )?;
+    dict.set_item(
+        "board_serial",
+        taxel_host::device_words::board_serial_hex(info),
+    )?;
+    dict.set_item("calibration_id", info.calibration_id)?;
+    dict.set_item(
+        "calibration_source",
+        format!("{:?}", info.calibration_source).to_lowercase(),
+    )?;
+    dict.set_item("rate_sps", info.rate.sps())?;
+    dict.set_item("tier", info.model_tier.name())?;
+    dict.set_item("pad_count", info.pad_count)?;
+    dict.set_item("streaming", info.streaming)?;
+    dict.set_item("port", port)?;
+    Ok(dict)
+}
+
+/// How long a tare of `sample_sets` sets may take at `rate_sps`, beyond the request timeout.
+pub fn tare_duration(sample_sets: u16, rate_sps: u16) -> Duration {
+    // A set takes about four conversions; allow twice that.
+    Duration::from_secs_f64(f64::from(sample_sets) * 8.0 / f64::from(rate_sps.max(1)))
+}
+
+/// The payload of a request that answers with an acknowledgement.
+pub fn expect_ack(payload: ReplyPayload, what: &str) -> PyResult<()> {
+    match payload {
+        ReplyPayload::Ack => Ok(()),
+        _ => Err(taxel_error(
+            ErrorKind::Other,
+            format!(
+                "{what}: {}",
+                RequestError::UnexpectedReply("an acknowledgement")
+            ),
+        )),
+    }
 }
 
 impl Device {
@@ -110,39 +140,23 @@ impl Device {
         };
         let pads = usize::from(stream.state().info.pad_count.max(1));
         Ok(Self {
-            worker: Mutex::new(Some(worker)),
+            control: Control::new(worker, backend.into_iter().collect(), timeout),
             stream,
-            buffering: Mutex::new(None),
-            backend: Mutex::new(backend),
-            timeout,
             pads,
             port_name,
         })
     }
 
-    /// Runs `job` on the device's session (on the worker's thread, between reads) and waits
-    /// for its result with the GIL released, looking for Ctrl-C, for `timeout` and a little
-    /// more (the job bounds itself; this only guards against a worker that stopped).
     fn on_session<T: Send + 'static>(
         &self,
         py: Python<'_>,
         timeout: Duration,
         job: impl FnOnce(&mut DeviceSession<Link>) -> T + Send + 'static,
     ) -> PyResult<T> {
-        let receiver = py
-            .allow_threads(|| lock(&self.worker).as_ref().map(|worker| worker.run(0, job)))
-            .ok_or_else(closed_error)?
-            .map_err(|_| self.ended_error())?;
-        wait_interruptibly(
-            py,
-            receiver,
-            Instant::now() + timeout + Duration::from_secs(1),
-        )?
-        .ok_or_else(|| self.ended_error())
+        self.control
+            .on_session(py, 0, timeout, &|| self.ended_error(), job)
     }
 
-    /// Sends a request and waits (interruptibly) for a successful reply; `what` names it in
-    /// errors, as the CLI does.
     fn request(
         &self,
         py: Python<'_>,
@@ -150,29 +164,8 @@ impl Device {
         what: &str,
         timeout: Duration,
     ) -> PyResult<ReplyPayload> {
-        // The device's thread sends it and goes on reading while the reply is awaited, so the
-        // sets arriving meanwhile keep their arrival times (a tare takes a second or more).
-        let receiver = py
-            .allow_threads(|| {
-                lock(&self.worker)
-                    .as_ref()
-                    .map(|worker| worker.send(0, command, timeout))
-            })
-            .ok_or_else(closed_error)?
-            .map_err(|_| self.ended_error())?;
-        let deadline = Instant::now()
-            .checked_add(timeout + Duration::from_secs(1))
-            .unwrap_or_else(Instant::now);
-        let result =
-            wait_interruptibly(py, receiver, deadline)?.ok_or_else(|| self.ended_error())?;
-        result.map_err(|error| {
-            let kind = match &error {
-                RequestError::Refused(_) => ErrorKind::Refused,
-                RequestError::Timeout { .. } => ErrorKind::Timeout,
-                _ => ErrorKind::Other,
-            };
-            anyhow_error(&anyhow::Error::new(error).context(what.to_owned()), kind)
-        })
+        self.control
+            .request(py, 0, command, what, timeout, &|| self.ended_error())
     }
 
     /// Why the device can no longer be asked anything: closed, or its stream ended.
@@ -183,60 +176,13 @@ impl Device {
         }
     }
 
-    fn expect_ack(payload: ReplyPayload, what: &str) -> PyResult<()> {
-        match payload {
-            ReplyPayload::Ack => Ok(()),
-            _ => Err(taxel_error(
-                ErrorKind::Other,
-                format!(
-                    "{what}: {}",
-                    RequestError::UnexpectedReply("an acknowledgement")
-                ),
-            )),
-        }
-    }
-
     fn refresh_info(&self, py: Python<'_>) -> PyResult<()> {
-        if let ReplyPayload::Info(info) = self.request(py, Command::Info, "Info", self.timeout)? {
+        if let ReplyPayload::Info(info) =
+            self.request(py, Command::Info, "Info", self.control.timeout)?
+        {
             self.stream.state().info = info;
         }
         Ok(())
-    }
-
-    fn is_buffering(&self, py: Python<'_>) -> bool {
-        py.allow_threads(|| lock(&self.buffering).is_some())
-    }
-
-    fn refuse_while_buffering(&self, py: Python<'_>, what: &str) -> PyResult<()> {
-        if self.is_buffering(py) {
-            return Err(taxel_error(
-                ErrorKind::Other,
-                format!("{what} while buffering: take the sets with read_buffer(), or call stop_buffering() first"),
-            ));
-        }
-        Ok(())
-    }
-
-    /// Closes everything with the GIL released (no lock is ever held while Python code may
-    /// run, so a signal handler may call this while another call of this thread waits).
-    fn close_now(&self, py: Python<'_>) {
-        py.allow_threads(|| self.close_blocking());
-    }
-
-    fn close_blocking(&self) {
-        let buffering = lock(&self.buffering).take();
-        if let Some(mut buffering) = buffering {
-            buffering.stop();
-        }
-        let worker = lock(&self.worker).take();
-        if let Some(worker) = worker {
-            // Stops the stream; its end reaches the queue, so a read waiting now ends.
-            worker.finish();
-        }
-        let backend = lock(&self.backend).take();
-        if let Some(mut backend) = backend {
-            backend.stop();
-        }
     }
 }
 
@@ -247,11 +193,8 @@ fn no_set_error(timeout: Duration) -> PyErr {
     )
 }
 
-fn closed_error() -> PyErr {
-    taxel_error(ErrorKind::Link, "the device is closed")
-}
-
-fn counters_dict<'py>(
+/// The device's counters as a dict.
+pub fn counters_dict<'py>(
     py: Python<'py>,
     counters: &wire::CountersFrame,
 ) -> PyResult<Bound<'py, PyDict>> {
@@ -266,6 +209,65 @@ fn counters_dict<'py>(
     dict.set_item("frames_dropped_no_host", counters.frames_dropped_no_host)?;
     dict.set_item("host_frames_rejected", counters.host_frames_rejected)?;
     Ok(dict)
+}
+
+/// One device's accounting, for `stats`.
+pub struct StatsCounts {
+    /// Where every sample set went.
+    pub accounting: StreamAccounting,
+    /// The link's decoding counters.
+    pub link: LinkStatistics,
+    /// Sets handed to the caller.
+    pub sets_delivered: u64,
+    /// Sets closed with a pad's frame missing.
+    pub incomplete_sets: u64,
+    /// Sets dropped because nobody read them.
+    pub sets_dropped_unread: u64,
+    /// Device events dropped because nobody took them.
+    pub events_dropped: u64,
+}
+
+/// The dict of `stats`.
+pub fn stats_dict<'py>(py: Python<'py>, counts: &StatsCounts) -> PyResult<Bound<'py, PyDict>> {
+    let accounting = &counts.accounting;
+    let dict = PyDict::new(py);
+    dict.set_item("sets_delivered", counts.sets_delivered)?;
+    dict.set_item("frames_received", accounting.received())?;
+    dict.set_item("sequence_gap_frames", accounting.sequence_gap_sets())?;
+    dict.set_item("device_dropped_frames", accounting.device_dropped())?;
+    dict.set_item("lost_on_link_frames", accounting.lost_on_link())?;
+    dict.set_item("stale_frames", accounting.stale_frames())?;
+    dict.set_item("incomplete_sets", counts.incomplete_sets)?;
+    dict.set_item("sets_dropped_unread", counts.sets_dropped_unread)?;
+    dict.set_item("events_dropped", counts.events_dropped)?;
+    dict.set_item("frames_rejected", counts.link.frames_rejected)?;
+    Ok(dict)
+}
+
+/// The next set from `source` by `deadline`, in slices with the GIL released, raising on
+/// Ctrl-C, on a closed control and at the end of the stream.
+pub fn next_set_until(
+    py: Python<'_>,
+    control: &Control,
+    source: &Arc<dyn SetSource>,
+    deadline: Instant,
+) -> PyResult<Option<SetRecord>> {
+    loop {
+        if control.is_closed(py) {
+            return Err(closed_error());
+        }
+        let slice_end = deadline.min(Instant::now() + SLICE);
+        let source = Arc::clone(source);
+        match py.allow_threads(move || source.next_set(slice_end)) {
+            Ok(Some(set)) => return Ok(Some(set)),
+            Ok(None) => {}
+            Err(ended) => return Err(taxel_error(ErrorKind::Link, ended.0)),
+        }
+        py.check_signals()?;
+        if Instant::now() >= deadline {
+            return Ok(None);
+        }
+    }
 }
 
 #[pymethods]
@@ -301,32 +303,11 @@ impl Device {
     /// source, converter rate, model tier, pad count, streaming.
     #[getter]
     fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        if self.is_closed(py) {
+        if self.control.is_closed(py) {
             return Err(closed_error());
         }
         let info = self.stream.state().info;
-        let dict = PyDict::new(py);
-        let version = info.firmware_version;
-        dict.set_item("protocol_version", info.protocol_version)?;
-        dict.set_item(
-            "firmware_version",
-            format!("{}.{}.{}", version.major, version.minor, version.patch),
-        )?;
-        dict.set_item(
-            "board_serial",
-            taxel_host::device_words::board_serial_hex(&info),
-        )?;
-        dict.set_item("calibration_id", info.calibration_id)?;
-        dict.set_item(
-            "calibration_source",
-            format!("{:?}", info.calibration_source).to_lowercase(),
-        )?;
-        dict.set_item("rate_sps", info.rate.sps())?;
-        dict.set_item("tier", info.model_tier.name())?;
-        dict.set_item("pad_count", info.pad_count)?;
-        dict.set_item("streaming", info.streaming)?;
-        dict.set_item("port", self.port_name.clone())?;
-        Ok(dict)
+        info_dict(py, &info, &self.port_name)
     }
 
     /// The number of pads of each sample set.
@@ -348,7 +329,7 @@ impl Device {
     /// arrives. A control loop that wants the newest set uses :meth:`latest`.
     #[pyo3(signature = (timeout=None))]
     fn read(&self, py: Python<'_>, timeout: Option<f64>) -> PyResult<SampleSet> {
-        self.refuse_while_buffering(py, "read()")?;
+        self.control.refuse_while_buffering(py, "read()")?;
         let timeout = self.timeout_or_default(timeout)?;
         self.next_set_until(py, Instant::now() + timeout)?
             .map(SampleSet::new)
@@ -360,18 +341,14 @@ impl Device {
     /// (waiting up to ``timeout`` seconds). What a control loop reads each cycle.
     #[pyo3(signature = (timeout=None))]
     fn latest(&self, py: Python<'_>, timeout: Option<f64>) -> PyResult<SampleSet> {
-        self.refuse_while_buffering(py, "latest()")?;
+        self.control.refuse_while_buffering(py, "latest()")?;
         let timeout = self.timeout_or_default(timeout)?;
         if self.is_closed(py) {
             return Err(closed_error());
         }
         let stream = Arc::clone(&self.stream);
         let queued = py.allow_threads(|| stream.drain_sets());
-        match queued
-            .into_iter()
-            .rev()
-            .find(|set| set.missing_pads.is_empty())
-        {
+        match queued.into_iter().rev().find(SetRecord::is_complete) {
             Some(newest) => Ok(SampleSet::new(newest)),
             None => self
                 .next_set_until(py, Instant::now() + timeout)?
@@ -397,28 +374,8 @@ impl Device {
     /// between two :meth:`read_buffer` calls; sets beyond are counted as overflowed.
     #[pyo3(signature = (capacity_sets=1_000_000))]
     fn start_buffering(&self, py: Python<'_>, capacity_sets: usize) -> PyResult<()> {
-        if capacity_sets == 0 {
-            return Err(PyValueError::new_err("capacity_sets must be at least 1"));
-        }
-        if self.is_closed(py) {
-            return Err(closed_error());
-        }
-        let started = py.allow_threads(|| -> std::io::Result<bool> {
-            let mut buffering = lock(&self.buffering);
-            if buffering.is_some() {
-                return Ok(false);
-            }
-            *buffering = Some(Buffering::start(Arc::clone(&self.stream), capacity_sets)?);
-            Ok(true)
-        });
-        match started {
-            Ok(true) => Ok(()),
-            Ok(false) => self.refuse_while_buffering(py, "start_buffering()"),
-            Err(error) => Err(taxel_error(
-                ErrorKind::Other,
-                format!("starting the buffer thread: {error}"),
-            )),
-        }
+        let source: Arc<dyn SetSource> = self.stream.clone();
+        self.control.start_buffering(py, source, capacity_sets)
     }
 
     /// The sets collected since the last call, as a :class:`taxel.Buffer`. With ``strict``
@@ -428,30 +385,18 @@ impl Device {
     /// collected before the failure in its ``buffer``; so is every later call.
     #[pyo3(signature = (strict=true))]
     fn read_buffer(&self, py: Python<'_>, strict: bool) -> PyResult<Buffer> {
-        let taken = py.allow_threads(|| {
-            lock(&self.buffering)
-                .as_ref()
-                .map(|buffering| (buffering.take(), buffering.capacity_sets))
-        });
-        let Some((collected, capacity_sets)) = taken else {
-            return Err(taxel_error(
-                ErrorKind::Other,
-                "read_buffer() needs start_buffering() first",
-            ));
-        };
-        let buffer = Buffer::new(py, &collected.sets, self.pads, collected.overflowed_sets);
+        let (collected, capacity_sets) = self.control.take_buffer(py)?;
+        let buffer = Buffer::new(py, 0, &collected.sets, self.pads, collected.overflowed_sets)?;
         if let Some(error) = &collected.error {
             let error = anyhow_error(error, ErrorKind::Link);
             error.value(py).setattr("buffer", Py::new(py, buffer)?)?;
             return Err(error);
         }
         if strict && (buffer.overflowed_sets > 0 || buffer.sequence_gap_sets > 0) {
-            let message = format!(
-                "{} sample set(s) lost: {} arrived while the buffer of {} sets was full (call read_buffer() more often or give a larger capacity_sets), {} missing from the sequence numbers",
-                buffer.overflowed_sets + buffer.sequence_gap_sets,
+            let message = data_loss_message(
                 buffer.overflowed_sets,
+                buffer.sequence_gap_sets,
                 capacity_sets,
-                buffer.sequence_gap_sets
             );
             let error = taxel_error(ErrorKind::DataLoss, message);
             error.value(py).setattr("buffer", Py::new(py, buffer)?)?;
@@ -463,22 +408,29 @@ impl Device {
     /// Stops collecting in the background and returns the sets collected since the last
     /// :meth:`read_buffer` (as ``read_buffer(strict=False)``: losses are in its counters; an
     /// empty buffer when none was running). Sets arriving afterwards are for :meth:`read`.
-    fn stop_buffering(&self, py: Python<'_>) -> Buffer {
-        let collected = py.allow_threads(|| {
-            let buffering = lock(&self.buffering).take();
-            buffering.map(|mut buffering| {
-                buffering.stop();
-                buffering.take()
-            })
-        });
-        let collected = collected.unwrap_or_default();
-        Buffer::new(py, &collected.sets, self.pads, collected.overflowed_sets)
+    fn stop_buffering(&self, py: Python<'_>) -> PyResult<Buffer> {
+        let collected = self.control.stop_buffering(py);
+        Buffer::new(py, 0, &collected.sets, self.pads, collected.overflowed_sets)
     }
 
     /// Whether sets are being collected in the background.
     #[getter]
     fn buffering(&self, py: Python<'_>) -> bool {
-        self.is_buffering(py)
+        self.control.is_buffering(py)
+    }
+
+    /// The device events (contact started or ended, tare finished, temperature source
+    /// changed, converter re-initialised, ...) that arrived since the last call, oldest first,
+    /// as :class:`taxel.DeviceEvent` objects. Events are kept whether or not sets are read (a
+    /// full set queue drops sets, never events), up to 100,000 (beyond, the oldest are
+    /// dropped and counted in :attr:`stats`). After :meth:`close`, the events that arrived
+    /// before it.
+    fn events(&self, py: Python<'_>) -> Vec<DeviceEvent> {
+        let stream = Arc::clone(&self.stream);
+        py.allow_threads(move || stream.take_events())
+            .into_iter()
+            .map(DeviceEvent::new)
+            .collect()
     }
 
     /// Tares every pad: the unloaded reference of each taxel becomes the mean of the next
@@ -489,16 +441,13 @@ impl Device {
             return Err(PyValueError::new_err("sample_sets must be at least 1"));
         }
         let rate_sps = self.stream.state().info.rate.sps();
-        // A set takes about four conversions; allow twice that.
-        let needed =
-            Duration::from_secs_f64(f64::from(sample_sets) * 8.0 / f64::from(rate_sps.max(1)));
         let payload = self.request(
             py,
             Command::Tare { sample_sets },
             "Tare",
-            self.timeout + needed,
+            self.control.timeout + tare_duration(sample_sets, rate_sps),
         )?;
-        Self::expect_ack(payload, "Tare")
+        expect_ack(payload, "Tare")
     }
 
     /// Sets the converter rate: 100, 200 or 400 conversions per second (a sample set arrives
@@ -509,8 +458,13 @@ impl Device {
                 "rate {rate_sps} S/s is not supported; valid rates: 100, 200, 400"
             ))
         })?;
-        let payload = self.request(py, Command::SetRate { rate }, "SetRate", self.timeout)?;
-        Self::expect_ack(payload, "SetRate")?;
+        let payload = self.request(
+            py,
+            Command::SetRate { rate },
+            "SetRate",
+            self.control.timeout,
+        )?;
+        expect_ack(payload, "SetRate")?;
         self.refresh_info(py)
     }
 
@@ -521,9 +475,9 @@ impl Device {
             py,
             Command::SetModelTier { tier },
             "SetModelTier",
-            self.timeout,
+            self.control.timeout,
         )?;
-        Self::expect_ack(payload, "SetModelTier")?;
+        expect_ack(payload, "SetModelTier")?;
         self.refresh_info(py)
     }
 
@@ -536,7 +490,7 @@ impl Device {
             py,
             Command::SetUseCase(use_case),
             "SetUseCase",
-            self.timeout,
+            self.control.timeout,
         )? {
             ReplyPayload::ModelTier(tier) => {
                 self.refresh_info(py)?;
@@ -556,7 +510,7 @@ impl Device {
     #[pyo3(signature = (pad=0))]
     fn read_calibration(&self, py: Python<'_>, pad: u8) -> PyResult<Calibration> {
         let pad_index = self.pad_index(pad)?;
-        let timeout = self.timeout;
+        let timeout = self.control.timeout;
         // Four requests per taxel and the pad's info, each bounded by the timeout.
         let calibration = self
             .on_session(py, timeout * 6, move |session| {
@@ -587,7 +541,7 @@ impl Device {
     ) -> PyResult<()> {
         let only_pad = pad.map(|pad| self.pad_index(pad)).transpose()?;
         let model = calibration.model().clone();
-        let timeout = self.timeout;
+        let timeout = self.control.timeout;
         // Every pad's curve and its save: a few dozen requests, each bounded by the timeout.
         self.on_session(py, timeout * 64, move |session| {
             taxel_host::calibration_transfer::upload_to_pads(
@@ -609,9 +563,9 @@ impl Device {
             py,
             Command::SaveCalibration,
             "SaveCalibration",
-            self.timeout,
+            self.control.timeout,
         )?;
-        Self::expect_ack(payload, "SaveCalibration")
+        expect_ack(payload, "SaveCalibration")
     }
 
     /// Replaces every pad's calibration in RAM by the built-in default (flash untouched).
@@ -620,15 +574,20 @@ impl Device {
             py,
             Command::RestoreDefaults,
             "RestoreDefaults",
-            self.timeout,
+            self.control.timeout,
         )?;
-        Self::expect_ack(payload, "RestoreDefaults")?;
+        expect_ack(payload, "RestoreDefaults")?;
         self.refresh_info(py)
     }
 
     /// The device's health counters since it booted.
     fn read_counters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        match self.request(py, Command::ReadCounters, "ReadCounters", self.timeout)? {
+        match self.request(
+            py,
+            Command::ReadCounters,
+            "ReadCounters",
+            self.control.timeout,
+        )? {
             ReplyPayload::Counters(counters) => counters_dict(py, &counters),
             _ => Err(taxel_error(
                 ErrorKind::Other,
@@ -642,34 +601,39 @@ impl Device {
 
     /// This connection's accounting: sets delivered, frames received, sets missing from the
     /// sequence numbers, dropped by the device (as of its last counters), lost on the link,
-    /// incomplete sets, stale frames discarded at connection, sets dropped unread.
+    /// incomplete sets, stale frames discarded at connection, sets dropped unread, device
+    /// events dropped untaken.
     #[getter]
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let ended = self.stream.state().ended.clone();
         let (accounting, link) = match ended {
             Some(end) => (end.accounting, end.link),
-            None => self.on_session(py, self.timeout, |session| {
+            None => self.on_session(py, self.control.timeout, |session| {
                 (
                     session.accounting().clone(),
                     session.link_statistics().clone(),
                 )
             })?,
         };
-        let (sets_delivered, incomplete_sets) = {
+        let (sets_delivered, incomplete_sets, events_dropped) = {
             let state = self.stream.state();
-            (state.sets_delivered, state.incomplete_sets)
+            (
+                state.sets_delivered,
+                state.incomplete_sets,
+                state.events.dropped,
+            )
         };
-        let dict = PyDict::new(py);
-        dict.set_item("sets_delivered", sets_delivered)?;
-        dict.set_item("frames_received", accounting.received())?;
-        dict.set_item("sequence_gap_frames", accounting.sequence_gap_sets())?;
-        dict.set_item("device_dropped_frames", accounting.device_dropped())?;
-        dict.set_item("lost_on_link_frames", accounting.lost_on_link())?;
-        dict.set_item("stale_frames", accounting.stale_frames())?;
-        dict.set_item("incomplete_sets", incomplete_sets)?;
-        dict.set_item("sets_dropped_unread", self.stream.sets_dropped_unread())?;
-        dict.set_item("frames_rejected", link.frames_rejected)?;
-        Ok(dict)
+        stats_dict(
+            py,
+            &StatsCounts {
+                accounting,
+                link,
+                sets_delivered,
+                incomplete_sets,
+                sets_dropped_unread: self.stream.sets_dropped_unread(),
+                events_dropped,
+            },
+        )
     }
 
     /// Stops the stream and closes the port (and stops the simulated device). Idempotent, and
@@ -705,39 +669,23 @@ impl Device {
 
 impl Device {
     fn is_closed(&self, py: Python<'_>) -> bool {
-        py.allow_threads(|| lock(&self.worker).is_none())
+        self.control.is_closed(py)
+    }
+
+    fn close_now(&self, py: Python<'_>) {
+        self.control.close(py);
     }
 
     fn timeout_or_default(&self, timeout: Option<f64>) -> PyResult<Duration> {
         match timeout {
             Some(timeout_s) => timeout_from_s(timeout_s),
-            None => Ok(self.timeout),
+            None => Ok(self.control.timeout),
         }
     }
 
-    /// The next set by `deadline`, in slices with the GIL released, raising on Ctrl-C, on a
-    /// closed device and at the end of the stream.
-    fn next_set_until(
-        &self,
-        py: Python<'_>,
-        deadline: Instant,
-    ) -> PyResult<Option<crate::sample_set::SetRecord>> {
-        loop {
-            if self.is_closed(py) {
-                return Err(closed_error());
-            }
-            let slice_end = deadline.min(Instant::now() + SLICE);
-            let stream = Arc::clone(&self.stream);
-            match py.allow_threads(move || stream.next_set(slice_end)) {
-                Ok(Some(set)) => return Ok(Some(set)),
-                Ok(None) => {}
-                Err(ended) => return Err(taxel_error(ErrorKind::Link, ended.0)),
-            }
-            py.check_signals()?;
-            if Instant::now() >= deadline {
-                return Ok(None);
-            }
-        }
+    fn next_set_until(&self, py: Python<'_>, deadline: Instant) -> PyResult<Option<SetRecord>> {
+        let source: Arc<dyn SetSource> = self.stream.clone();
+        next_set_until(py, &self.control, &source, deadline)
     }
 
     fn pad_index(&self, pad: u8) -> PyResult<PadIndex> {
@@ -749,11 +697,5 @@ impl Device {
             )));
         }
         PadIndex::new(pad).ok_or_else(|| PyValueError::new_err(format!("no pad {pad}")))
-    }
-}
-
-impl Drop for Device {
-    fn drop(&mut self) {
-        self.close_blocking();
     }
 }

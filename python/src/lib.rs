@@ -1,23 +1,30 @@
 //! The `taxel` Python package's native module (`taxel._taxel`): devices, the simulated device,
-//! conversion and calibrations, built on the host crates (`taxel`, `taxel-sim-device`,
-//! `model-core`): the protocol and the model are theirs, this crate only turns their values
-//! into Python objects and numpy arrays. The Python side (`taxel/__init__.py`) adds the
-//! argument checks of `taxel.convert`, the `Flags` enumeration and the exception classes.
+//! several devices on one timeline, device events, conversion, recordings and calibrations,
+//! built on the host crates (`taxel-host`, `taxel-sim-device`, `model-core`): the protocol,
+//! the stamping and the model are theirs, this crate only turns their values into Python
+//! objects and numpy arrays. The Python side (`taxel/__init__.py`, `_errors.py`, `_pandas.py`)
+//! adds the argument checks of `taxel.convert`, the `Flags` enumeration, the exception and
+//! warning classes and the pandas tables.
 #![deny(missing_docs)]
 
 mod arrays;
 mod buffering;
 mod calibration;
 mod connect;
+mod control;
 mod convert;
 mod device;
+mod devices;
 mod errors;
+mod events;
+mod interrupt;
 mod locking;
 mod memory_link;
 mod recording;
 mod sample_set;
 mod simulator;
 mod stream;
+mod timeline;
 mod use_case;
 
 use model_core::{TaxelFlags, Tier};
@@ -62,20 +69,30 @@ fn tier_names() -> Vec<&'static str> {
     Tier::ALL.iter().map(|tier| tier.name()).collect()
 }
 
+/// The recording schema's columns, in order (the header ``taxel record`` writes).
+#[pyfunction]
+fn recording_columns() -> Vec<&'static str> {
+    taxel_host::schema::header()
+}
+
 /// The native module.
 #[pymodule]
 fn _taxel(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(list_devices, module)?)?;
     module.add_function(wrap_pyfunction!(flag_bits, module)?)?;
     module.add_function(wrap_pyfunction!(tier_names, module)?)?;
+    module.add_function(wrap_pyfunction!(recording_columns, module)?)?;
     module.add_function(wrap_pyfunction!(convert::convert_arrays, module)?)?;
     module.add_function(wrap_pyfunction!(recording::read_recording_rows, module)?)?;
     module.add_function(wrap_pyfunction!(recording::convert_recording_rows, module)?)?;
     module.add_class::<recording::Recording>()?;
     module.add_class::<device::Device>()?;
     module.add_class::<simulator::Simulator>()?;
+    module.add_class::<simulator::SimulatedBoard>()?;
+    module.add_class::<devices::Devices>()?;
     module.add_class::<sample_set::SampleSet>()?;
     module.add_class::<buffering::Buffer>()?;
+    module.add_class::<events::DeviceEvent>()?;
     module.add_class::<calibration::Calibration>()?;
     Ok(())
 }

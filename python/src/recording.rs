@@ -18,6 +18,7 @@ use taxel_host::schema::{PadRow, RowReader, SchemaError};
 
 use crate::calibration::Calibration;
 use crate::errors::{anyhow_error, taxel_error, ErrorKind};
+use crate::interrupt::SignalCheck;
 
 /// A recording as arrays: one row per pad per sample set (the recording schema), every device
 /// and pad of the file. Taxel arrays have shape ``(N, 4)`` (C11, C12, C21, C22); a pad whose
@@ -66,6 +67,17 @@ impl Recording {
     /// The number of rows.
     fn __len__(&self, py: Python<'_>) -> usize {
         self.device.bind(py).len().unwrap_or(0)
+    }
+
+    /// The recording as a pandas ``DataFrame`` of the recording schema: one row per pad per
+    /// set, the schema's columns in its order (as :meth:`taxel.Buffer.to_pandas`: flags as
+    /// integers, ``partial`` and ``contact`` booleans, empty cells NaN). Needs pandas.
+    fn to_pandas(slf: &Bound<'_, Self>) -> PyResult<PyObject> {
+        let py = slf.py();
+        Ok(py
+            .import("taxel._pandas")?
+            .call_method1("recording_frame", (slf,))?
+            .unbind())
     }
 
     /// A short description.
@@ -178,13 +190,17 @@ impl Recording {
     }
 }
 
-/// Collects converted rows.
+/// Collects converted rows, looking for Ctrl-C as it goes.
 #[derive(Default)]
-struct Collect(Vec<PadRow>);
+struct Collect {
+    rows: Vec<PadRow>,
+    signals: SignalCheck,
+}
 
 impl RowSink for Collect {
     fn write_row(&mut self, row: &PadRow) -> anyhow::Result<()> {
-        self.0.push(row.clone());
+        self.signals.tick()?;
+        self.rows.push(row.clone());
         Ok(())
     }
 
@@ -209,25 +225,28 @@ fn open(path: &Path) -> PyResult<BufReader<File>> {
 #[pyfunction]
 pub fn read_recording_rows(py: Python<'_>, path: PathBuf) -> PyResult<(Recording, Vec<String>)> {
     let input = open(&path)?;
-    let read = py.allow_threads(move || -> Result<(Vec<PadRow>, Vec<String>), SchemaError> {
-        let mut reader = RowReader::new(input)?;
+    let read = py.allow_threads(move || -> Result<(Vec<PadRow>, Vec<String>), PyErr> {
+        let schema_error = |error: SchemaError| {
+            taxel_error(
+                ErrorKind::Convert,
+                format!("reading {}: {error}", path.display()),
+            )
+        };
+        let mut reader = RowReader::new(input).map_err(schema_error)?;
         let mut rows = Vec::new();
         let mut bad = Vec::new();
+        let mut signals = SignalCheck::new();
         while let Some(row) = reader.next_row() {
+            signals.tick()?;
             match row {
                 Ok(row) => rows.push(row),
                 Err(error @ SchemaError::Row { .. }) => bad.push(error.to_string()),
-                Err(error) => return Err(error),
+                Err(error) => return Err(schema_error(error)),
             }
         }
         Ok((rows, bad))
     });
-    let (rows, bad) = read.map_err(|error| {
-        taxel_error(
-            ErrorKind::Convert,
-            format!("reading {}: {error}", path.display()),
-        )
-    })?;
+    let (rows, bad) = read?;
     Ok((Recording::from_rows(py, &rows)?, bad))
 }
 
@@ -271,16 +290,25 @@ pub fn convert_recording_rows(
     let converted = py.allow_threads(move || {
         let mut rows = Collect::default();
         let summary = convert_recording(input, &mut rows, ConversionEngine::new(settings, states))?;
-        Ok::<_, anyhow::Error>((rows.0, summary))
+        Ok::<_, anyhow::Error>((rows.rows, summary))
     });
-    let (rows, summary) = converted.map_err(|error| anyhow_error(&error, ErrorKind::Convert))?;
+    let (rows, summary) = converted.map_err(|error| match error.downcast::<PyErr>() {
+        // Ctrl-C (or another signal handler's exception) as it was raised.
+        Ok(interrupted) => interrupted,
+        Err(error) => anyhow_error(&error, ErrorKind::Convert),
+    })?;
     let bad = summary
         .bad_rows
         .iter()
         .map(|bad| format!("line {}: {}", bad.line, bad.reason))
         .collect();
-    let mut warnings: Vec<String> = summary
-        .pads_without_state
+    // Asked to ignore the recorded states, the caller needs no word about pads without one.
+    let without_state: &[(u32, u8)] = if use_device_state {
+        &summary.pads_without_state
+    } else {
+        &[]
+    };
+    let mut warnings: Vec<String> = without_state
         .iter()
         .map(|(device, pad)| {
             format!(

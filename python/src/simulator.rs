@@ -14,7 +14,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use sim_device::{scene_config, Pacing, SimulatedDevice, Simulation};
 
-use crate::device::{queue_sets_checked, timeout_from_s, Backend, Device};
+use crate::control::Backend;
+use crate::device::{queue_sets_checked, timeout_from_s, Device};
 use crate::errors::{anyhow_error, ErrorKind};
 use crate::memory_link::{memory_link, HostEnd};
 
@@ -22,7 +23,7 @@ use crate::memory_link::{memory_link, HostEnd};
 const LINK_READ_TIMEOUT: Duration = Duration::from_millis(20);
 
 /// The simulated device's thread.
-struct SimulatorRun {
+pub struct SimulatorRun {
     stop: Arc<AtomicBool>,
     handle: Option<thread::JoinHandle<()>>,
     host: HostEnd,
@@ -39,6 +40,123 @@ impl Backend for SimulatorRun {
         if let Some(handle) = self.handle.take() {
             let _ = handle.join();
         }
+    }
+}
+
+/// A simulated board to start: its scene, speed, seed, pads and link (what
+/// :class:`taxel.Simulator` takes, and :class:`taxel.Devices` starts among its devices).
+///
+/// ``scene``: a built-in scene (``"default"``, ``"gripper"``, ``"glove"``) or a scene TOML
+/// file; default: the demo scene of one pad. ``speed``: simulated seconds per wall-clock second
+/// (``None``: as fast as the computer goes). ``seed``: converter noise (the same seed and scene
+/// give the same samples). ``pads``: pads on the board, each playing a scene of one pad
+/// (default: as many as the scene describes). ``link_buffer_bytes``: what the link towards the
+/// host holds before the device drops frames.
+#[pyclass(frozen, get_all, module = "taxel")]
+#[derive(Debug, Clone)]
+pub struct SimulatedBoard {
+    /// The scene: a built-in name or a TOML file (``None``: the demo scene).
+    pub scene: Option<String>,
+    /// Simulated seconds per wall-clock second (``None``: as fast as possible).
+    pub speed: Option<f64>,
+    /// The converter noise's seed.
+    pub seed: u64,
+    /// Pads on the board (``None``: as many as the scene describes).
+    pub pads: Option<u8>,
+    /// What the link towards the host holds, bytes.
+    pub link_buffer_bytes: usize,
+}
+
+#[pymethods]
+impl SimulatedBoard {
+    #[new]
+    #[pyo3(signature = (scene=None, speed=Some(1.0), seed=sim_device::DEFAULT_SEED, pads=None, link_buffer_bytes=262_144))]
+    fn new(
+        scene: Option<String>,
+        speed: Option<f64>,
+        seed: u64,
+        pads: Option<u8>,
+        link_buffer_bytes: usize,
+    ) -> PyResult<Self> {
+        if let Some(speed) = speed {
+            if !(speed.is_finite() && speed > 0.0) {
+                return Err(PyValueError::new_err(format!(
+                    "speed must be a positive number (got {speed})"
+                )));
+            }
+        }
+        if let Some(pads) = pads {
+            if !(1..=8).contains(&pads) {
+                return Err(PyValueError::new_err(format!(
+                    "pads must be 1 to 8 (got {pads})"
+                )));
+            }
+        }
+        if link_buffer_bytes < 1024 {
+            return Err(PyValueError::new_err(
+                "link_buffer_bytes must be at least 1024",
+            ));
+        }
+        Ok(Self {
+            scene,
+            speed,
+            seed,
+            pads,
+            link_buffer_bytes,
+        })
+    }
+
+    /// A short description.
+    fn __repr__(&self) -> String {
+        format!(
+            "SimulatedBoard(scene={:?}, speed={:?}, seed={}, pads={:?})",
+            self.scene, self.speed, self.seed, self.pads
+        )
+    }
+}
+
+impl SimulatedBoard {
+    /// Starts the simulated device on a thread of its own: its run (to stop it), the host's
+    /// end of its link, and its scene's name.
+    pub fn start(&self, py: Python<'_>) -> PyResult<(SimulatorRun, HostEnd, String)> {
+        let board = self.clone();
+        let started =
+            py.allow_threads(move || -> anyhow::Result<(SimulatorRun, HostEnd, String)> {
+                let config = scene_config(
+                    board.scene.as_deref().map(Path::new),
+                    board.pads,
+                    board.speed,
+                    board.seed,
+                )?;
+                let scene_name = config.scene.name.clone();
+                let mut device = SimulatedDevice::new(config)?;
+                let simulation = device.simulation().clone();
+                let (mut device_end, host_end) =
+                    memory_link(board.link_buffer_bytes, LINK_READ_TIMEOUT);
+                let stop = Arc::new(AtomicBool::new(false));
+                let thread_stop = Arc::clone(&stop);
+                let handle = thread::Builder::new()
+                    .name("taxel-simulated-device".into())
+                    .spawn(move || device.run(&mut device_end, None, &thread_stop))
+                    .context("starting the simulated device")?;
+                let run = SimulatorRun {
+                    stop,
+                    handle: Some(handle),
+                    host: host_end.clone(),
+                    simulation,
+                };
+                Ok((run, host_end, scene_name))
+            });
+        started.map_err(|error| anyhow_error(&error, ErrorKind::Other))
+    }
+
+    /// What a timeout message adds for a slow simulation.
+    pub fn slow_hint(&self) -> String {
+        self.speed
+            .filter(|speed| *speed < 1.0)
+            .map_or(String::new(), |speed| {
+                format!(" (the simulator runs at speed {speed}: give a longer timeout)")
+            })
     }
 }
 
@@ -73,47 +191,8 @@ impl Simulator {
     ) -> PyResult<PyClassInitializer<Self>> {
         let timeout = timeout_from_s(timeout)?;
         let queue_sets = queue_sets_checked(queue_sets)?;
-        if let Some(speed) = speed {
-            if !(speed.is_finite() && speed > 0.0) {
-                return Err(PyValueError::new_err(format!(
-                    "speed must be a positive number (got {speed})"
-                )));
-            }
-        }
-        if let Some(pads) = pads {
-            if !(1..=8).contains(&pads) {
-                return Err(PyValueError::new_err(format!(
-                    "pads must be 1 to 8 (got {pads})"
-                )));
-            }
-        }
-        if link_buffer_bytes < 1024 {
-            return Err(PyValueError::new_err(
-                "link_buffer_bytes must be at least 1024",
-            ));
-        }
-        let started = py.allow_threads(|| -> anyhow::Result<(SimulatorRun, HostEnd, String)> {
-            let config = scene_config(scene.as_deref().map(Path::new), pads, speed, seed)?;
-            let scene_name = config.scene.name.clone();
-            let mut device = SimulatedDevice::new(config)?;
-            let simulation = device.simulation().clone();
-            let (mut device_end, host_end) = memory_link(link_buffer_bytes, LINK_READ_TIMEOUT);
-            let stop = Arc::new(AtomicBool::new(false));
-            let thread_stop = Arc::clone(&stop);
-            let handle = thread::Builder::new()
-                .name("taxel-simulated-device".into())
-                .spawn(move || device.run(&mut device_end, None, &thread_stop))
-                .context("starting the simulated device")?;
-            let run = SimulatorRun {
-                stop,
-                handle: Some(handle),
-                host: host_end.clone(),
-                simulation,
-            };
-            Ok((run, host_end, scene_name))
-        });
-        let (run, host_end, scene_name) =
-            started.map_err(|error| anyhow_error(&error, ErrorKind::Other))?;
+        let board = SimulatedBoard::new(scene, speed, seed, pads, link_buffer_bytes)?;
+        let (run, host_end, scene_name) = board.start(py)?;
         let device = Device::connect(
             py,
             Box::new(host_end),
@@ -121,11 +200,7 @@ impl Simulator {
             timeout,
             Some(Box::new(run)),
             queue_sets,
-            &speed
-                .filter(|speed| *speed < 1.0)
-                .map_or(String::new(), |speed| {
-                    format!(" (the simulator runs at speed {speed}: give a longer timeout)")
-                }),
+            &board.slow_hint(),
         )?;
         Ok(PyClassInitializer::from(device).add_subclass(Simulator { scene_name }))
     }

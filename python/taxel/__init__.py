@@ -7,12 +7,17 @@ the taxels is flat: ``taxels = 4 * pads`` columns, taxel ``4 * pad + k`` being t
 and ``(N, 4)`` from a buffer, and a device of ``P`` pads ``(4 * P,)`` and ``(N, 4 * P)``;
 ``reshape(N, P, 4)`` separates the pads.
 
-- :func:`list_devices`, :class:`Device`: attached boards.
+- :func:`list_devices`, :class:`Device`: attached boards; :meth:`Device.events` their
+  :class:`DeviceEvent` objects.
 - :class:`Simulator`: the simulated device (the firmware's own code) in this process, with the
   interface of :class:`Device`.
-- :func:`convert`: capacitances to pressures with the pressure model, as ``taxel convert``.
+- :class:`Devices`: several boards and :class:`SimulatedBoard` objects on one host timeline.
+- :class:`Buffer`: sets collected in the background; ``to_pandas()`` and ``save()``.
+- :func:`convert`: capacitances to pressures with the pressure model, as ``taxel convert``;
+  :func:`read_recording`, :func:`convert_recording`: recordings of the recording schema.
 - :class:`Calibration`: calibration files, and fitting one from reference loads.
-- :class:`Flags`: the flag bits of every taxel; the exceptions in :mod:`taxel._errors`.
+- :class:`Flags`: the flag bits of every taxel; the exceptions and :class:`TaxelWarning` in
+  :mod:`taxel._errors`.
 """
 
 from __future__ import annotations
@@ -37,8 +42,20 @@ from ._errors import (
     LinkError,
     ProtocolVersionError,
     TaxelError,
+    TaxelWarning,
 )
-from ._taxel import Buffer, Calibration, Device, Recording, SampleSet, Simulator, list_devices
+from ._taxel import (
+    Buffer,
+    Calibration,
+    Device,
+    DeviceEvent,
+    Devices,
+    Recording,
+    SampleSet,
+    SimulatedBoard,
+    Simulator,
+    list_devices,
+)
 
 __all__ = [
     "Buffer",
@@ -47,14 +64,17 @@ __all__ = [
     "ConvertError",
     "DataLossError",
     "Device",
+    "DeviceEvent",
     "DeviceNotFoundError",
     "DeviceRefusedError",
     "DeviceTimeoutError",
+    "Devices",
     "Flags",
     "LinkError",
     "ProtocolVersionError",
     "Recording",
     "SampleSet",
+    "SimulatedBoard",
     "Simulator",
     "TIERS",
     "TaxelError",
@@ -99,17 +119,13 @@ class Flags(enum.IntFlag):
         # finds single bits by hash but refuses 0 and combinations of bits. Any integer that
         # ``operator.index`` accepts is read as its value.
         if isinstance(value, int):
-            return super()._missing_(value)
+            found: Optional[Flags] = super()._missing_(value)
+            return found
         try:
             index = operator.index(value)  # type: ignore[arg-type]
         except TypeError:
             return None
         return cls(index)
-
-
-class TaxelWarning(UserWarning):
-    """A warning of :func:`convert` (the tare did not finish, a taxel could not be tared), in
-    the words ``taxel convert`` prints."""
 
 
 def convert(
@@ -136,7 +152,9 @@ def convert(
     all NaN is that pad's frame missing from the set (as a buffer holds it, and as ``taxel
     convert`` reads a pad whose cells are all empty): its model skips the row, which gets NaN
     pressures and no flags. Problems with the tare are reported as :class:`TaxelWarning`. Bad
-    shapes or values raise :class:`ConvertError`.
+    shapes or values raise :class:`ConvertError`. The conversion runs with the GIL released
+    (other threads run meanwhile) and answers Ctrl-C with ``KeyboardInterrupt`` within about
+    20 ms.
     """
     capacitance = np.ascontiguousarray(capacitance_pf, dtype=np.float64)
     if capacitance.ndim != 2:

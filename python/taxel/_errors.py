@@ -1,4 +1,4 @@
-"""The exceptions of the taxel package.
+"""The exceptions and the warning category of the taxel package.
 
 Every exception the package raises on purpose derives from :class:`TaxelError`; each also
 derives from the built-in exception a Python programmer would catch for the same trouble
@@ -64,3 +64,11 @@ class DataLossError(TaxelError):
         super().__init__(message)
         #: The sample sets that were collected, with the loss counters.
         self.buffer = buffer
+
+
+class TaxelWarning(UserWarning):
+    """A warning of the package, in the words the ``taxel`` command prints after
+    ``warning:``: a tare that did not finish or could not tare a taxel (:func:`taxel.convert`,
+    :func:`taxel.convert_recording`), rows left out of a recording, what
+    :meth:`taxel.Calibration.fit` warns about (rows outside the temperature law's range,
+    intervals where converter noise exceeds the budget)."""

@@ -2,10 +2,11 @@
 
 from types import TracebackType
 import os
-from typing import Any, Dict, Iterator, List, Optional, Tuple, Type, Union
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple, Type, Union
 
 import numpy as np
 import numpy.typing as npt
+import pandas
 
 def list_devices() -> List[Dict[str, Any]]:
     """The boards attached by USB with the pad's VID:PID, sorted by port: one dict per board
@@ -16,6 +17,9 @@ def flag_bits() -> List[Tuple[str, int]]:
 
 def tier_names() -> List[str]:
     """The inversion tiers' names, in id order."""
+
+def recording_columns() -> List[str]:
+    """The recording schema's columns, in order (the header ``taxel record`` writes)."""
 
 def convert_arrays(
     capacitance_pf: npt.ArrayLike,
@@ -30,8 +34,11 @@ def convert_arrays(
 class SampleSet:
     """One sample set of every pad. Arrays over the taxels have shape ``(taxels,)`` with
     ``taxels = 4 * pads`` (taxel ``4 * pad + k`` is taxel ``k`` of pad ``pad``); arrays over the
-    pads have shape ``(pads,)``."""
+    pads have shape ``(pads,)``; ``cop_mm`` ``(pads, 2)``."""
 
+    @property
+    def device(self) -> int:
+        """The device (0 for :class:`Device`; its index for :class:`Devices`)."""
     @property
     def sequence(self) -> int:
         """The set's sequence number (one more per set acquired; wraps at 2**32)."""
@@ -43,7 +50,11 @@ class SampleSet:
         """The device clock at the conversion, seconds since the device booted."""
     @property
     def host_time_s(self) -> float:
-        """The host clock when the set arrived, seconds since the Unix epoch."""
+        """The host clock of the set, seconds since the Unix epoch: its arrival
+        (:class:`Device`), or its device time mapped onto the host clock (:class:`Devices`)."""
+    @property
+    def sync_error_ms(self) -> float:
+        """Bound on ``host_time_s``'s error, ms; NaN when it is the arrival."""
     @property
     def pads(self) -> int:
         """The number of pads."""
@@ -66,6 +77,15 @@ class SampleSet:
     def force_n(self) -> npt.NDArray[np.float64]:
         """Each pad's total normal force, N, ``(pads,)``; NaN where there is none."""
     @property
+    def cop_mm(self) -> npt.NDArray[np.float64]:
+        """Each pad's centre of pressure, mm, ``(pads, 2)`` (x, y); NaN where there is none."""
+    @property
+    def contact(self) -> npt.NDArray[np.bool_]:
+        """Whether each pad is in contact (the device's detector), ``(pads,)``."""
+    @property
+    def partial(self) -> npt.NDArray[np.bool_]:
+        """Whether faulted taxels were left out of each pad's force and centre, ``(pads,)``."""
+    @property
     def missing_pads(self) -> List[int]:
         """Pads whose frame of this set never arrived."""
     @property
@@ -73,17 +93,27 @@ class SampleSet:
         """Sample sets missing just before this one in the sequence numbers (0 normally)."""
 
 class Buffer:
-    """Sample sets collected in the background: ``(N,)``, ``(N, pads)`` and ``(N, taxels)``
-    arrays, and the counts of sets lost since the previous :meth:`Device.read_buffer`."""
+    """Sample sets of one device collected in the background: ``(N,)``, ``(N, pads)``,
+    ``(N, pads, 2)`` and ``(N, taxels)`` arrays, and the counts of sets lost since the previous
+    :meth:`Device.read_buffer`."""
 
+    device: int
+    """The device (0 for :class:`Device`; its index for :class:`Devices`)."""
     sequence: npt.NDArray[np.int64]
     """Sequence numbers, ``(N,)``."""
     device_time_us: npt.NDArray[np.int64]
-    """Device clock at each set, µs since boot, ``(N,)``."""
+    """Device clock at each set (pad 0's conversion), µs since boot, ``(N,)``."""
+    pad_device_time_us: npt.NDArray[np.int64]
+    """Device clock at each pad's conversion, µs since boot, ``(N, pads)``; -1 if missing."""
     host_time_s: npt.NDArray[np.float64]
-    """Host clock when each set arrived, seconds since the Unix epoch, ``(N,)``."""
+    """Host clock of each set, seconds since the Unix epoch, ``(N,)``: its arrival
+    (:class:`Device`) or its stamp on the shared timeline (:class:`Devices`)."""
+    sync_error_ms: npt.NDArray[np.float64]
+    """Bound on ``host_time_s``'s error, ms, ``(N,)``; NaN where it is the arrival."""
     temperature_c: npt.NDArray[np.float64]
     """Temperature per pad, °C, ``(N, pads)``."""
+    temperature_source: npt.NDArray[np.str_]
+    """Where each temperature came from, ``(N, pads)`` strings."""
     pressure_kpa: npt.NDArray[np.float64]
     """Pressure per taxel, kPa, ``(N, taxels)``."""
     capacitance_pf: npt.NDArray[np.float64]
@@ -92,6 +122,14 @@ class Buffer:
     """Flags per taxel, ``(N, taxels)``."""
     force_n: npt.NDArray[np.float64]
     """Total normal force per pad, N, ``(N, pads)``."""
+    cop_mm: npt.NDArray[np.float64]
+    """Centre of pressure per pad, mm, ``(N, pads, 2)`` (x, y); NaN where there is none."""
+    contact: npt.NDArray[np.bool_]
+    """Whether each pad is in contact, ``(N, pads)``."""
+    partial: npt.NDArray[np.bool_]
+    """Whether faulted taxels were left out of a pad's force and centre, ``(N, pads)``."""
+    missing: npt.NDArray[np.bool_]
+    """Whether a pad's frame of the set never arrived, ``(N, pads)``."""
     sets_missing_before: npt.NDArray[np.int64]
     """Sets missing just before each one in the sequence numbers, ``(N,)``."""
     pads: int
@@ -103,7 +141,45 @@ class Buffer:
     @property
     def lost_sets(self) -> int:
         """``overflowed_sets + sequence_gap_sets``."""
+    def to_pandas(self) -> pandas.DataFrame:
+        """The sets as the recording schema's long table: one row per pad per set (needs
+        pandas)."""
+    def save(self, path: Union[str, "os.PathLike[str]"]) -> None:
+        """Writes the sets as a recording of the schema (what ``taxel record`` writes)."""
     def __len__(self) -> int: ...
+
+class DeviceEvent:
+    """Something a device reported: contact started or ended, a tare finished or refused,
+    the temperature source changed, the converter re-initialised, the flash calibration
+    corrupt."""
+
+    @property
+    def kind(self) -> str:
+        """``contact_started``, ``contact_ended``, ``tare_finished``, ``tare_refused``,
+        ``temperature_source_changed``, ``converter_reinitialised`` or
+        ``calibration_flash_corrupt``."""
+    @property
+    def pad(self) -> Optional[int]:
+        """The pad it concerns (``None`` for the whole device)."""
+    @property
+    def device(self) -> int:
+        """The device (0 for :class:`Device`; its index for :class:`Devices`)."""
+    @property
+    def device_time_us(self) -> int:
+        """The device clock when it happened, µs since boot."""
+    @property
+    def device_time_s(self) -> float:
+        """The device clock when it happened, seconds since boot."""
+    @property
+    def host_time_s(self) -> float:
+        """The host clock when it arrived, seconds since the Unix epoch."""
+    @property
+    def fields(self) -> Dict[str, Any]:
+        """The kind's own fields (``tared``, ``refused``, ``source``, ``reinit_count``, ...)."""
+    @property
+    def text(self) -> str:
+        """The event in words, as ``taxel record`` prints it."""
+    def __eq__(self, other: object) -> bool: ...
 
 class Calibration:
     """A calibration: per taxel the curve of dC/C0 against pressure, parasitic and unloaded
@@ -142,6 +218,9 @@ class Calibration:
     @property
     def leave_one_out(self) -> List[Dict[str, Any]]:
         """The cross-validation of :meth:`fit`, one dict per taxel and tier."""
+    @property
+    def fit_warnings(self) -> List[str]:
+        """The warnings of :meth:`fit` (also issued as :class:`taxel.TaxelWarning`)."""
     def __eq__(self, other: object) -> bool: ...
 
 class Device:
@@ -185,6 +264,8 @@ class Device:
     @property
     def buffering(self) -> bool:
         """Whether sets are being collected in the background."""
+    def events(self) -> List[DeviceEvent]:
+        """The device events that arrived since the last call, oldest first."""
     def tare(self, sample_sets: int = 64) -> None:
         """Tares every pad on the mean of the next ``sample_sets`` sets."""
     def set_rate(self, rate_sps: int) -> None:
@@ -241,6 +322,77 @@ class Simulator(Device):
     def scene(self) -> str:
         """The scene's name."""
 
+class SimulatedBoard:
+    """A simulated board to start among :class:`Devices` (what :class:`Simulator` takes)."""
+
+    scene: Optional[str]
+    speed: Optional[float]
+    seed: int
+    pads: Optional[int]
+    link_buffer_bytes: int
+    def __init__(
+        self,
+        scene: Optional[str] = None,
+        speed: Optional[float] = 1.0,
+        seed: int = 1,
+        pads: Optional[int] = None,
+        link_buffer_bytes: int = 262_144,
+    ) -> None: ...
+
+class Devices:
+    """Several devices on one host timeline, read through one host-library worker; sets
+    stamped as ``taxel record`` stamps them and merged in host-time order."""
+
+    def __init__(
+        self,
+        sources: Iterable[Union[str, "os.PathLike[str]", SimulatedBoard]],
+        timeout: float = 2.0,
+        queue_sets: int = 65_536,
+    ) -> None:
+        """Opens every device of ``sources`` (serial ports' paths and simulated boards)."""
+    def __len__(self) -> int: ...
+    @property
+    def info(self) -> List[Dict[str, Any]]:
+        """Each device's identity, in the order given."""
+    @property
+    def pads(self) -> List[int]:
+        """Each device's number of pads."""
+    @property
+    def taxels(self) -> List[int]:
+        """Each device's number of taxels."""
+    def read(self, timeout: Optional[float] = None) -> SampleSet:
+        """The next sample set in host-time order, of any device."""
+    def __iter__(self) -> Iterator[SampleSet]: ...
+    def __next__(self) -> SampleSet: ...
+    def events(self) -> List[DeviceEvent]:
+        """Every device's events that arrived since the last call."""
+    def start_buffering(self, capacity_sets: int = 1_000_000) -> None:
+        """Starts collecting every device's sets in the background."""
+    def read_buffer(self, strict: bool = True) -> List[Buffer]:
+        """The sets collected since the last call, one buffer per device."""
+    def stop_buffering(self) -> List[Buffer]:
+        """Stops collecting; returns the sets not yet read, one buffer per device."""
+    @property
+    def buffering(self) -> bool:
+        """Whether sets are being collected in the background."""
+    def tare(self, sample_sets: int = 64, device: Optional[int] = None) -> None:
+        """Tares every pad of every device (or of ``device``)."""
+    @property
+    def stats(self) -> List[Dict[str, int]]:
+        """Each device's accounting."""
+    def close(self) -> None:
+        """Stops every stream and closes the devices. Idempotent; safe from any thread."""
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` was called."""
+    def __enter__(self) -> "Devices": ...
+    def __exit__(
+        self,
+        exception_type: Optional[Type[BaseException]],
+        exception: Optional[BaseException],
+        traceback: Optional[TracebackType],
+    ) -> bool: ...
+
 class Recording:
     """A recording as arrays: one row per pad per sample set (the recording schema)."""
 
@@ -261,6 +413,8 @@ class Recording:
     contact: npt.NDArray[np.bool_]
     missing: npt.NDArray[np.bool_]
     markers: List[Tuple[int, str]]
+    def to_pandas(self) -> pandas.DataFrame:
+        """The recording as the recording schema's long table (needs pandas)."""
     def __len__(self) -> int: ...
 
 def read_recording_rows(path: str) -> Tuple[Recording, List[str]]:

@@ -107,3 +107,53 @@ def test_flags_are_the_documented_names():
     assert [(flag.name.lower(), flag.value) for flag in taxel.Flags] == _taxel.flag_bits()
     assert taxel.Flags(0b11) == taxel.Flags.BELOW_BASELINE | taxel.Flags.OVER_RANGE
     assert taxel.TIERS[2] == "monotone-cubic"
+
+
+def flat_loads():
+    """Reference loads whose 40..50 kPa interval is nearly flat in dC/C0 (the converter's
+    noise moves the pressure there by far more than the budget), with two rows taken at
+    90 °C, outside the temperature law's characterised range."""
+    pressure, capacitance, temperature = reference_loads()
+    flat = pressure == 50.0
+    capacitance[flat] = capacitance[pressure == 40.0] + 1e-6
+    temperature = temperature.copy()
+    temperature[[5, 6]] = 90.0
+    return pressure, capacitance, temperature
+
+
+def test_fit_warnings_are_python_warnings_with_the_cli_words(taxel_cli, tmp_path):
+    pressure, capacitance, temperature = flat_loads()
+    with pytest.warns(taxel.TaxelWarning) as caught:
+        fitted = taxel.Calibration.fit(pressure, capacitance, temperature, id=3)
+    messages = [str(warning.message) for warning in caught]
+    assert messages == fitted.fit_warnings
+    assert any("2 row(s) outside the characterised" in message for message in messages)
+    assert any("40..50 kPa" in message and "over the 0.5 kPa budget" in message for message in messages)
+    # The warning points at the caller's line, not at the package.
+    assert all(warning.filename == __file__ for warning in caught)
+    # The command prints the same warnings on stderr ("warning: " before each), and the same
+    # report on stdout.
+    loads = tmp_path / "loads.csv"
+    write_loads(loads, pressure, capacitance, temperature)
+    result = subprocess.run(
+        [taxel_cli, "calibrate", str(loads), "-o", str(tmp_path / "c.json"), "--id", "3"],
+        capture_output=True,
+        text=True,
+    )
+    assert result.returncode == 0, result.stderr
+    cli_warnings = [
+        line[len("warning: "):] for line in result.stderr.splitlines() if line.startswith("warning: ")
+    ]
+    assert sorted(cli_warnings) == sorted(messages)
+    assert fitted.fit_report == result.stdout
+
+
+def test_a_clean_fit_warns_nothing():
+    import warnings
+
+    pressure, capacitance, temperature = reference_loads()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fitted = taxel.Calibration.fit(pressure, capacitance, temperature)
+    assert fitted.fit_warnings == []
+    assert taxel.Calibration.default().fit_warnings == []

@@ -14,6 +14,7 @@ EXAMPLES = sorted((PACKAGE / "examples").glob("*.py"))
 # The arguments each example is tested with (short runs); a new example needs an entry.
 EXAMPLE_ARGUMENTS = {
     "record_simulator.py": ["--seconds", "1", "--speed", "5", "--no-plot"],
+    "first_hour.py": ["--seconds", "2.5", "--speed", "20"],
 }
 
 
