@@ -2,10 +2,11 @@
 //! the desktop simulator and tests (over `RamFlash`, with the `ram-flash` feature).
 //!
 //! Three layers:
-//! - [`encode_body`] / [`decode_body`]: what a pad's record holds, a [`CalibrationSpec`] as
-//!   `[body format version = 1][postcard]`, at most [`MAX_BODY_LEN`] bytes. Decoding refuses
-//!   anything that is not a calibration that validates, with a typed [`RecordError`], and never
-//!   panics. This is the only place that knows what a body is.
+//! - [`encode_body`] / [`decode_body`]: what a pad's record holds, a [`PadRecord`] (its
+//!   calibration, role and geometry) as `[body format version = 2][postcard]`, at most
+//!   [`MAX_BODY_LEN`] bytes. Decoding refuses anything that is not a calibration and a geometry
+//!   that validate, with a typed [`RecordError`], and never panics. This is the only place that
+//!   knows what a body is.
 //! - the on-flash format ([`format`] documents it): two erase pages, each with a header
 //!   (magic "TXCS", format version [`STORE_FORMAT_VERSION`], generation, CRC-32) and a commit
 //!   word, then records `[body length][its complement][save counter][pads][CRC-32][body]`, one
@@ -21,8 +22,7 @@
 //!   with nothing intact left loads the defaults with the corrupt flag
 //!   ([`LoadOutcome::Corrupt`]). The `store` module's documentation gives the power-loss
 //!   argument.
-//!
-//! [`CalibrationSpec`]: model_core::CalibrationSpec
+
 #![no_std]
 #![deny(missing_docs)]
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
@@ -43,7 +43,9 @@ pub use format::{
 pub use ram_flash::{
     OperationKind, PowerLossReport, RamFlash, RamFlashError, Tear, RAM_FLASH_WORD_SIZE,
 };
-pub use record::{decode_body, encode_body, RecordError, BODY_FORMAT_VERSION, MAX_BODY_LEN};
+pub use record::{
+    decode_body, encode_body, PadRecord, RecordError, BODY_FORMAT_VERSION, MAX_BODY_LEN,
+};
 pub use store::{
     CalibrationStore, CorruptReason, LoadOutcome, RegionError, StoreError,
     STM32F411_CALIBRATION_RANGE,

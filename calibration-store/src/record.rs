@@ -1,10 +1,12 @@
-//! A pad's record body, the one definition of what the store keeps for a pad:
-//! `[body format version = 1][postcard CalibrationSpec]`, at most [`MAX_BODY_LEN`] bytes.
+//! A pad's record body, the one definition of what the store keeps for a pad ([`PadRecord`]: its
+//! calibration, role and geometry): `[body format version = 2][postcard PadRecord]`, at most
+//! [`MAX_BODY_LEN`] bytes.
 //!
 //! The store frames the body (length, pads, save counter, CRC-32: see the `format` module) and
 //! knows nothing of it beyond [`MAX_BODY_LEN`]; this module encodes and decodes it. A body is
-//! accepted only if its version is one this firmware reads, it parses completely, and the
-//! calibration validates with [`Calibration::new`]: a body that parses into a calibration the
+//! accepted only if its version is one this firmware reads, it parses completely, the
+//! calibration validates with [`Calibration::new`] and the geometry with [`PadGeometry::new`]
+//! (deserialization goes through it): a body that parses into a calibration or geometry the
 //! model would refuse is as corrupt as one that does not parse. Changing what a body holds means
 //! changing this module, [`BODY_FORMAT_VERSION`] and [`MAX_BODY_LEN`].
 
@@ -14,9 +16,35 @@ use model_core::calibration::{
     Calibration, CalibrationError, CalibrationSpec, MAX_CURVE_POINTS, MAX_TEMPERATURE_POINTS,
     TAXEL_COUNT,
 };
+use model_core::{PadGeometry, PadRole};
+use serde::{Deserialize, Serialize};
 
-/// The format version of the bodies this firmware writes and reads, their first byte.
-pub const BODY_FORMAT_VERSION: u8 = 1;
+/// The format version of the bodies this firmware writes and reads, their first byte (1 held
+/// the calibration alone).
+pub const BODY_FORMAT_VERSION: u8 = 2;
+
+/// What flash keeps for a pad: its calibration, and its role and geometry (what its force and
+/// centre of pressure are computed with, and what PadInfo reports).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PadRecord {
+    /// The calibration.
+    pub calibration: CalibrationSpec,
+    /// What the pad is.
+    pub role: PadRole,
+    /// Its taxels' centres and areas.
+    pub geometry: PadGeometry,
+}
+
+impl PadRecord {
+    /// `calibration` on a pad of the built-in geometry and no role.
+    pub fn new(calibration: CalibrationSpec) -> Self {
+        Self {
+            calibration,
+            role: PadRole::Unspecified,
+            geometry: PadGeometry::ARTICLE,
+        }
+    }
+}
 
 const VERSION_LEN: usize = 1;
 const F32_LEN: usize = 4;
@@ -32,6 +60,10 @@ const TAXEL_MAX_LEN: usize =
 const TEMPERATURE_LAW_MAX_LEN: usize =
     SEQUENCE_LENGTH_LEN + MAX_TEMPERATURE_POINTS * POINT_LEN + 2 * F32_LEN;
 const THRESHOLDS_LEN: usize = 3 * F32_LEN;
+/// postcard writes an enum's variant index as a varint: one byte for the five roles.
+const ROLE_LEN: usize = 1;
+/// Four taxels' centre (x, y) and area, f32 each.
+const GEOMETRY_LEN: usize = TAXEL_COUNT * 3 * F32_LEN;
 
 // The one-byte length prefixes above hold only while the capacities stay below 128.
 const _: () = assert!(MAX_CURVE_POINTS < 128 && MAX_TEMPERATURE_POINTS < 128);
@@ -42,8 +74,9 @@ const _: () = assert!(MAX_CURVE_POINTS < 128 && MAX_TEMPERATURE_POINTS < 128);
 const MAX_SPEC_LEN: usize =
     VARINT_U32_MAX_LEN + TAXEL_COUNT * TAXEL_MAX_LEN + TEMPERATURE_LAW_MAX_LEN + THRESHOLDS_LEN;
 
-/// The longest body: the version byte and the longest postcard calibration, 643 bytes.
-pub const MAX_BODY_LEN: usize = VERSION_LEN + MAX_SPEC_LEN;
+/// The longest body: the version byte, the longest postcard calibration, the role and the
+/// geometry, 692 bytes.
+pub const MAX_BODY_LEN: usize = VERSION_LEN + MAX_SPEC_LEN + ROLE_LEN + GEOMETRY_LEN;
 
 /// Why a body could not be written or read.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -60,9 +93,10 @@ pub enum RecordError {
         /// The version byte found.
         found: u8,
     },
-    /// Decoding: the bytes after the version are not a postcard `CalibrationSpec`.
+    /// Decoding: the bytes after the version are not a postcard [`PadRecord`] (also: a geometry
+    /// that does not validate).
     Postcard(postcard::Error),
-    /// Decoding: the calibration parsed but bytes were left over.
+    /// Decoding: the record parsed but bytes were left over.
     TrailingBytes,
     /// The calibration does not validate: refused before encoding, or found in a body.
     Invalid(CalibrationError),
@@ -86,14 +120,15 @@ impl fmt::Display for RecordError {
 
 impl core::error::Error for RecordError {}
 
-/// Writes `spec` as a body at the start of `out` and returns the body's length.
+/// Writes `record` as a body at the start of `out` and returns the body's length.
 ///
-/// The calibration is validated first: a spec the model would refuse is never written.
-pub fn encode_body(spec: &CalibrationSpec, out: &mut [u8]) -> Result<usize, RecordError> {
-    Calibration::new(spec).map_err(RecordError::Invalid)?;
+/// The calibration is validated first: a spec the model would refuse is never written (the
+/// geometry is valid by construction).
+pub fn encode_body(record: &PadRecord, out: &mut [u8]) -> Result<usize, RecordError> {
+    Calibration::new(&record.calibration).map_err(RecordError::Invalid)?;
     let (version, spec_space) = out.split_first_mut().ok_or(RecordError::BufferTooSmall)?;
     *version = BODY_FORMAT_VERSION;
-    let spec_len = postcard::to_slice(spec, spec_space)
+    let spec_len = postcard::to_slice(record, spec_space)
         .map_err(|error| match error {
             postcard::Error::SerializeBufferFull => RecordError::BufferTooSmall,
             other => RecordError::Postcard(other),
@@ -102,8 +137,8 @@ pub fn encode_body(spec: &CalibrationSpec, out: &mut [u8]) -> Result<usize, Reco
     Ok(VERSION_LEN + spec_len)
 }
 
-/// Reads a body that fills `bytes` exactly and returns its calibration, validated.
-pub fn decode_body(bytes: &[u8]) -> Result<CalibrationSpec, RecordError> {
+/// Reads a body that fills `bytes` exactly and returns its record, validated.
+pub fn decode_body(bytes: &[u8]) -> Result<PadRecord, RecordError> {
     if bytes.len() > MAX_BODY_LEN {
         return Err(RecordError::TooLong);
     }
@@ -111,13 +146,13 @@ pub fn decode_body(bytes: &[u8]) -> Result<CalibrationSpec, RecordError> {
     if version != BODY_FORMAT_VERSION {
         return Err(RecordError::UnsupportedVersion { found: version });
     }
-    let spec = match postcard::take_from_bytes::<CalibrationSpec>(spec) {
-        Ok((spec, [])) => spec,
+    let record = match postcard::take_from_bytes::<PadRecord>(spec) {
+        Ok((record, [])) => record,
         Ok(_) => return Err(RecordError::TrailingBytes),
         Err(error) => return Err(RecordError::Postcard(error)),
     };
-    Calibration::new(&spec).map_err(RecordError::Invalid)?;
-    Ok(spec)
+    Calibration::new(&record.calibration).map_err(RecordError::Invalid)?;
+    Ok(record)
 }
 
 #[cfg(test)]
@@ -127,15 +162,15 @@ mod tests {
     #[test]
     fn maximum_lengths_add_up() {
         assert_eq!(MAX_SPEC_LEN, 642);
-        assert_eq!(MAX_BODY_LEN, 643);
+        assert_eq!(MAX_BODY_LEN, 692);
     }
 
     #[test]
-    fn default_spec_round_trips() {
-        let spec = CalibrationSpec::default();
+    fn default_record_round_trips() {
+        let record = PadRecord::new(CalibrationSpec::default());
         let mut buffer = [0u8; MAX_BODY_LEN];
-        let length = encode_body(&spec, &mut buffer).unwrap();
+        let length = encode_body(&record, &mut buffer).unwrap();
         assert_eq!(buffer[0], BODY_FORMAT_VERSION);
-        assert_eq!(decode_body(&buffer[..length]), Ok(spec));
+        assert_eq!(decode_body(&buffer[..length]), Ok(record));
     }
 }

@@ -42,8 +42,8 @@
 use core::fmt;
 use core::ops::Range;
 
+use crate::record::PadRecord;
 use embedded_storage_async::nor_flash::NorFlash;
-use model_core::CalibrationSpec;
 
 use crate::format::{
     encode_page_header, encode_record_header, RecordScope, COMMIT_BYTE, ERASED_BYTE, MAX_PADS,
@@ -180,11 +180,11 @@ pub enum CorruptReason<E> {
 #[derive(Debug, Clone, PartialEq)]
 #[allow(
     clippy::large_enum_variant,
-    reason = "no allocation: the spec is returned by value, once per boot"
+    reason = "no allocation: the record is returned by value, once per boot"
 )]
 pub enum LoadOutcome<E> {
     /// The pad's newest record.
-    Stored(CalibrationSpec),
+    Stored(PadRecord),
     /// Nothing saved for the pad: the region is erased, or holds only other pads' intact records.
     Absent,
     /// The region holds something, but no calibration for the pad that can be used.
@@ -192,10 +192,10 @@ pub enum LoadOutcome<E> {
 }
 
 impl<E> LoadOutcome<E> {
-    /// The stored calibration, if there is one.
-    pub fn stored(&self) -> Option<&CalibrationSpec> {
+    /// The stored record, if there is one.
+    pub fn stored(&self) -> Option<&PadRecord> {
         match self {
-            LoadOutcome::Stored(spec) => Some(spec),
+            LoadOutcome::Stored(record) => Some(record),
             LoadOutcome::Absent | LoadOutcome::Corrupt(_) => None,
         }
     }
@@ -211,7 +211,9 @@ impl<E> LoadOutcome<E> {
 impl<E: defmt::Format> defmt::Format for LoadOutcome<E> {
     fn format(&self, formatter: defmt::Formatter) {
         match self {
-            LoadOutcome::Stored(spec) => defmt::write!(formatter, "Stored(id {=u32})", spec.id),
+            LoadOutcome::Stored(record) => {
+                defmt::write!(formatter, "Stored(id {=u32})", record.calibration.id)
+            }
             LoadOutcome::Absent => defmt::write!(formatter, "Absent"),
             LoadOutcome::Corrupt(reason) => defmt::write!(formatter, "Corrupt({})", reason),
         }
@@ -315,13 +317,13 @@ impl<F: NorFlash> CalibrationStore<F> {
         )
     }
 
-    /// Saves `spec` for every pad (every pad loads it until it gets a newer record of its own);
-    /// see [`Self::save_for`].
-    pub async fn save(&mut self, spec: &CalibrationSpec) -> Result<(), StoreError<F::Error>> {
-        self.save_for(RecordScope::EveryPad, spec).await
+    /// Saves `record` for every pad (every pad loads it until it gets a newer record of its
+    /// own); see [`Self::save_for`].
+    pub async fn save(&mut self, record: &PadRecord) -> Result<(), StoreError<F::Error>> {
+        self.save_for(RecordScope::EveryPad, record).await
     }
 
-    /// Saves `spec` for `scope` with the next save counter and reads it back: appended to the
+    /// Saves `record` for `scope` with the next save counter and reads it back: appended to the
     /// current page when it fits, otherwise moved into the other page with every record
     /// another pad still loads, the page they came from being erased only once the new page is
     /// complete and reads back (see the module documentation). A power loss at any point leaves
@@ -329,7 +331,7 @@ impl<F: NorFlash> CalibrationStore<F> {
     pub async fn save_for(
         &mut self,
         scope: RecordScope,
-        spec: &CalibrationSpec,
+        spec: &PadRecord,
     ) -> Result<(), StoreError<F::Error>> {
         if let RecordScope::Pad(pad) = scope {
             if pad >= MAX_PADS {

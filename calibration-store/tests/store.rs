@@ -11,7 +11,7 @@
 mod common;
 
 use calibration_store::{
-    CalibrationStore, CorruptReason, LoadOutcome, RamFlash, RamFlashError, RecordError,
+    CalibrationStore, CorruptReason, LoadOutcome, PadRecord, RamFlash, RamFlashError, RecordError,
     RegionError, StoreError, Tear, MAX_BODY_LEN, STM32F411_CALIBRATION_RANGE,
 };
 use common::layout::{self, EVERY_PAD};
@@ -32,7 +32,7 @@ fn assert_outside_untouched(flash: &SmallFlash) {
 }
 
 /// The record for every pad of `spec` with `save_counter`, as the format documents it.
-fn record(spec: &CalibrationSpec, save_counter: u32) -> Vec<u8> {
+fn record(spec: &PadRecord, save_counter: u32) -> Vec<u8> {
     layout::record(&layout::body(spec), save_counter, EVERY_PAD)
 }
 
@@ -70,7 +70,7 @@ fn save_then_load_returns_the_same_spec_before_and_after_a_reboot() {
     for saved in [
         spec(1),
         worst_case_spec(u32::MAX),
-        CalibrationSpec::default(),
+        PadRecord::new(CalibrationSpec::default()),
     ] {
         let mut store = small_store(&mut flash);
         block_on(store.save(&saved)).unwrap();
@@ -140,7 +140,7 @@ fn pages_must_hold_two_records_and_that_is_enough() {
 fn an_invalid_spec_is_refused_and_nothing_is_written() {
     let mut flash = small_flash();
     let mut invalid = spec(4);
-    invalid.taxels[0].parasitic_pf = -1.0;
+    invalid.calibration.taxels[0].parasitic_pf = -1.0;
     assert_eq!(
         block_on(small_store(&mut flash).save(&invalid)),
         Err(StoreError::Record(RecordError::Invalid(

@@ -16,6 +16,7 @@ use embedded_hal_async::delay::DelayNs;
 use embedded_hal_async::i2c::I2c;
 use fdc1004::{Fdc1004, Rate};
 use model_core::{Calibration, PadModel};
+use model_core::{PadGeometry, PadRole};
 use tmp117::Tmp117;
 use wire::CalibrationSource;
 
@@ -64,23 +65,37 @@ impl BoardConfig {
     }
 }
 
-/// The calibration to boot with and where it came from: the saved one if it is intact and
-/// valid, otherwise the built-in default (marked as replacing a corrupt copy when there was
-/// one). `None` (no usable flash region) boots on the default.
-pub fn boot_calibration<E>(stored: Option<LoadOutcome<E>>) -> (Calibration, CalibrationSource) {
+/// What a pad boots with from flash.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BootPad {
+    /// Its calibration.
+    pub calibration: Calibration,
+    /// Where the calibration came from.
+    pub source: CalibrationSource,
+    /// Its role and geometry as saved with the calibration; `None`: the configuration's.
+    pub layout: Option<(PadRole, PadGeometry)>,
+}
+
+/// What a pad boots with and where it came from: the saved record if it is intact and valid,
+/// otherwise the built-in calibration and geometry (marked as replacing a corrupt copy when
+/// there was one). `None` (no usable flash region) boots on the defaults.
+pub fn boot_pad<E>(stored: Option<LoadOutcome<E>>) -> BootPad {
+    let defaults = |source| BootPad {
+        calibration: Calibration::default(),
+        source,
+        layout: None,
+    };
     match stored {
-        Some(LoadOutcome::Stored(spec)) => match Calibration::new(&spec) {
-            Ok(calibration) => (calibration, CalibrationSource::Flash),
-            Err(_) => (
-                Calibration::default(),
-                CalibrationSource::DefaultsAfterCorruptFlash,
-            ),
+        Some(LoadOutcome::Stored(record)) => match Calibration::new(&record.calibration) {
+            Ok(calibration) => BootPad {
+                calibration,
+                source: CalibrationSource::Flash,
+                layout: Some((record.role, record.geometry)),
+            },
+            Err(_) => defaults(CalibrationSource::DefaultsAfterCorruptFlash),
         },
-        Some(LoadOutcome::Corrupt(_)) => (
-            Calibration::default(),
-            CalibrationSource::DefaultsAfterCorruptFlash,
-        ),
-        Some(LoadOutcome::Absent) | None => (Calibration::default(), CalibrationSource::Defaults),
+        Some(LoadOutcome::Corrupt(_)) => defaults(CalibrationSource::DefaultsAfterCorruptFlash),
+        Some(LoadOutcome::Absent) | None => defaults(CalibrationSource::Defaults),
     }
 }
 
@@ -172,13 +187,14 @@ where
     );
     let mut restored_taxels = 0;
     let mut calibration_sources = heapless::Vec::<CalibrationSource, MAX_PADS>::new();
+    let mut layouts = heapless::Vec::<Option<(PadRole, PadGeometry)>, MAX_PADS>::new();
     for slot in &parts.topology.pads {
         // One pad's calibration at a time: eight specs at once would not fit the MCU's RAM.
-        let (calibration, calibration_source) =
-            boot_calibration(parts.persistence.load(calibration_key(slot)));
+        let pad = boot_pad(parts.persistence.load(calibration_key(slot)));
         // Cannot fail: discovery finds at most MAX_PADS pads.
-        let _ = calibration_sources.push(calibration_source);
-        let mut model = PadModel::new(calibration);
+        let _ = calibration_sources.push(pad.source);
+        let _ = layouts.push(pad.layout);
+        let mut model = PadModel::new(pad.calibration);
         let restored = plan.apply_to(slot.channel.map(|channel| channel.index()), &mut model);
         restored_taxels += restored.count_ones() as u8;
         let converter = Fdc1004::new(
@@ -201,7 +217,7 @@ where
         let _ = acquisition.add_pad(converter, temperature, model);
     }
     let pad_count = u8::try_from(acquisition.pad_count()).unwrap_or(u8::MAX);
-    let device = Device::new(
+    let mut device = Device::new(
         acquisition,
         parts.persistence,
         parts.identity,
@@ -209,6 +225,11 @@ where
         &parts.topology.pads,
         config.device,
     );
+    for (pad, layout) in layouts.iter().enumerate() {
+        if let Some((role, geometry)) = layout {
+            device.set_pad_geometry(pad, *role, *geometry);
+        }
+    }
     let report = BootReport {
         pad_count,
         calibration_source: calibration_sources
@@ -225,27 +246,44 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use calibration_store::CorruptReason;
+    use calibration_store::{CorruptReason, PadRecord};
 
     #[test]
-    fn flash_contents_choose_the_calibration() {
-        let (calibration, source) = boot_calibration::<()>(None);
-        assert_eq!((calibration.id(), source), (0, CalibrationSource::Defaults));
-        let (_, source) = boot_calibration(Some(LoadOutcome::<()>::Absent));
-        assert_eq!(source, CalibrationSource::Defaults);
-        let (_, source) = boot_calibration(Some(LoadOutcome::<()>::Corrupt(
+    fn flash_contents_choose_the_calibration_and_geometry() {
+        let pad = boot_pad::<()>(None);
+        assert_eq!(
+            (pad.calibration.id(), pad.source, pad.layout),
+            (0, CalibrationSource::Defaults, None)
+        );
+        let pad = boot_pad(Some(LoadOutcome::<()>::Absent));
+        assert_eq!(pad.source, CalibrationSource::Defaults);
+        let pad = boot_pad(Some(LoadOutcome::<()>::Corrupt(
             CorruptReason::NoIntactRecord,
         )));
-        assert_eq!(source, CalibrationSource::DefaultsAfterCorruptFlash);
+        assert_eq!(pad.source, CalibrationSource::DefaultsAfterCorruptFlash);
         let mut spec = Calibration::default().to_spec();
         spec.id = 42;
-        let (calibration, source) = boot_calibration(Some(LoadOutcome::<()>::Stored(spec.clone())));
-        assert_eq!((calibration.id(), source), (42, CalibrationSource::Flash));
-        spec.taxels[0].points.truncate(1);
-        let (calibration, source) = boot_calibration(Some(LoadOutcome::<()>::Stored(spec)));
+        let palm = PadGeometry::new(
+            [(-6.0, 6.0), (6.0, 6.0), (-6.0, -6.0), (6.0, -6.0)]
+                .map(|(x, y)| model_core::TaxelGeometry::new(x, y, 100.0)),
+        )
+        .unwrap();
+        let record = PadRecord {
+            calibration: spec,
+            role: PadRole::Palm,
+            geometry: palm,
+        };
+        let pad = boot_pad(Some(LoadOutcome::<()>::Stored(record.clone())));
         assert_eq!(
-            (calibration.id(), source),
-            (0, CalibrationSource::DefaultsAfterCorruptFlash)
+            (pad.calibration.id(), pad.source, pad.layout),
+            (42, CalibrationSource::Flash, Some((PadRole::Palm, palm)))
+        );
+        let mut broken = record;
+        broken.calibration.taxels[0].points.truncate(1);
+        let pad = boot_pad(Some(LoadOutcome::<()>::Stored(broken)));
+        assert_eq!(
+            (pad.calibration.id(), pad.source, pad.layout),
+            (0, CalibrationSource::DefaultsAfterCorruptFlash, None)
         );
     }
 }

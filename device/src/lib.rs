@@ -20,8 +20,8 @@ mod retained;
 mod supervisor;
 
 pub use boot::{
-    boot, boot_calibration, calibration_key, BoardAcquisition, BoardConfig, BoardParts, BootReport,
-    BootedDevice, PadI2c, BOARD,
+    boot, boot_pad, calibration_key, BoardAcquisition, BoardConfig, BoardParts, BootPad,
+    BootReport, BootedDevice, PadI2c, BOARD,
 };
 pub use control::DeviceControl;
 pub use convert::{
@@ -36,7 +36,7 @@ pub use supervisor::{Supervisor, SupervisorAction};
 
 use acquisition::discovery::{PadSlot, PadTemperature, MAX_PADS};
 use acquisition::{ProcessedSample, TemperatureOrigin};
-use calibration_store::RecordScope;
+use calibration_store::{PadRecord, RecordScope};
 use model_core::{
     BaselineError, Calibration, ContactConfig, ContactEvent, ForceAndContact, PadGeometry,
     PadModel, PadRole, TareStatus, Tier,
@@ -676,9 +676,17 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 None => RecordScope::EveryPad,
                 Some(channel) => RecordScope::Pad(channel),
             };
-            let spec = model.calibration().to_spec();
+            let (role, geometry) = (
+                reporting.force_and_contact.role(),
+                *reporting.force_and_contact.geometry(),
+            );
+            let record = PadRecord {
+                calibration: model.calibration().to_spec(),
+                role,
+                geometry,
+            };
             self.persistence
-                .save(scope, &spec)
+                .save(scope, &record)
                 .await
                 .map_err(|PersistenceFailed| ErrorCode::FlashError)?;
             if let Some(reporting) = self.pads.get_mut(pad) {

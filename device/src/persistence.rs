@@ -1,7 +1,6 @@
 //! Where saved calibrations go (flash on the board, a RAM model on the desktop).
 
-use calibration_store::{LoadOutcome, RecordScope};
-use model_core::CalibrationSpec;
+use calibration_store::{LoadOutcome, PadRecord, RecordScope};
 
 /// Saving failed; the previous saved calibrations still load.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -20,11 +19,11 @@ pub trait CalibrationPersistence {
     /// is not async.
     fn load(&mut self, pad: u8) -> Option<LoadOutcome<Self::Error>>;
 
-    /// Saves the calibration for `scope`; on failure every pad's previous calibration must still
-    /// load.
+    /// Saves a pad's calibration and geometry for `scope`; on failure every pad's previous
+    /// record must still load.
     async fn save(
         &mut self,
         scope: RecordScope,
-        spec: &CalibrationSpec,
+        record: &PadRecord,
     ) -> Result<(), PersistenceFailed>;
 }

@@ -3,14 +3,13 @@
 //! feeding the watchdog between sector erases.
 
 use calibration_store::{
-    CalibrationStore, EraseHook, LoadOutcome, RecordScope, STM32F411_CALIBRATION_RANGE,
+    CalibrationStore, EraseHook, LoadOutcome, PadRecord, RecordScope, STM32F411_CALIBRATION_RANGE,
 };
 use defmt::{error, info, warn};
 use device::{CalibrationPersistence, PersistenceFailed};
 use embassy_stm32::flash::{self, Flash, FLASH_BASE};
 use embassy_stm32::peripherals::FLASH;
 use embassy_stm32::Peri;
-use model_core::CalibrationSpec;
 
 use crate::board::Irqs;
 use crate::watchdog;
@@ -59,9 +58,10 @@ impl CalibrationPersistence for FlashPersistence {
         let store = self.store.as_mut()?;
         let outcome = embassy_futures::block_on(store.load(pad));
         match &outcome {
-            LoadOutcome::Stored(spec) => {
-                info!("pad {=u8}: calibration {=u32} found in flash", pad, spec.id)
-            }
+            LoadOutcome::Stored(record) => info!(
+                "pad {=u8}: calibration {=u32} found in flash",
+                pad, record.calibration.id
+            ),
             LoadOutcome::Absent => info!("pad {=u8}: no calibration saved; the defaults", pad),
             LoadOutcome::Corrupt(reason) => warn!(
                 "pad {=u8}: stored calibration corrupt ({}); the defaults",
@@ -75,16 +75,17 @@ impl CalibrationPersistence for FlashPersistence {
     async fn save(
         &mut self,
         scope: RecordScope,
-        spec: &CalibrationSpec,
+        record: &PadRecord,
     ) -> Result<(), PersistenceFailed> {
         let store = self.store.as_mut().ok_or(PersistenceFailed)?;
-        match store.save_for(scope, spec).await {
+        let id = record.calibration.id;
+        match store.save_for(scope, record).await {
             Ok(()) => {
-                info!("calibration {=u32} saved for {}", spec.id, scope);
+                info!("calibration {=u32} saved for {}", id, scope);
                 Ok(())
             }
             Err(store_error) => {
-                error!("saving calibration {=u32} failed: {}", spec.id, store_error);
+                error!("saving calibration {=u32} failed: {}", id, store_error);
                 Err(PersistenceFailed)
             }
         }

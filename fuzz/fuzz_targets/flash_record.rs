@@ -5,12 +5,13 @@
 //! every pad); a save over it that succeeds loads back.
 #![no_main]
 
+use calibration_store::PadRecord;
 use calibration_store::{
     decode_body, encode_body, CalibrationStore, LoadOutcome, RamFlash, RecordScope, MAX_BODY_LEN,
     MAX_PADS,
 };
 use libfuzzer_sys::fuzz_target;
-use model_core::CalibrationSpec;
+use model_core::{CalibrationSpec, PadGeometry, PadRole, TaxelGeometry};
 
 const SIZE: usize = 4096;
 const PAGE: usize = 2048;
@@ -21,19 +22,28 @@ fn block_on<T>(future: impl core::future::Future<Output = T>) -> T {
     embassy_futures::block_on(future)
 }
 
-/// A valid calibration that differs with `id`.
-fn spec(id: u32) -> CalibrationSpec {
+/// A valid record that differs with `id`: calibration, role and electrode area.
+fn spec(id: u32) -> PadRecord {
     let mut spec = CalibrationSpec {
         id,
         ..CalibrationSpec::default()
     };
     spec.taxels[(id % 4) as usize].parasitic_pf = (id % 100) as f32 * 0.01;
-    spec
+    let area_mm2 = 1.0 + (id % 97) as f32;
+    let taxels = PadGeometry::ARTICLE
+        .taxels()
+        .map(|taxel| TaxelGeometry::new(taxel.x_mm, taxel.y_mm, area_mm2));
+    PadRecord {
+        calibration: spec,
+        role: PadRole::ALL[(id % 5) as usize],
+        geometry: PadGeometry::new(taxels).unwrap(),
+    }
 }
 
 fuzz_target!(|bytes: &[u8]| {
     if let Ok(spec) = decode_body(bytes) {
-        assert!(model_core::Calibration::new(&spec).is_ok());
+        assert!(model_core::Calibration::new(&spec.calibration).is_ok());
+        assert!(PadGeometry::new(*spec.geometry.taxels()).is_ok());
         let mut body = [0u8; MAX_BODY_LEN];
         let length = encode_body(&spec, &mut body).unwrap();
         assert_eq!(decode_body(&body[..length]), Ok(spec));
@@ -55,7 +65,7 @@ fuzz_target!(|bytes: &[u8]| {
     };
     for pad in 0..=MAX_PADS {
         if let LoadOutcome::Stored(spec) = block_on(store.load(pad)) {
-            assert!(model_core::Calibration::new(&spec).is_ok());
+            assert!(model_core::Calibration::new(&spec.calibration).is_ok());
             if let Some(saved) = &saved {
                 assert!(
                     saved
@@ -81,7 +91,7 @@ fuzz_target!(|bytes: &[u8]| {
 /// A region the store wrote (up to 15 saves, for pads or every pad, as `mode` and the first
 /// bytes say), then edited four bytes of `rest` at a time: an operation, an address (two
 /// bytes) and a value.
-fn written_then_edited(mode: u8, rest: &[u8]) -> (Flash, Vec<(RecordScope, CalibrationSpec)>) {
+fn written_then_edited(mode: u8, rest: &[u8]) -> (Flash, Vec<(RecordScope, PadRecord)>) {
     let mut flash = Flash::new();
     let mut saved = Vec::new();
     let save_count = usize::from(mode >> 4);

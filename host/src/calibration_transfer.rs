@@ -9,8 +9,10 @@ use std::io::{Read, Write};
 use std::time::Duration;
 
 use anyhow::{bail, Context};
-use model_core::{BaselineRecord, Calibration, CalibrationSpec, TAXEL_COUNT, TAXEL_NAMES};
-use wire::{Command, PadIndex, PadInfoFrame, ReplyPayload};
+use model_core::{
+    BaselineRecord, Calibration, CalibrationSpec, PadGeometry, PadRole, TAXEL_COUNT, TAXEL_NAMES,
+};
+use wire::{Command, PadGeometryRecord, PadIndex, PadInfoFrame, ReplyPayload};
 
 use crate::calibration_file::describe_calibration_error;
 use crate::device_link::{DeviceLink, RequestError};
@@ -179,3 +181,38 @@ pub fn pad_info<P: Read + Write>(
         Err(error) => Err(error).with_context(|| format!("PadInfo {}", pad.get())),
     }
 }
+
+/// Gives pad `pad` the role and geometry `geometry` (SetPadGeometry), and with `save` stores it
+/// in flash with the pad's calibration (SaveCalibration). Returns the pad's PadInfo afterwards,
+/// as the device reports it.
+pub fn set_geometry<P: Read + Write>(
+    link: &mut DeviceLink<P>,
+    pad: PadIndex,
+    role: PadRole,
+    geometry: &PadGeometry,
+    save: bool,
+    timeout: Duration,
+) -> anyhow::Result<PadInfoFrame> {
+    ensure_pad_exists(pad, device_pad_count(link, timeout)?)?;
+    let record = PadGeometryRecord {
+        pad,
+        role,
+        taxels: *geometry.taxels(),
+    };
+    match link.request(Command::SetPadGeometry(record), timeout) {
+        Ok(ReplyPayload::Ack) => {}
+        Ok(_) => return Err(RequestError::UnexpectedReply("Ack").into()),
+        Err(error) => {
+            return Err(error).with_context(|| format!("SetPadGeometry for pad {}", pad.get()))
+        }
+    }
+    if save {
+        match link.request(Command::SaveCalibration, timeout) {
+            Ok(ReplyPayload::Ack) => {}
+            Ok(_) => return Err(RequestError::UnexpectedReply("Ack").into()),
+            Err(error) => return Err(error).context("SaveCalibration"),
+        }
+    }
+    pad_info(link, pad, timeout)
+}
+

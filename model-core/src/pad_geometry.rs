@@ -46,6 +46,7 @@ pub const MAX_CENTRE_OFFSET_MM: f32 = 100.0;
 /// its fingertips, a gripper's jaws side by side). Plain data: it changes no computation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum PadRole {
     /// Not said.

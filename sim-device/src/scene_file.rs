@@ -35,9 +35,25 @@
 //! name = "right finger"
 //! # ...
 //! ```
+//!
+//! A pad may say what it is and where its electrodes are (the article's pad when it does not):
+//! the simulated board leaves the factory with that role and geometry saved beside the pad's
+//! calibration, so PadInfo reports them and the force is computed with them.
+//!
+//! ```toml
+//! [[pad]]
+//! name = "palm"
+//! role = "palm"           # unspecified, fingertip, finger, palm, gripper-jaw
+//! [[pad.taxel]]           # c11, then c12, c21, c22: centre in mm, electrode area in mm²
+//! x_mm = -6.0
+//! y_mm = 6.0
+//! area_mm2 = 100.0
+//! # ... three more [[pad.taxel]] tables
+//! ```
 
 use std::fmt;
 
+use model_core::{PadGeometry, PadRole, TaxelGeometry};
 use sensor_sim::{Device, Fault, Keyframe, ScriptedScene};
 use serde::Deserialize;
 
@@ -139,6 +155,10 @@ struct SceneDocument {
     #[serde(default)]
     repeat: bool,
     #[serde(default)]
+    role: PadRole,
+    #[serde(default)]
+    taxel: Vec<TaxelGeometry>,
+    #[serde(default)]
     keyframe: Vec<Keyframe>,
     #[serde(default)]
     fault: Vec<SceneFault>,
@@ -151,9 +171,36 @@ struct SceneDocument {
 struct PadDocument {
     #[serde(default)]
     name: String,
+    #[serde(default)]
+    role: PadRole,
+    #[serde(default)]
+    taxel: Vec<TaxelGeometry>,
     keyframe: Vec<Keyframe>,
     #[serde(default)]
     fault: Vec<SceneFault>,
+}
+
+/// What a pad is and its geometry, as a scene gives them (none: the built-in geometry).
+struct PadLayout {
+    role: PadRole,
+    taxel: Vec<TaxelGeometry>,
+}
+
+impl PadLayout {
+    fn geometry(&self, pad: &str) -> Result<PadGeometry, SceneFileError> {
+        if self.taxel.is_empty() {
+            return Ok(PadGeometry::ARTICLE);
+        }
+        let taxels: [TaxelGeometry; model_core::TAXEL_COUNT] =
+            self.taxel.as_slice().try_into().map_err(|_| {
+                SceneFileError::Geometry(format!(
+                    "pad {pad:?}: {} [[taxel]] tables; a pad has 4 (c11, c12, c21, c22)",
+                    self.taxel.len()
+                ))
+            })?;
+        PadGeometry::new(taxels)
+            .map_err(|error| SceneFileError::Geometry(format!("pad {pad:?}: {error}")))
+    }
 }
 
 /// What happens to one pad.
@@ -161,6 +208,11 @@ struct PadDocument {
 pub struct PadScene {
     /// Its name (empty when the file gives none).
     pub name: String,
+    /// What it is (`role = "palm"`, ...; unspecified when the file gives none).
+    pub role: PadRole,
+    /// Its taxels' centres and areas (`[[taxel]]` tables; the article's pad when the file gives
+    /// none): the simulated board leaves the factory with it saved beside the pad's calibration.
+    pub geometry: PadGeometry,
     /// The pressures and temperature over time.
     pub scene: ScriptedScene,
     /// Fault windows.
@@ -195,6 +247,8 @@ pub enum SceneFileError {
     Pads(String),
     /// No built-in scene has this name.
     UnknownBuiltIn(String),
+    /// A pad's `[[taxel]]` tables do not describe four taxels of a valid geometry.
+    Geometry(String),
 }
 
 impl fmt::Display for SceneFileError {
@@ -207,6 +261,7 @@ impl fmt::Display for SceneFileError {
                 "scene fault #{index}: needs 0 <= start_s < end_s (finite) and taxel 0..3"
             ),
             SceneFileError::Pads(message) => write!(formatter, "scene pads: {message}"),
+            SceneFileError::Geometry(message) => write!(formatter, "scene geometry: {message}"),
             SceneFileError::UnknownBuiltIn(name) => {
                 let names: Vec<&str> = BUILT_IN_SCENES.iter().map(|(name, _)| *name).collect();
                 write!(
@@ -226,9 +281,11 @@ pub const MAX_SCENE_PADS: usize = 8;
 
 fn pad_scene(
     name: String,
+    layout: PadLayout,
     keyframes: Vec<Keyframe>,
     faults: Vec<SceneFault>,
 ) -> Result<PadScene, SceneFileError> {
+    let geometry = layout.geometry(&name)?;
     let scene = ScriptedScene::new(keyframes).map_err(SceneFileError::Keyframes)?;
     for (index, fault) in faults.iter().enumerate() {
         let valid = fault.start_s.is_finite()
@@ -242,6 +299,8 @@ fn pad_scene(
     }
     Ok(PadScene {
         name,
+        role: layout.role,
+        geometry,
         scene,
         faults,
     })
@@ -260,6 +319,8 @@ impl SceneFile {
             repeat,
             pads: vec![PadScene {
                 name: String::new(),
+                role: PadRole::Unspecified,
+                geometry: PadGeometry::ARTICLE,
                 scene,
                 faults,
             }],
@@ -272,11 +333,28 @@ impl SceneFile {
             toml::from_str(text).map_err(|error| SceneFileError::Syntax(error.to_string()))?;
         let top_level = !document.keyframe.is_empty() || !document.fault.is_empty();
         let pads = match (top_level, document.pad.is_empty()) {
-            (true, true) => vec![pad_scene(String::new(), document.keyframe, document.fault)?],
+            (true, true) => {
+                let layout = PadLayout {
+                    role: document.role,
+                    taxel: document.taxel,
+                };
+                vec![pad_scene(
+                    String::new(),
+                    layout,
+                    document.keyframe,
+                    document.fault,
+                )?]
+            }
             (false, false) if document.pad.len() <= MAX_SCENE_PADS => document
                 .pad
                 .into_iter()
-                .map(|pad| pad_scene(pad.name, pad.keyframe, pad.fault))
+                .map(|pad| {
+                    let layout = PadLayout {
+                        role: pad.role,
+                        taxel: pad.taxel,
+                    };
+                    pad_scene(pad.name, layout, pad.keyframe, pad.fault)
+                })
                 .collect::<Result<_, _>>()?,
             (false, false) => {
                 return Err(SceneFileError::Pads(format!(
@@ -338,6 +416,60 @@ impl SceneFile {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_pad_gets_its_role_and_geometry_from_the_scene() {
+        let glove = SceneFile::built_in("glove").unwrap();
+        let palm = glove.pads.last().unwrap();
+        assert_eq!(palm.role, PadRole::Palm);
+        assert!(palm
+            .geometry
+            .taxels()
+            .iter()
+            .all(|taxel| taxel.area_mm2 == 100.0));
+        assert_eq!(palm.geometry.taxels()[0].x_mm, -6.0);
+        let thumb = &glove.pads[0];
+        assert_eq!(thumb.role, PadRole::Fingertip);
+        assert_eq!(thumb.geometry, PadGeometry::ARTICLE);
+        let gripper = SceneFile::built_in("gripper").unwrap();
+        assert!(gripper
+            .pads
+            .iter()
+            .all(|pad| pad.role == PadRole::GripperJaw));
+        assert_eq!(
+            SceneFile::default_scene().unwrap().pads[0].role,
+            PadRole::Unspecified
+        );
+    }
+
+    #[test]
+    fn a_geometry_that_is_not_one_is_refused_with_the_pad_named() {
+        let taxel =
+            |x: f32, y: f32| format!("[[taxel]]\nx_mm = {x:?}\ny_mm = {y:?}\narea_mm2 = 9.0\n");
+        let keyframe = "[[keyframe]]\ntime_s = 0.0\npressure_kpa = [0.0, 0.0, 0.0, 0.0]\ntemperature_c = 25.0\n";
+        let three = format!(
+            "{}{}{}{keyframe}",
+            taxel(-1.0, 1.0),
+            taxel(1.0, 1.0),
+            taxel(-1.0, -1.0)
+        );
+        let error = SceneFile::parse(&three).unwrap_err().to_string();
+        assert!(error.contains("3 [[taxel]] tables"), "{error}");
+        let same = format!(
+            "{}{}{}{}{keyframe}",
+            taxel(-1.0, 1.0),
+            taxel(1.0, 1.0),
+            taxel(-1.0, -1.0),
+            taxel(1.0, 1.0)
+        );
+        let error = SceneFile::parse(&same).unwrap_err().to_string();
+        assert!(
+            error.contains("taxel 3") && error.contains("taxel 1"),
+            "{error}"
+        );
+        let role = format!("role = \"elbow\"\n{keyframe}");
+        assert!(SceneFile::parse(&role).is_err());
+    }
 
     #[test]
     fn the_default_scene_parses_and_covers_what_the_demo_promises() {

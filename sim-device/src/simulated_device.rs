@@ -9,7 +9,7 @@ use acquisition::discovery::discover;
 use acquisition::pad_bus::MuxedBus;
 use acquisition::TemperatureSource;
 use acquisition::{Clock, ProcessedSample};
-use calibration_store::{CalibrationStore, LoadOutcome, RamFlashError, RecordScope};
+use calibration_store::{CalibrationStore, LoadOutcome, PadRecord, RamFlashError, RecordScope};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::mutex::Mutex;
 
@@ -101,10 +101,10 @@ impl CalibrationPersistence for SimulatedPersistence {
     async fn save(
         &mut self,
         scope: RecordScope,
-        spec: &CalibrationSpec,
+        record: &PadRecord,
     ) -> Result<(), PersistenceFailed> {
         self.0
-            .save_for(scope, spec)
+            .save_for(scope, record)
             .await
             .map_err(|_| PersistenceFailed)
     }
@@ -315,8 +315,27 @@ impl SimulatedDevice {
                 id: FACTORY_CALIBRATION_ID,
                 ..factory.to_spec()
             };
-            embassy_futures::block_on(store.save(&spec))
-                .map_err(|_| SimulatedDeviceError::Storage)?;
+            // The factory saves each pad's calibration with the role and geometry its scene
+            // gives it, under the pad's multiplexer channel (channel n holds pad n), as
+            // SetPadGeometry and SaveCalibration would.
+            let pads = simulation.pad_count();
+            for pad in 0..pads {
+                let Some(pad_scene) = config.scene.pad(pad) else {
+                    continue;
+                };
+                let record = PadRecord {
+                    calibration: spec.clone(),
+                    role: pad_scene.role,
+                    geometry: pad_scene.geometry,
+                };
+                let scope = match (pads, u8::try_from(pad)) {
+                    (1, _) => RecordScope::EveryPad,
+                    (_, Ok(channel)) => RecordScope::Pad(channel),
+                    (_, Err(_)) => continue,
+                };
+                embassy_futures::block_on(store.save_for(scope, &record))
+                    .map_err(|_| SimulatedDeviceError::Storage)?;
+            }
         }
         let device = boot_simulated(
             &simulation,

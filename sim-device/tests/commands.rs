@@ -259,7 +259,11 @@ fn a_tare_while_the_pad_is_pressed_is_refused_as_not_still() {
     assert_eq!(reply, Some(Err(ErrorCode::TareNotStill)));
     let (pad, refused_mask) = refused.expect("a TareRefused event");
     assert_eq!(pad, 0);
-    assert_eq!(refused_mask & 0b0001, 0b0001, "C11 moved: {refused_mask:04b}");
+    assert_eq!(
+        refused_mask & 0b0001,
+        0b0001,
+        "C11 moved: {refused_mask:04b}"
+    );
     // Held at 3 kPa from 4 s: still, so it tares (a deliberate tare under a static load).
     host.steps(100);
     assert_eq!(

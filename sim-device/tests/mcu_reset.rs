@@ -78,6 +78,8 @@ fn every_pads_held_load_survives_an_mcu_only_reset() {
     ];
     let pad_scene = |pressures: [f32; 4]| PadScene {
         name: String::new(),
+        role: model_core::PadRole::Unspecified,
+        geometry: model_core::PadGeometry::ARTICLE,
         scene: ScriptedScene::new(vec![
             Keyframe {
                 time_s: 0.0,

@@ -243,3 +243,89 @@ fn a_saved_calibration_follows_its_pads_channel_when_another_pad_is_missing() {
         (Some(2), 102, CalibrationSource::Flash)
     );
 }
+
+/// The glove's palm leaves the factory with its larger geometry: PadInfo reports it and the
+/// device's force is its pressures times those areas. SetPadGeometry gives a pad another one
+/// (refused when it is not a geometry or the pad does not exist), which SaveCalibration keeps
+/// over a reboot.
+#[test]
+fn each_pad_has_its_own_geometry_reported_used_and_kept() {
+    use model_core::{PadGeometry, PadRole, TaxelGeometry};
+    use sim_device::SceneFile;
+    use wire::{DeviceFrame, PadGeometryRecord};
+
+    let scene = SceneFile::built_in("glove").unwrap();
+    let pads = scene.pads.len();
+    let mut host = Host::with_scene(scene.clone(), pads);
+    let palm = (pads - 1) as u8;
+    let info = pad_info(&mut host, palm);
+    assert_eq!(info.role, PadRole::Palm);
+    assert_eq!(&info.taxels, scene.pads[pads - 1].geometry.taxels());
+    assert!(info.taxels.iter().all(|taxel| taxel.area_mm2 == 100.0));
+    let thumb = pad_info(&mut host, 0);
+    assert_eq!(thumb.role, PadRole::Fingertip);
+    assert_eq!(&thumb.taxels, PadGeometry::ARTICLE.taxels());
+    // Force = Σ pressure × area over the palm's own electrodes, as the device sends it.
+    let mut compared = 0;
+    for frame in host.run_until_s(6.0) {
+        let DeviceFrame::Sample(sample) = frame else {
+            continue;
+        };
+        let (Some(force_n), false) = (sample.summary.force_n, sample.summary.partial) else {
+            continue;
+        };
+        if sample.pad.get() != palm {
+            continue;
+        }
+        let expected_n: f32 = sample
+            .taxels
+            .iter()
+            .zip(&info.taxels)
+            .map(|(taxel, place)| taxel.pressure_kpa.unwrap() * place.area_mm2 * 1e-3)
+            .sum();
+        assert!((force_n - expected_n).abs() <= 1e-4 * expected_n.max(1.0));
+        compared += usize::from(expected_n > 0.5);
+    }
+    assert!(compared > 10, "{compared} loaded palm frames");
+
+    // Another geometry for pad 1: long and narrow, kept over a reboot once saved.
+    let narrow = [(-2.0, 6.0), (2.0, 6.0), (-2.0, -6.0), (2.0, -6.0)]
+        .map(|(x, y)| TaxelGeometry::new(x, y, 12.0));
+    let set = |pad, taxels| {
+        Command::SetPadGeometry(PadGeometryRecord {
+            pad: self::pad(pad),
+            role: PadRole::GripperJaw,
+            taxels,
+        })
+    };
+    let mut same_place = narrow;
+    same_place[3] = same_place[0];
+    assert_eq!(
+        host.request(set(1, same_place)),
+        Err(ErrorCode::InvalidArgument)
+    );
+    assert_eq!(
+        host.request(set(pads as u8, narrow)),
+        Err(ErrorCode::InvalidArgument)
+    );
+    assert_eq!(host.request(set(1, narrow)), Ok(ReplyPayload::Ack));
+    assert_eq!(pad_info(&mut host, 1).taxels, narrow);
+    assert_eq!(pad_info(&mut host, 1).role, PadRole::GripperJaw);
+    host.device.restart_mcu().unwrap();
+    host.steps(20);
+    assert_eq!(
+        pad_info(&mut host, 1).taxels,
+        *PadGeometry::ARTICLE.taxels(),
+        "not saved: the reboot brings back the saved geometry"
+    );
+    assert_eq!(host.request(set(1, narrow)), Ok(ReplyPayload::Ack));
+    assert_eq!(
+        host.request(Command::SaveCalibration),
+        Ok(ReplyPayload::Ack)
+    );
+    host.device.restart_mcu().unwrap();
+    host.steps(20);
+    assert_eq!(pad_info(&mut host, 1).taxels, narrow);
+    assert_eq!(pad_info(&mut host, 1).role, PadRole::GripperJaw);
+    assert_eq!(pad_info(&mut host, palm).role, PadRole::Palm);
+}

@@ -16,7 +16,7 @@ use core::future::Future;
 use core::ops::Range;
 
 use calibration_store::{
-    CalibrationStore, LoadOutcome, RamFlash, RamFlashError, RecordScope, MAX_PADS,
+    CalibrationStore, LoadOutcome, PadRecord, RamFlash, RamFlashError, RecordScope, MAX_PADS,
 };
 use embedded_storage_async::nor_flash::NorFlash;
 use heapless::Vec;
@@ -25,6 +25,7 @@ use model_core::calibration::{
     MAX_CURVE_POINTS, MAX_TEMPERATURE_POINTS,
 };
 use model_core::reading::MAX_MEASURABLE_PF;
+use model_core::{PadGeometry, PadRole, TaxelGeometry};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 
@@ -75,7 +76,7 @@ pub fn reboot_and_load(flash: &mut SmallFlash) -> LoadOutcome<RamFlashError> {
 }
 
 /// Saves through a fresh store and panics on failure.
-pub fn save<F: NorFlash>(flash: F, range: Range<u32>, spec: &CalibrationSpec)
+pub fn save<F: NorFlash>(flash: F, range: Range<u32>, spec: &PadRecord)
 where
     F::Error: core::fmt::Debug,
 {
@@ -83,19 +84,47 @@ where
     block_on(store.save(spec)).unwrap();
 }
 
-/// A valid spec that differs from every other `spec(id)`: the id, and a parasitic capacitance.
-pub fn spec(id: u32) -> CalibrationSpec {
+/// A pad's role and geometry that differ with `id`: the role, and the electrodes' area (the
+/// article's centres).
+pub fn layout(id: u32) -> (PadRole, PadGeometry) {
+    let role = PadRole::ALL[(id % PadRole::ALL.len() as u32) as usize];
+    let area_mm2 = 1.0 + (id % 997) as f32;
+    let taxels = PadGeometry::ARTICLE
+        .taxels()
+        .map(|taxel| TaxelGeometry::new(taxel.x_mm, taxel.y_mm, area_mm2));
+    (role, PadGeometry::new(taxels).unwrap())
+}
+
+/// `calibration` with `layout(id)`.
+pub fn with_layout(calibration: CalibrationSpec, id: u32) -> PadRecord {
+    let (role, geometry) = layout(id);
+    PadRecord {
+        calibration,
+        role,
+        geometry,
+    }
+}
+
+/// A valid record that differs from every other `spec(id)`: the id, a parasitic capacitance, the
+/// role and the geometry.
+pub fn spec(id: u32) -> PadRecord {
     let mut spec = CalibrationSpec {
         id,
         ..CalibrationSpec::default()
     };
     spec.taxels[(id % 4) as usize].parasitic_pf = (id % 1000) as f32 * 0.01;
-    spec
+    with_layout(spec, id)
 }
 
-/// The longest record's spec: a 5-byte id, 16 points and a calibrated C0 on every taxel, 8
+/// The longest record: a 5-byte id, 16 points and a calibrated C0 on every taxel, 8
+/// temperature points, a geometry.
+pub fn worst_case_spec(id: u32) -> PadRecord {
+    with_layout(worst_case_calibration(id), id)
+}
+
+/// The longest calibration: a 5-byte id, 16 points and a calibrated C0 on every taxel, 8
 /// temperature points.
-pub fn worst_case_spec(id: u32) -> CalibrationSpec {
+pub fn worst_case_calibration(id: u32) -> CalibrationSpec {
     let taxel = |taxel: usize| TaxelCalibrationSpec {
         points: (0..MAX_CURVE_POINTS)
             .map(|index| {
@@ -122,7 +151,7 @@ pub fn worst_case_spec(id: u32) -> CalibrationSpec {
 }
 
 /// `spec(id)` for even ids and `worst_case_spec(id)` for odd ones: records of both lengths.
-pub fn mixed_spec(id: u32) -> CalibrationSpec {
+pub fn mixed_spec(id: u32) -> PadRecord {
     if id.is_multiple_of(2) {
         spec(id)
     } else {
@@ -211,7 +240,7 @@ pub fn valid_spec() -> impl Strategy<Value = CalibrationSpec> {
 /// The outcome as the spec it carries, or a label for the other outcomes.
 pub fn describe(outcome: &LoadOutcome<RamFlashError>) -> String {
     match outcome {
-        LoadOutcome::Stored(spec) => format!("Stored(id {})", spec.id),
+        LoadOutcome::Stored(record) => format!("Stored(id {})", record.calibration.id),
         LoadOutcome::Absent => "Absent".into(),
         LoadOutcome::Corrupt(reason) => format!("Corrupt({reason:?})"),
     }
@@ -220,11 +249,11 @@ pub fn describe(outcome: &LoadOutcome<RamFlashError>) -> String {
 /// The saves that completed, in order: the reference of what every pad loads (the last save
 /// that covers it).
 #[derive(Debug, Clone, Default)]
-pub struct History(pub std::vec::Vec<(RecordScope, CalibrationSpec)>);
+pub struct History(pub std::vec::Vec<(RecordScope, PadRecord)>);
 
 impl History {
     /// What `pad` must load (a pad index of `MAX_PADS` or more: only saves for every pad).
-    pub fn expected(&self, pad: u8) -> Option<&CalibrationSpec> {
+    pub fn expected(&self, pad: u8) -> Option<&PadRecord> {
         self.0
             .iter()
             .rev()
@@ -242,7 +271,7 @@ impl History {
     }
 
     /// This history with one more save.
-    pub fn with(&self, scope: RecordScope, spec: &CalibrationSpec) -> Self {
+    pub fn with(&self, scope: RecordScope, spec: &PadRecord) -> Self {
         let mut saves = self.0.clone();
         saves.push((scope, spec.clone()));
         Self(saves)
@@ -270,8 +299,9 @@ pub fn load_every_pad<const SIZE: usize, const PAGE: usize>(
 
 /// The on-flash format as its documentation gives it, for a flash of 4-byte words.
 pub mod layout {
+    use calibration_store::PadRecord;
     use crc::{Crc, CRC_32_ISO_HDLC};
-    use model_core::calibration::CalibrationSpec;
+    use model_core::PadRole;
 
     /// The flash word of `RamFlash` (and of the F411).
     pub const WORD: usize = 4;
@@ -316,11 +346,22 @@ pub mod layout {
         record
     }
 
-    /// A body: the body format version (1) and the postcard calibration.
-    pub fn body(spec: &CalibrationSpec) -> Vec<u8> {
+    /// A body, written out by hand: the body format version (2), the postcard calibration, the
+    /// role's index and each taxel's x, y and area as f32 little-endian.
+    pub fn body(record: &PadRecord) -> Vec<u8> {
         let mut buffer = [0u8; 1024];
-        let mut body = vec![1];
-        body.extend_from_slice(postcard::to_slice(spec, &mut buffer).unwrap());
+        let mut body = vec![2];
+        body.extend_from_slice(postcard::to_slice(&record.calibration, &mut buffer).unwrap());
+        let role = PadRole::ALL
+            .iter()
+            .position(|role| *role == record.role)
+            .unwrap();
+        body.push(role as u8);
+        for taxel in record.geometry.taxels() {
+            for value in [taxel.x_mm, taxel.y_mm, taxel.area_mm2] {
+                body.extend(value.to_le_bytes());
+            }
+        }
         body
     }
 

@@ -323,6 +323,9 @@ impl LiveView {
         match result {
             Ok(Opened { session, source }) => {
                 shown.connected_to(source, *session.info());
+                if let Some(state) = session.state() {
+                    shown.state.set_geometries(state);
+                }
                 let queue = Arc::new(EventQueue::new(QUEUE_EVENTS, Overflow::DropOldestSet));
                 let clock: Arc<dyn HostClock> = Arc::new(self.clock);
                 match Worker::start(vec![session], Arc::clone(&queue), clock) {

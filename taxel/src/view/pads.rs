@@ -9,7 +9,7 @@
 //! the terminal allows (fewer map lines, then no centre-of-pressure and temperature lines); when
 //! they would be too small, or the terminal is under 80x24, every pad gets one line instead.
 
-use model_core::pad_geometry::ARTICLE_CENTRE_OFFSET_MM;
+use model_core::PadGeometry;
 use ratatui::layout::{Constraint, Layout as Split, Rect};
 use ratatui::style::{Color, Modifier, Style};
 use ratatui::text::{Line, Span};
@@ -168,7 +168,13 @@ fn draw_tile(frame: &mut Frame, area: Rect, tile: &PadTile, state: &ViewState) {
     let inner = block.inner(area);
     frame.render_widget(block, area);
     let lines = match sample {
-        Some(sample) => live_tile_lines(sample, state.full_scale_kpa, inner.width, inner.height),
+        Some(sample) => live_tile_lines(
+            sample,
+            &state.pad_geometry(sample.pad.get()),
+            state.full_scale_kpa,
+            inner.width,
+            inner.height,
+        ),
         None => absent_lines(freshness, state, usize::from(inner.width)),
     };
     frame.render_widget(Paragraph::new(lines), inner);
@@ -211,13 +217,14 @@ fn absent_lines(freshness: PadFreshness, state: &ViewState, width: usize) -> Vec
 /// temperature, as many as fit, in that order of importance (flags before the centre).
 fn live_tile_lines(
     sample: &SampleFrame,
+    geometry: &PadGeometry,
     full_scale_kpa: f32,
     width: u16,
     height: u16,
 ) -> Vec<Line<'static>> {
     // Six lines for the words (force, centre, flags, temperature); the map grows with the rest.
     let lines_per_taxel_row = (height.saturating_sub(6) / 2).clamp(1, 8);
-    let mut lines = map_lines(sample, full_scale_kpa, width, lines_per_taxel_row);
+    let mut lines = map_lines(sample, geometry, full_scale_kpa, width, lines_per_taxel_row);
     let width = usize::from(width);
     let mut remaining = usize::from(height).saturating_sub(lines.len());
     if remaining == 0 {
@@ -416,10 +423,10 @@ struct MapCell {
 
 /// The 2x2 heat map: each taxel a block of its heat colour (grey for a fault) with its kPa or
 /// `FAULT`, C11 top left as on the pad, and the centre of pressure as [`CENTRE_MARKER`] on a
-/// character no value uses, at its place between the taxel centres (the default pad geometry's,
-/// ±2.75 mm).
+/// character no value uses, at its place between the taxel centres of the pad's geometry.
 fn map_lines(
     sample: &SampleFrame,
+    geometry: &PadGeometry,
     full_scale_kpa: f32,
     width: u16,
     lines_per_taxel_row: u16,
@@ -467,7 +474,7 @@ fn map_lines(
         }
     }
     if let Some([x_mm, y_mm]) = sample.summary.centre_of_pressure_mm {
-        place_centre_marker(&mut grid, x_mm, y_mm, left_width, per_row);
+        place_centre_marker(&mut grid, geometry, [x_mm, y_mm], left_width, per_row);
     }
     grid.into_iter()
         .map(|row| {
@@ -494,8 +501,8 @@ fn map_lines(
 
 fn place_centre_marker(
     grid: &mut [Vec<MapCell>],
-    x_mm: f32,
-    y_mm: f32,
+    geometry: &PadGeometry,
+    [x_mm, y_mm]: [f32; 2],
     left_width: usize,
     per_row: usize,
 ) {
@@ -503,10 +510,27 @@ fn place_centre_marker(
         return;
     }
     let width = grid.first().map_or(0, Vec::len);
-    let span_mm = 2.0 * ARTICLE_CENTRE_OFFSET_MM;
+    // The map's cells are the taxels: the box of their centres spans the cells' centres.
+    let (min, max) =
+        geometry
+            .taxels()
+            .iter()
+            .fold(([f32::MAX; 2], [f32::MIN; 2]), |(min, max), taxel| {
+                (
+                    [min[0].min(taxel.x_mm), min[1].min(taxel.y_mm)],
+                    [max[0].max(taxel.x_mm), max[1].max(taxel.y_mm)],
+                )
+            });
+    let fraction = |value: f32, low: f32, high: f32| {
+        if high > low {
+            ((value - low) / (high - low)).clamp(0.0, 1.0)
+        } else {
+            0.5
+        }
+    };
     // x grows towards C12 (right), y towards row 1 (up): the map's top line is +y.
-    let x_fraction = ((x_mm + ARTICLE_CENTRE_OFFSET_MM) / span_mm).clamp(0.0, 1.0);
-    let y_fraction = ((ARTICLE_CENTRE_OFFSET_MM - y_mm) / span_mm).clamp(0.0, 1.0);
+    let x_fraction = fraction(x_mm, min[0], max[0]);
+    let y_fraction = 1.0 - fraction(y_mm, min[1], max[1]);
     let left_centre = (left_width as f32 - 1.0) / 2.0;
     let right_centre = left_width as f32 + ((width - left_width) as f32 - 1.0) / 2.0;
     let top_centre = (per_row as f32 - 1.0) / 2.0;
@@ -704,6 +728,43 @@ fn compact_pad_lines(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Where the centre marker lands on a blank map 20 columns wide, four lines per taxel row.
+    fn marker_at(geometry: &PadGeometry, centre_mm: [f32; 2]) -> (usize, usize) {
+        let blank = MapCell {
+            symbol: ' ',
+            style: Style::default(),
+            is_text: false,
+        };
+        let mut grid = vec![vec![blank; 20]; 8];
+        place_centre_marker(&mut grid, geometry, centre_mm, 10, 4);
+        grid.iter()
+            .enumerate()
+            .find_map(|(line, row)| {
+                row.iter()
+                    .position(|cell| cell.symbol == CENTRE_MARKER)
+                    .map(|x| (line, x))
+            })
+            .unwrap()
+    }
+
+    #[test]
+    fn the_centre_marker_is_placed_on_the_pads_own_geometry() {
+        // On C12's centre: the middle of the top-right cell, whatever the pad's size.
+        let palm = PadGeometry::new(
+            [(-6.0, 6.0), (6.0, 6.0), (-6.0, -6.0), (6.0, -6.0)]
+                .map(|(x, y)| model_core::TaxelGeometry::new(x, y, 100.0)),
+        )
+        .unwrap();
+        assert_eq!(marker_at(&PadGeometry::ARTICLE, [2.75, 2.75]), (1, 14));
+        assert_eq!(marker_at(&palm, [6.0, 6.0]), (1, 14));
+        // 2.75 mm on the palm is about halfway from the centre to C12's column, not on it.
+        let (line, x) = marker_at(&palm, [2.75, 2.75]);
+        assert!(
+            (10..14).contains(&x) && (2..4).contains(&line),
+            "{line}, {x}"
+        );
+    }
 
     #[test]
     fn words_wrap_at_the_width_and_long_words_are_cut() {

@@ -17,7 +17,8 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use model_core::TAXEL_COUNT;
+use model_core::{PadGeometry, TAXEL_COUNT};
+use taxel_host::device_state::RecordedDeviceState;
 use taxel_host::device_words::event_words;
 use taxel_host::session::SessionEvent;
 use taxel_host::stream_accounting::StreamAccounting;
@@ -60,6 +61,8 @@ struct PadView {
     device_time_us: Option<u64>,
     /// (device timestamp µs, pressures kPa) over the last `history_s`.
     history: VecDeque<(u64, [Option<f32>; TAXEL_COUNT])>,
+    /// The pad's geometry as the device reports it (the built-in one until known).
+    geometry: PadGeometry,
 }
 
 /// The recording in progress, as the view shows it.
@@ -316,6 +319,22 @@ impl ViewState {
             Some(label) => format!("{label} {name}"),
             None => name,
         }
+    }
+
+    /// Every pad's geometry, as the device's state reports it.
+    pub fn set_geometries(&mut self, state: &RecordedDeviceState) {
+        for pad in &state.pads {
+            if let Some(view) = self.pads.get_mut(usize::from(pad.pad)) {
+                view.geometry = pad.geometry;
+            }
+        }
+    }
+
+    /// A pad's geometry (the built-in one for a pad the device did not describe).
+    pub fn pad_geometry(&self, pad: u8) -> PadGeometry {
+        self.pads
+            .get(usize::from(pad))
+            .map_or(PadGeometry::ARTICLE, |view| view.geometry)
     }
 
     /// The last sample of a pad (frozen while paused), whether live or stale: see
