@@ -95,6 +95,41 @@ pub fn info_dict<'py>(
     Ok(dict)
 }
 
+/// A pad's PadInfo as a dict (see `Device.pad_info`).
+pub fn pad_info_dict<'py>(
+    py: Python<'py>,
+    info: &wire::PadInfoFrame,
+) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    dict.set_item("pad", info.pad.get())?;
+    dict.set_item("channel", info.channel)?;
+    dict.set_item("calibration_id", info.calibration_id)?;
+    dict.set_item(
+        "calibration_source",
+        format!("{:?}", info.calibration_source).to_lowercase(),
+    )?;
+    dict.set_item("tier", info.model_tier.name())?;
+    dict.set_item("role", info.role.name())?;
+    let taxels: Vec<[f64; 3]> = info
+        .taxels
+        .iter()
+        .map(|taxel| {
+            [
+                f64::from(taxel.x_mm),
+                f64::from(taxel.y_mm),
+                f64::from(taxel.area_mm2),
+            ]
+        })
+        .collect();
+    let taxels = numpy::ndarray::Array2::from_shape_vec(
+        (taxels.len(), 3),
+        taxels.into_iter().flatten().collect(),
+    )
+    .map_err(|error| taxel_error(ErrorKind::Link, error.to_string()))?;
+    dict.set_item("taxels", numpy::IntoPyArray::into_pyarray(taxels, py))?;
+    Ok(dict)
+}
+
 /// How long a tare of `sample_sets` sets may take at `rate_sps`, beyond the request timeout.
 pub fn tare_duration(sample_sets: u16, rate_sps: u16) -> Duration {
     // A set takes about four conversions; allow twice that.
@@ -308,6 +343,36 @@ impl Device {
         }
         let info = self.stream.state().info;
         info_dict(py, &info, &self.port_name)
+    }
+
+    /// Pad ``pad``'s description as the device reports it (its PadInfo): multiplexer
+    /// ``channel`` (None on the bus itself), ``calibration_id`` and ``calibration_source``,
+    /// ``tier``, ``role`` (``"fingertip"``, ``"palm"``, ...) and ``taxels``, a (4, 3) array of
+    /// each taxel's electrode centre x, y (mm, in the pad's frame) and area (mm²), in pad order:
+    /// what the device computes the pad's force and centre of pressure with. Raises
+    /// :class:`taxel.LinkError` for a pad the device does not have.
+    fn pad_info<'py>(&self, py: Python<'py>, pad: u8) -> PyResult<Bound<'py, PyDict>> {
+        let index = PadIndex::new(pad)
+            .filter(|_| usize::from(pad) < self.pads)
+            .ok_or_else(|| {
+                taxel_error(
+                    ErrorKind::Link,
+                    format!("the device has {} pads: there is no pad {pad}", self.pads),
+                )
+            })?;
+        let reply = self.request(
+            py,
+            Command::PadInfo { pad: index },
+            "PadInfo",
+            self.control.timeout,
+        )?;
+        let ReplyPayload::PadInfo(info) = reply else {
+            return Err(taxel_error(
+                ErrorKind::Link,
+                "the device answered PadInfo with a reply of another kind",
+            ));
+        };
+        pad_info_dict(py, &info)
     }
 
     /// The number of pads of each sample set.

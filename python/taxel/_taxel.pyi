@@ -246,6 +246,10 @@ class Device:
     @property
     def taxels(self) -> int:
         """The number of taxels of each sample set (4 per pad)."""
+    def pad_info(self, pad: int) -> Dict[str, Any]:
+        """Pad ``pad`` as the device reports it: channel, calibration id and source, tier,
+        ``role`` and ``taxels`` (a (4, 3) array of each taxel's centre x, y in mm and area in
+        mm²), what the device computes the pad's force with."""
     def read(self, timeout: Optional[float] = None) -> SampleSet:
         """The oldest sample set not yet read (a queue; raises
         :class:`taxel.DeviceTimeoutError` if none in time)."""
