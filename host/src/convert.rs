@@ -13,6 +13,7 @@
 
 mod pad_run;
 
+use std::collections::btree_map::Entry;
 use std::collections::BTreeMap;
 use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
@@ -189,23 +190,24 @@ impl ConversionEngine {
     }
 
     fn run(&mut self, device: u32, pad: u8) -> anyhow::Result<&mut PadRun> {
-        if !self.runs.contains_key(&(device, pad)) {
-            let recorded = self
-                .states
-                .device(device)
-                .and_then(|state| state.pad_state(pad));
-            if recorded.is_none() {
-                self.pads_without_state.push((device, pad));
+        // One lookup per row: the pipeline is made the first time its pad comes.
+        match self.runs.entry((device, pad)) {
+            Entry::Occupied(run) => Ok(run.into_mut()),
+            Entry::Vacant(slot) => {
+                let recorded = self
+                    .states
+                    .device(device)
+                    .and_then(|state| state.pad_state(pad));
+                if recorded.is_none() {
+                    self.pads_without_state.push((device, pad));
+                }
+                let options = PadOptions::resolve(&self.settings, recorded.as_ref())
+                    .with_context(|| format!("device {device} pad {pad}"))?;
+                let run =
+                    PadRun::new(&options).with_context(|| format!("device {device} pad {pad}"))?;
+                Ok(slot.insert(run))
             }
-            let options = PadOptions::resolve(&self.settings, recorded.as_ref())
-                .with_context(|| format!("device {device} pad {pad}"))?;
-            let run =
-                PadRun::new(&options).with_context(|| format!("device {device} pad {pad}"))?;
-            self.runs.insert((device, pad), run);
         }
-        self.runs
-            .get_mut(&(device, pad))
-            .context("the pad's pipeline was just made")
     }
 
     /// Computes the row's pad outputs again, in place (a missing frame stays missing).

@@ -115,12 +115,17 @@ impl<T> Stamper<T> {
     }
 
     /// The items that can be stamped at host time `now_us`, in order: every one once the
-    /// device has a clock estimate; before that, those that waited [`MAX_WAIT_US`].
+    /// device has a clock estimate; before that, those that waited [`MAX_WAIT_US`]; every one
+    /// at once for a device not paced to real time, which will never have an estimate.
     pub fn release(&mut self, now_us: u64) -> Vec<Stamped<T>> {
         let estimate = self.mapper.estimate();
+        let may_get_an_estimate = self.clock_us_per_s != 0;
         let mut released = Vec::new();
         while let Some(held) = self.waiting.front() {
-            if estimate.is_none() && now_us.saturating_sub(held.arrival_us) < MAX_WAIT_US {
+            if estimate.is_none()
+                && may_get_an_estimate
+                && now_us.saturating_sub(held.arrival_us) < MAX_WAIT_US
+            {
                 break;
             }
             let Some(held) = self.waiting.pop_front() else {
@@ -284,6 +289,21 @@ mod tests {
         assert!(stamped_at_speed_20(0)
             .iter()
             .all(|stamped| stamped.error_us.is_none()));
+    }
+
+    #[test]
+    fn a_device_not_paced_to_real_time_has_its_items_go_out_at_their_arrival_at_once() {
+        let mut stamper = Stamper::default();
+        stamper.set_clock_us_per_s(0);
+        stamper.observe(5, 1_000);
+        stamper.push("set", 5, 1_000);
+        let released = stamper.release(1_000);
+        assert_eq!(
+            released.len(),
+            1,
+            "no wait for an estimate that cannot come"
+        );
+        assert_eq!((released[0].host_us, released[0].error_us), (1_000, None));
     }
 
     #[test]
