@@ -215,4 +215,3 @@ pub fn set_geometry<P: Read + Write>(
     }
     pad_info(link, pad, timeout)
 }
-

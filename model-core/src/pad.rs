@@ -449,6 +449,10 @@ impl PadModel {
     }
 
     /// Converts one converter cycle.
+    // Never inlined: the firmware builds model-core for speed (`[profile.firmware.package.
+    // model-core]`) and its callers for size, and code inlined into a caller takes the caller's
+    // code generation (opt-level "z", machine outlining).
+    #[inline(never)]
     pub fn process(&mut self, sample: &SampleInput) -> PadOutput {
         self.process_with(sample, |_, model, calibration, relative_change| {
             model

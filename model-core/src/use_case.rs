@@ -33,13 +33,13 @@ use crate::validation::leave_one_out_errors_kpa;
 /// from this one (counts within 2 instructions are tied), or when a count drifts
 /// further than half the smallest gap between neighbouring tiers.
 pub const MEASURED_INSTRUCTIONS: [(Tier, u32); 7] = [
-    (Tier::Linear, 124),
-    (Tier::PiecewiseLinear, 188),
-    (Tier::MonotoneCubic, 315),
-    (Tier::Saturating, 194),
-    (Tier::SaturatingMicromath, 185),
-    (Tier::Table, 170),
-    (Tier::Polynomial, 191),
+    (Tier::Linear, 115),
+    (Tier::PiecewiseLinear, 167),
+    (Tier::MonotoneCubic, 279),
+    (Tier::Saturating, 173),
+    (Tier::SaturatingMicromath, 165),
+    (Tier::Table, 163),
+    (Tier::Polynomial, 180),
 ];
 
 /// Uncertainty of the pad's temperature sensor, °C (TMP117: +-0.1 °C from -20 to 50 °C).

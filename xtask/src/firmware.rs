@@ -24,6 +24,8 @@ pub struct Footprint {
     pub path: String,
     /// The `firmware` profile's opt-level as Cargo.toml gives it (`"z"`, `3`, ...).
     pub opt_level: String,
+    /// model-core's opt-level in the `firmware` profile (its package override, if any).
+    pub model_core_opt_level: String,
     /// Allocated sections.
     pub sections: Vec<Section>,
     /// Flash bytes (every read-only section and the initial values of `.data`).
@@ -93,12 +95,56 @@ pub fn profile_opt_level(manifest: &str, profile: &str) -> Result<String> {
 /// The settings that decide code generation, and so the instruction counts.
 pub const CODE_GENERATION_KEYS: [&str; 3] = ["opt-level", "lto", "codegen-units"];
 
-/// `key = value` for each of [`CODE_GENERATION_KEYS`] of a profile.
+/// The package whose code generation the firmware may set apart from its own
+/// (`[profile.firmware.package.model-core]`: the hot path built for speed inside a firmware
+/// built for size), and so the counts depend on.
+pub const MEASURED_PACKAGE: &str = "model-core";
+
+/// The opt-level `[profile.<profile>.package.<package>]` gives, following `inherits` (the
+/// nearest profile in the chain with an override wins), else the profile's own opt-level.
+pub fn package_opt_level(manifest: &str, profile: &str, package: &str) -> Result<String> {
+    let document: toml::Table = manifest.parse().context("parsing Cargo.toml")?;
+    let profiles = document.get("profile").and_then(toml::Value::as_table);
+    let mut name = profile.to_string();
+    for _ in 0..8 {
+        let table = profiles
+            .and_then(|profiles| profiles.get(&name))
+            .and_then(toml::Value::as_table);
+        if let Some(value) = table
+            .and_then(|table| table.get("package"))
+            .and_then(toml::Value::as_table)
+            .and_then(|packages| packages.get(package))
+            .and_then(toml::Value::as_table)
+            .and_then(|settings| settings.get("opt-level"))
+        {
+            return Ok(match value {
+                toml::Value::String(text) => format!("\"{text}\""),
+                other => other.to_string(),
+            });
+        }
+        match table
+            .and_then(|table| table.get("inherits"))
+            .and_then(toml::Value::as_str)
+        {
+            Some(parent) => name = parent.to_string(),
+            None => return profile_opt_level(manifest, profile),
+        }
+    }
+    Err(anyhow!("profile `{profile}` inherits in a loop"))
+}
+
+/// `key = value` for each of [`CODE_GENERATION_KEYS`] of a profile, then the opt-level of
+/// [`MEASURED_PACKAGE`] under it.
 pub fn code_generation(manifest: &str, profile: &str) -> Result<Vec<(String, String)>> {
-    CODE_GENERATION_KEYS
+    let mut settings = CODE_GENERATION_KEYS
         .iter()
         .map(|key| Ok((key.to_string(), profile_setting(manifest, profile, key)?)))
-        .collect()
+        .collect::<Result<Vec<_>>>()?;
+    settings.push((
+        format!("{MEASURED_PACKAGE} opt-level"),
+        package_opt_level(manifest, profile, MEASURED_PACKAGE)?,
+    ));
+    Ok(settings)
 }
 
 /// Builds the firmware (`cargo fw-build`) and reads its footprint.
@@ -114,6 +160,7 @@ pub fn build_and_measure(root: &Path) -> Result<Footprint> {
     Ok(Footprint {
         path: relative,
         opt_level: profile_opt_level(&manifest, PROFILE)?,
+        model_core_opt_level: package_opt_level(&manifest, PROFILE, MEASURED_PACKAGE)?,
         sections,
         flash_bytes,
         ram_bytes,
@@ -154,8 +201,30 @@ opt-level = 2
                 ("opt-level".to_string(), "\"z\"".to_string()),
                 ("lto".to_string(), "\"fat\"".to_string()),
                 ("codegen-units".to_string(), "16".to_string()),
+                ("model-core opt-level".to_string(), "\"z\"".to_string()),
             ]
         );
+        let with_override = format!(
+            "{manifest}\n[profile.firmware.package.model-core]\nopt-level = 3\n\n\
+             [profile.firmware.package.other]\nopt-level = 1\n"
+        );
+        assert_eq!(
+            package_opt_level(&with_override, "firmware", "model-core").unwrap(),
+            "3"
+        );
+        assert_eq!(
+            package_opt_level(&with_override, "small", "model-core").unwrap(),
+            "3"
+        );
+        assert_eq!(
+            package_opt_level(&with_override, "fast", "model-core").unwrap(),
+            "3"
+        );
+        assert_eq!(
+            package_opt_level(&with_override, "numeric", "model-core").unwrap(),
+            "2"
+        );
+        assert_eq!(profile_opt_level(&with_override, "small").unwrap(), "\"z\"");
         let with_bool = "[profile.release]\nlto = true\ncodegen-units = 1\n";
         assert_eq!(
             profile_setting(with_bool, "release", "lto").unwrap(),

@@ -19,6 +19,10 @@ use crate::bench_output::BenchRun;
 /// Counts closer than this are tied (instructions).
 pub const TIE_INSTRUCTIONS: f64 = 2.0;
 
+/// How far the difference of two constants can be from the difference of the counts they were
+/// rounded from (half an instruction each).
+const ROUNDING_INSTRUCTIONS: f64 = 1.0;
+
 /// The file that holds the constant, relative to the workspace root.
 pub const USE_CASE_FILE: &str = "model-core/src/use_case.rs";
 
@@ -80,9 +84,14 @@ pub fn check_ranking(run: &BenchRun, constants: &[(Tier, u32)]) -> Result<()> {
                 continue;
             }
             let constant_difference = constant_a - constant_b;
-            if constant_difference.abs() <= TIE_INSTRUCTIONS
-                || constant_difference.signum() != measured_difference.signum()
-            {
+            // Constants are counts rounded to whole instructions, so tied constants may come
+            // from counts up to one instruction further apart than the tie width.
+            let mismatch = if constant_difference.abs() <= TIE_INSTRUCTIONS {
+                measured_difference.abs() > TIE_INSTRUCTIONS + ROUNDING_INSTRUCTIONS
+            } else {
+                constant_difference.signum() != measured_difference.signum()
+            };
+            if mismatch {
                 pairs.push(format!(
                     "{} {measured_a:.1} vs {} {measured_b:.1} measured, constants {constant_a} vs {constant_b}",
                     a.name(),
@@ -281,6 +290,17 @@ mod tests {
         let tied_constants = self::constants([100, 120, 180, 150, 140, 106, 105]);
         let apart = run_with_counts(&counts([100.0, 120.0, 180.0, 150.0, 140.0, 110.0, 105.0]));
         assert!(check_ranking(&apart, &tied_constants).is_err());
+    }
+
+    #[test]
+    fn constants_tied_by_rounding_accept_the_counts_they_were_rounded_from() {
+        // Table 162.8 and saturating-micromath 165.0 are 2.2 apart, the constants written from
+        // them (163, 165) are tied: the run that wrote them passes its own check.
+        let measured = [114.7, 166.8, 278.9, 172.8, 165.0, 162.8, 179.8];
+        let run = run_with_counts(&counts(measured));
+        let written = from_run(&run).unwrap();
+        assert!(check_ranking(&run, &written).is_ok());
+        assert!(check_drift(&run, &written).is_ok());
     }
 
     #[test]

@@ -18,9 +18,9 @@ pub(super) fn firmware(out: &mut String, data: &ReportData) {
     let _ = writeln!(
         out,
         "Built by `cargo fw-build` (profile `firmware`, opt-level {} from `[profile.firmware]` \
-         in Cargo.toml; ELF `{}` in the target directory), measured as `.ci/firmware-size` \
-         measures it.\n",
-        footprint.opt_level, footprint.path
+         in Cargo.toml, model-core at opt-level {}; ELF `{}` in the target directory), measured \
+         as `.ci/firmware-size` measures it.\n",
+        footprint.opt_level, footprint.model_core_opt_level, footprint.path
     );
     let _ = writeln!(
         out,
