@@ -9,12 +9,14 @@ use std::sync::Arc;
 use anyhow::Context;
 use clap::Parser;
 use taxel_args::{LinkArgs, MultiBoardArgs};
+use taxel_bridge::commands::DEFAULT_TARE_SAMPLE_SETS;
 use taxel_bridge::network::Network;
 use taxel_bridge::publisher::Naming;
 use taxel_bridge::run::{run, BridgeConfig, Devices, Mode, DEFAULT_QUEUE_CAPACITY};
 use taxel_host::console::error_message;
 use taxel_host::noteln;
 use taxel_ros2::pad_messages::{DEFAULT_FRAME_PREFIX, DEFAULT_NAMESPACE};
+use taxel_ros2::RosDistro;
 
 /// Long help of `taxel bridge`.
 const LONG_ABOUT: &str = "Publish the pads of one or more devices into Zenoh, in the form \
@@ -25,7 +27,11 @@ and flags per taxel), .../wrench (geometry_msgs/msg/WrenchStamped: the force at 
 pressure), .../contact_started and .../contact_ended (std_msgs/msg/Header); per device, its health \
 on /diagnostics (diagnostic_msgs/msg/DiagnosticArray). Stamps are the device time mapped onto the \
 host clock (a frame or event that waited 3 s for its device's first clock estimate is stamped with \
-its arrival); the attachment's sequence number is the device's.\n\n\
+its arrival); the attachment's sequence number is the device's, extended to 64 bits and counted \
+from 1 per topic.\n\n\
+Commands: none unless --allow-commands, which serves per device <namespace>/device<d>/tare \
+(std_srvs/srv/Trigger) and <namespace>/device<d>/set_use_case (taxel_msgs/srv/SetUseCase) to \
+anyone who reaches the bridge; calibration writes are never served.\n\n\
 Network: as an rmw_zenoh node, the bridge connects to the Zenoh router on this machine \
 (tcp/localhost:7447; it keeps trying while there is none) and does not scout by multicast; it \
 listens on loopback only (tcp/127.0.0.1:7448) for a plain Zenoh subscriber on this machine. \
@@ -33,6 +39,16 @@ Nothing outside the machine reaches it unless you say so: --listen on another in
 --multicast-scouting, or --zenoh-config. See docs/BRIDGE.md.\n\n\
 Examples:\n  taxel bridge --sim 2\n  taxel bridge /dev/ttyACM0\n  \
 taxel bridge --serial 0123ABCD --domain-id 3\n  taxel bridge --sim 1 --listen tcp/0.0.0.0:7448";
+
+/// The ROS 2 distribution of the subscribers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum DistroArg {
+    /// Humble: rmw_zenoh 0.1.x, no type hashes in key expressions and tokens; MCAP metadata as
+    /// Humble's rosbag2 writes it.
+    Humble,
+    /// Jazzy and later (Kilted, Rolling): RIHS01 type hashes.
+    Jazzy,
+}
 
 /// What the bridge publishes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -54,7 +70,8 @@ struct BridgeArgs {
     /// Run N simulated devices instead (no hardware needed).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=16), conflicts_with_all = ["ports", "serial"])]
     sim: Option<u8>,
-    /// Scene of the simulated devices: a built-in name (default, gripper, glove) or a TOML file.
+    /// Scene of the simulated devices: a built-in name (default, gripper, glove,
+    /// temperature-fallback, converter-faults, tare-refused) or a TOML file.
     #[arg(long, value_name = "NAME|FILE", requires = "sim")]
     sim_scene: Option<PathBuf>,
     /// Pads on each simulated device (default: as many as the scene describes).
@@ -63,6 +80,10 @@ struct BridgeArgs {
     /// What to publish: ROS 2 messages as rmw_zenoh does (the default), or plain records.
     #[arg(long, value_enum, default_value_t = ModeArg::Ros2)]
     mode: ModeArg,
+    /// The ROS 2 distribution of the subscribers: humble (no type hashes in key expressions) or
+    /// jazzy (also Kilted and Rolling).
+    #[arg(long, value_enum, default_value_t = DistroArg::Jazzy)]
+    ros_distro: DistroArg,
     /// ROS_DOMAIN_ID: the first chunk of every key expression (default: $ROS_DOMAIN_ID, else 0).
     #[arg(long, value_name = "ID", env = "ROS_DOMAIN_ID", default_value_t = 0)]
     domain_id: u32,
@@ -114,6 +135,15 @@ struct BridgeArgs {
     /// `ros2 bag` open it).
     #[arg(long, value_name = "FILE")]
     mcap: Option<PathBuf>,
+    /// Serve each device's tare (<namespace>/device<d>/tare, std_srvs/srv/Trigger) and use
+    /// case (<namespace>/device<d>/set_use_case, taxel_msgs/srv/SetUseCase) to ROS 2. Anyone
+    /// who reaches the bridge can then call them: see docs/BRIDGE.md to restrict callers.
+    #[arg(long)]
+    allow_commands: bool,
+    /// Sample sets a tare from ROS 2 averages (keep the pads unloaded meanwhile); at most 128,
+    /// so that the reply comes within rmw_zenoh clients' 10 s query timeout.
+    #[arg(long, value_name = "SETS", default_value_t = DEFAULT_TARE_SAMPLE_SETS, value_parser = clap::value_parser!(u16).range(1..=128), requires = "allow_commands")]
+    tare_sets: u16,
     /// How long to wait for the devices.
     #[command(flatten)]
     link: LinkArgs,
@@ -138,6 +168,10 @@ impl BridgeArgs {
                 ModeArg::Plain => Mode::Plain,
             },
             naming: Naming {
+                ros_distro: match self.ros_distro {
+                    DistroArg::Humble => RosDistro::Humble,
+                    DistroArg::Jazzy => RosDistro::Jazzy,
+                },
                 domain_id: self.domain_id,
                 namespace: self.namespace.clone(),
                 frame_prefix: self.frame_prefix.clone(),
@@ -163,6 +197,8 @@ impl BridgeArgs {
             timing_log: self.timing_log.clone(),
             mcap: self.mcap.clone(),
             request_timeout: self.link.timeout(),
+            allow_commands: self.allow_commands,
+            tare_sample_sets: self.tare_sets,
         })
     }
 }
@@ -215,5 +251,34 @@ mod tests {
         let args =
             BridgeArgs::try_parse_from(["taxel-bridge", "--sim", "1", "--no-listen"]).unwrap();
         assert_eq!(args.config().unwrap().network.listen, Some(Vec::new()));
+    }
+
+    #[test]
+    fn commands_are_off_and_jazzy_is_the_distribution_unless_asked() {
+        let config = BridgeArgs::try_parse_from(["taxel-bridge", "--sim", "1"])
+            .unwrap()
+            .config()
+            .unwrap();
+        assert!(!config.allow_commands);
+        assert_eq!(config.naming.ros_distro, RosDistro::Jazzy);
+        let config = BridgeArgs::try_parse_from([
+            "taxel-bridge",
+            "--sim",
+            "1",
+            "--allow-commands",
+            "--tare-sets",
+            "8",
+            "--ros-distro",
+            "humble",
+        ])
+        .unwrap()
+        .config()
+        .unwrap();
+        assert!(config.allow_commands);
+        assert_eq!(config.tare_sample_sets, 8);
+        assert_eq!(config.naming.ros_distro, RosDistro::Humble);
+        assert!(
+            BridgeArgs::try_parse_from(["taxel-bridge", "--sim", "1", "--tare-sets", "8"]).is_err()
+        );
     }
 }

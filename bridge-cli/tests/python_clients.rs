@@ -3,7 +3,9 @@
 //! (bridge/tests/python/read_mcap.py), and a plain-mode subscriber with nothing but `struct`
 //! (bridge/tests/python/subscribe_plain.py), each against `taxel-bridge --sim` playing
 //! bridge/tests/python/plateau.toml; and the Python MCAP readers again on what
-//! `taxel record --mcap` wrote of a simulated device playing the same scene.
+//! `taxel record --mcap` wrote of a simulated device playing the same scene; and a ROS 2 service
+//! client written from rmw_zenoh's source calling `taxel-bridge --allow-commands`
+//! (bridge/tests/python/call_services.py).
 //!
 //! The Python interpreter is `$TAXEL_PYTHON`, a virtual environment with the packages of
 //! bridge/tests/python/requirements.txt (`.ci/run` makes it). Without it the tests say so and
@@ -100,6 +102,105 @@ fn the_python_mcap_readers_decode_every_message() {
         return;
     };
     run_script(&python, "read_mcap.py", &[]);
+}
+
+#[test]
+fn the_python_mcap_readers_read_humbles_form_of_the_metadata() {
+    let Some(python) = python() else {
+        return;
+    };
+    run_script(
+        &python,
+        "read_mcap.py",
+        &[
+            "--ros-distro".to_owned(),
+            "humble".to_owned(),
+            "--devices".to_owned(),
+            "1".to_owned(),
+        ],
+    );
+}
+
+/// Seconds after which the second simulated device of the services test stops, as if
+/// unplugged.
+const UNPLUGGED_AFTER_S: f64 = 5.0;
+
+/// A `taxel sim` process playing `scene` for `duration_s`, and its terminal. A process, not a
+/// `SimulatorThread`: the thread's pseudo-terminal master would be inherited by the Python
+/// client (it is not opened close-on-exec), and a stopped device would then not look unplugged
+/// to the bridge.
+fn simulator_process(
+    scene: &std::path::Path,
+    duration_s: f64,
+    directory: &std::path::Path,
+    name: &str,
+) -> (std::process::Child, String) {
+    let path_file = directory.join(name);
+    let mut child = Command::new(taxel_cli())
+        .arg("sim")
+        .arg("--scene")
+        .arg(scene)
+        .args(["--duration", &duration_s.to_string()])
+        .arg("--path-file")
+        .arg(&path_file)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(20);
+    while std::time::Instant::now() < deadline {
+        if let Ok(path) = std::fs::read_to_string(&path_file) {
+            if !path.trim().is_empty() {
+                return (child, path.trim().to_owned());
+            }
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let _ = child.kill();
+    let _ = child.wait();
+    panic!("taxel sim wrote no terminal path");
+}
+
+#[test]
+fn a_service_client_written_from_rmw_zenoh_calls_the_devices_commands() {
+    let Some(python) = python() else {
+        return;
+    };
+    let scene = script("at_rest.toml");
+    let directory = tempfile::tempdir().unwrap();
+    let (mut kept, kept_path) = simulator_process(&scene, 60.0, directory.path(), "kept");
+    let (mut unplugged, unplugged_path) =
+        simulator_process(&scene, UNPLUGGED_AFTER_S, directory.path(), "unplugged");
+    let srv = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../ros2-messages/srv/SetUseCase.srv");
+    let output = Command::new(&python)
+        .arg(script("call_services.py"))
+        .arg("--bridge")
+        .arg(env!("CARGO_BIN_EXE_taxel-bridge"))
+        .arg("--scene")
+        .arg(&scene)
+        .arg("--srv")
+        .arg(&srv)
+        .args(["--ports", &kept_path, &unplugged_path])
+        .args(["--unplugged-after", &UNPLUGGED_AFTER_S.to_string()])
+        .args(["--port", &free_port().to_string()])
+        .args(["--humble-port", &free_port().to_string()])
+        .output()
+        .unwrap();
+    for child in [&mut kept, &mut unplugged] {
+        let _ = child.kill();
+        let _ = child.wait();
+    }
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success(),
+        "call_services.py failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let summary: Vec<&str> = stdout
+        .lines()
+        .filter(|line| line.starts_with("FAILED") || line.contains(" passed, "))
+        .collect();
+    eprintln!("call_services.py: {}", summary.join("; "));
 }
 
 #[test]

@@ -10,8 +10,10 @@
 //!   loop;
 //! - [`health`]: a device's state as a ROS 2 diagnostic status (a pad's frames become messages
 //!   in `taxel_ros2::pad_messages`);
-//! - [`names`]: rmw_zenoh's key expressions, liveliness tokens and attachment;
+//! - [`names`]: rmw_zenoh's key expressions, liveliness tokens, GIDs and attachment;
+//! - [`sequence`]: the device's 32-bit sequence numbers as a publisher's 64-bit ones from 1;
 //! - [`publisher`]: the Zenoh session and the publishers in the ROS 2 form;
+//! - [`commands`]: the devices' tare and use case served to ROS 2 (`--allow-commands`);
 //! - [`plain`]: the plain mode, for Zenoh users without ROS;
 //! - [`network`]: the Zenoh session's endpoints and their defaults;
 //! - [`run`]: a run of the bridge from its [`run::BridgeConfig`] (the command line that fills
@@ -19,6 +21,7 @@
 #![deny(missing_docs)]
 #![deny(clippy::print_stdout, clippy::print_stderr)]
 
+pub mod commands;
 pub mod health;
 pub mod names;
 pub mod network;
@@ -26,3 +29,4 @@ pub mod plain;
 pub mod publisher;
 pub mod relay;
 pub mod run;
+pub mod sequence;

@@ -172,26 +172,40 @@ mod tests {
     }
 
     #[test]
-    fn the_access_control_example_of_the_bridge_document_is_a_valid_configuration() {
+    fn the_access_control_examples_of_the_bridge_document_are_valid_configurations() {
         let document = include_str!("../../docs/BRIDGE.md");
-        let start = document.find("```json5\n").unwrap() + "```json5\n".len();
-        let end = start + document[start..].find("```").unwrap();
+        let blocks: Vec<&str> = document
+            .split("```json5\n")
+            .skip(1)
+            .map(|rest| &rest[..rest.find("```").unwrap()])
+            .collect();
+        assert_eq!(
+            blocks.len(),
+            2,
+            "the pads' readers and the services' callers"
+        );
         let directory = tempfile::tempdir().unwrap();
-        let path = directory.path().join("acl.json5");
-        std::fs::write(&path, &document[start..end]).unwrap();
-        let network = Network {
-            config_file: Some(path),
-            ..Network::default()
-        };
-        let config = network.zenoh_config().unwrap();
-        assert_eq!(value(&config, "access_control/enabled"), "true");
-        assert_eq!(
-            value(&config, "listen/endpoints"),
-            r#"["tcp/0.0.0.0:7448"]"#
-        );
-        assert_eq!(
-            network.describe(),
-            "listening as in the Zenoh configuration file, connecting as in the Zenoh configuration file, multicast scouting as in the Zenoh configuration file"
-        );
+        for (index, block) in blocks.iter().enumerate() {
+            let path = directory.path().join(format!("acl{index}.json5"));
+            std::fs::write(&path, block).unwrap();
+            let network = Network {
+                config_file: Some(path),
+                ..Network::default()
+            };
+            let config = network.zenoh_config().unwrap();
+            assert_eq!(value(&config, "access_control/enabled"), "true");
+            assert_eq!(
+                value(&config, "listen/endpoints"),
+                r#"["tcp/0.0.0.0:7448"]"#
+            );
+            assert_eq!(
+                network.describe(),
+                "listening as in the Zenoh configuration file, connecting as in the Zenoh configuration file, multicast scouting as in the Zenoh configuration file"
+            );
+        }
+        assert!(blocks
+            .iter()
+            .any(|block| block.contains("\"query\", \"reply\"")
+                && block.contains("0/taxel/*/tare/**")));
     }
 }

@@ -1,7 +1,9 @@
 //! The Zenoh side in the ROS 2 form: one session, the node's and every publisher's liveliness
 //! token, one Zenoh publisher per topic (declared when the topic's first message comes), and
 //! each device's health on the diagnostics topic; with `--mcap`, every message put is also
-//! written, with the same bytes and sequence number, to an MCAP file.
+//! written, with the same bytes and sequence number, to an MCAP file. Each publisher's GID is
+//! rmw_zenoh's (XXH3-128 of its token, [`crate::names::gid`]); its sequence numbers start at 1
+//! and are 64 bits wide ([`crate::sequence`]).
 //!
 //! Publishers wait when the network is congested (`CongestionControl::Block`, as rmw_zenoh's
 //! reliable keep-all publishers do) rather than drop silently: Zenoh does not tell a publisher
@@ -14,7 +16,6 @@
 
 use std::collections::HashMap;
 use std::fs::File;
-use std::hash::{DefaultHasher, Hash, Hasher};
 use std::io::{BufWriter, Write};
 
 use model_core::PadGeometry;
@@ -25,14 +26,16 @@ use taxel_ros2::pad_messages::{
 use taxel_ros2::types::{
     DIAGNOSTIC_ARRAY_MESSAGE, HEADER_MESSAGE, POINT_CLOUD2_MESSAGE, WRENCH_STAMPED_MESSAGE,
 };
-use taxel_ros2::{DiagnosticArray, Header, McapRecorder, MessageType, RosMessage, Time};
+use taxel_ros2::{DiagnosticArray, Header, McapRecorder, MessageType, RosDistro, RosMessage, Time};
 use zenoh::liveliness::LivelinessToken;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 use zenoh::{Session, Wait};
 
+use crate::commands::{CommandSettings, DeviceCommands};
 use crate::health::{device_status, DeviceHealth};
-use crate::names::{attachment, data_key_expression, GraphNode};
+use crate::names::{attachment, gid, key_expression, GraphNode};
+use crate::sequence::SequenceExtender;
 
 /// What a message says, ready for a publisher: its content, its stamp and its arrival.
 #[derive(Debug, Clone, PartialEq)]
@@ -67,6 +70,9 @@ pub enum Outgoing {
 /// How the bridge names things.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Naming {
+    /// The ROS 2 distribution of the subscribers (Humble's rmw_zenoh has no type hashes in
+    /// its key expressions and tokens), and the form of the MCAP file's rosbag2 metadata.
+    pub ros_distro: RosDistro,
     /// `ROS_DOMAIN_ID`: the first chunk of every key expression.
     pub domain_id: u32,
     /// The namespace of the pad topics (`/taxel`).
@@ -82,6 +88,7 @@ pub struct Naming {
 impl Default for Naming {
     fn default() -> Self {
         Self {
+            ros_distro: RosDistro::Jazzy,
             domain_id: 0,
             namespace: DEFAULT_NAMESPACE.to_owned(),
             frame_prefix: DEFAULT_FRAME_PREFIX.to_owned(),
@@ -99,7 +106,8 @@ struct TopicPublisher {
     publisher: Publisher<'static>,
     _token: LivelinessToken,
     gid: [u8; 16],
-    sequence: i64,
+    /// The last sequence number put (0 before the first).
+    sequence: u64,
     recorded_as: Option<TopicId>,
 }
 
@@ -109,21 +117,22 @@ impl TopicPublisher {
     fn put(
         &mut self,
         recorder: &mut Option<Recorder>,
-        sequence: Option<i64>,
+        sequence: Option<u64>,
         stamp_ns: u64,
         log_ns: u64,
         cdr: Vec<u8>,
     ) -> anyhow::Result<()> {
-        self.sequence = sequence.unwrap_or(self.sequence + 1);
+        self.sequence = sequence.unwrap_or(self.sequence.saturating_add(1));
         let stamp = i64::try_from(stamp_ns).unwrap_or(i64::MAX);
         if let (Some(recorder), Some(topic)) = (recorder.as_mut(), self.recorded_as) {
-            // MCAP's sequence is 32 bits; the device's sequence numbers are too.
-            let sequence = u32::try_from(self.sequence & i64::from(u32::MAX)).unwrap_or(0);
+            // MCAP's sequence is 32 bits: the low 32 bits of the publication's.
+            let sequence = u32::try_from(self.sequence & u64::from(u32::MAX)).unwrap_or(0);
             recorder.write_cdr(topic, sequence, log_ns, stamp_ns, &cdr)?;
         }
+        let sequence = i64::try_from(self.sequence).unwrap_or(i64::MAX);
         self.publisher
             .put(cdr)
-            .attachment(attachment(self.sequence, stamp, &self.gid).to_vec())
+            .attachment(attachment(sequence, stamp, &self.gid).to_vec())
             .wait()
             .map_err(zenoh_error)
     }
@@ -132,6 +141,8 @@ impl TopicPublisher {
 /// The pad topics of one pad.
 struct PadPublishers {
     topics: PadTopics,
+    /// The device's sequence numbers as the pressure's and wrench's (the same numbers on both).
+    sequence: SequenceExtender,
     pressure: TopicPublisher,
     wrench: TopicPublisher,
     contact_started: TopicPublisher,
@@ -184,6 +195,7 @@ impl RosPublisher {
         recorder: Option<Recorder>,
     ) -> anyhow::Result<Self> {
         let node = GraphNode {
+            ros_distro: naming.ros_distro,
             domain_id: naming.domain_id,
             session_id: session.zid().to_string(),
             namespace: "/".to_owned(),
@@ -214,30 +226,24 @@ impl RosPublisher {
     ) -> anyhow::Result<TopicPublisher> {
         let entity_id = self.next_entity_id;
         self.next_entity_id += 1;
+        let token_key = self.node.publisher_token(entity_id, topic, message_type);
         let token = self
             .session
             .liveliness()
-            .declare_token(self.node.publisher_token(entity_id, topic, message_type))
+            .declare_token(token_key.as_str())
             .wait()
             .map_err(zenoh_error)?;
         let publisher = self
             .session
-            .declare_publisher(data_key_expression(
+            .declare_publisher(key_expression(
                 self.naming.domain_id,
                 topic,
                 message_type,
+                self.naming.ros_distro,
             ))
             .congestion_control(CongestionControl::Block)
             .wait()
             .map_err(zenoh_error)?;
-        let mut hasher = DefaultHasher::new();
-        (&self.node.session_id, entity_id).hash(&mut hasher);
-        let low = hasher.finish();
-        (entity_id, &self.node.session_id).hash(&mut hasher);
-        let high = hasher.finish();
-        let mut gid = [0u8; 16];
-        gid[..8].copy_from_slice(&low.to_le_bytes());
-        gid[8..].copy_from_slice(&high.to_le_bytes());
         let recorded_as = match self.recorder.as_mut() {
             Some(recorder) => Some(recorder.add_topic(topic, message_type)?),
             None => None,
@@ -245,10 +251,28 @@ impl RosPublisher {
         Ok(TopicPublisher {
             publisher,
             _token: token,
-            gid,
+            gid: gid(&token_key),
             sequence: 0,
             recorded_as,
         })
+    }
+
+    /// Serves the commands of `devices` devices from ROS 2 (`--allow-commands`): their
+    /// services are entities of the bridge's node, numbered after the publishers declared so
+    /// far.
+    pub fn declare_commands(
+        &mut self,
+        devices: usize,
+        settings: CommandSettings,
+    ) -> anyhow::Result<DeviceCommands> {
+        DeviceCommands::declare(
+            &self.session,
+            &self.node,
+            &mut self.next_entity_id,
+            &self.naming,
+            devices,
+            settings,
+        )
     }
 
     fn pad(&mut self, device: usize, pad: u8) -> anyhow::Result<&mut PadPublishers> {
@@ -265,6 +289,7 @@ impl RosPublisher {
                 contact_started: self.declare(&topics.contact_started, &HEADER_MESSAGE)?,
                 contact_ended: self.declare(&topics.contact_ended, &HEADER_MESSAGE)?,
                 topics,
+                sequence: SequenceExtender::default(),
             };
             self.pads.insert((device, pad), publishers);
         }
@@ -325,7 +350,7 @@ impl FramePublisher for RosPublisher {
                     stamp: Time::from_unix_ns(*stamp_ns),
                     frame_id: publishers.topics.frame_id.clone(),
                 };
-                let sequence = Some(i64::from(sample.sequence));
+                let sequence = Some(publishers.sequence.next(sample.sequence));
                 let cloud = pressure_cloud(sample, header.clone(), geometry).to_cdr();
                 publishers
                     .pressure

@@ -31,6 +31,7 @@ use taxel_host::stream_accounting::StreamAccounting;
 use taxel_host::worker::{ArrivedEvent, EventQueue, Worker, WorkerEvent};
 use wire::SampleFrame;
 
+use crate::commands::DeviceCommands;
 use crate::health::{DeviceHealth, ReaderState};
 use crate::publisher::{FramePublisher, Outgoing, PublishCounts, TimingLog};
 
@@ -94,6 +95,31 @@ impl Relay {
 
     fn unix_ns(&self, host_us: u64) -> u64 {
         self.clock.unix_us(host_us).saturating_mul(1_000)
+    }
+
+    /// The worker's number of bridge device `device`, where a command to it goes; or why it
+    /// cannot take one (it could not be opened, or its stream ended).
+    pub fn command_target(&self, device: usize) -> Result<usize, String> {
+        let stream = self
+            .devices
+            .get(device)
+            .ok_or_else(|| format!("there is no device {device}"))?;
+        let name = &stream.health.name;
+        match &stream.health.state {
+            ReaderState::Stopped(reason) => {
+                return Err(format!(
+                    "device {device} ({name}) is not connected: {reason}"
+                ));
+            }
+            ReaderState::Connecting => {
+                return Err(format!("device {device} ({name}) is not connected yet"));
+            }
+            ReaderState::Streaming => {}
+        }
+        self.worker_devices
+            .iter()
+            .position(|&worker_device| worker_device == device)
+            .ok_or_else(|| format!("device {device} ({name}) is not read by the bridge"))
     }
 
     /// Whether any of the worker's devices is still streaming.
@@ -333,11 +359,13 @@ impl<'a> Publication<'a> {
 const RELEASE_PERIOD: Duration = Duration::from_millis(100);
 
 /// Publishes the worker's events until `stop` is set, `deadline` passes or every device's
-/// stream ended, and every device's health each `health_period`.
+/// stream ended, and every device's health each `health_period`; serves `commands`, if any,
+/// between events.
 pub fn relay_events<P: Read + Write + Send + 'static>(
     worker: &Worker<P>,
     relay: &mut Relay,
     publication: &mut Publication<'_>,
+    mut commands: Option<&mut DeviceCommands>,
     stop: &AtomicBool,
     deadline: Option<Instant>,
     health_period: Duration,
@@ -360,6 +388,9 @@ pub fn relay_events<P: Read + Write + Send + 'static>(
             last_release = Instant::now();
         }
         relay.poll_accounting();
+        if let Some(commands) = commands.as_deref_mut() {
+            commands.poll(worker, relay);
+        }
         if last_health.elapsed() >= health_period {
             publication.health(relay, queue)?;
             relay.request_accounting(worker);

@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use sim_device::{scene_config, SimulatorThread};
 use taxel_host::console::error_message;
-use taxel_host::device_state::pad_geometry;
 use taxel_host::device_link::{open_serial, DeviceLink};
+use taxel_host::device_state::pad_geometry;
 use taxel_host::host_clock::UnixClock;
 use taxel_host::noteln;
 use taxel_host::output_file::PendingRename;
@@ -21,6 +21,7 @@ use taxel_host::worker::{EventQueue, Overflow, Worker};
 use wire::{Command, PadIndex, PadInfoFrame, ReplyPayload};
 use zenoh::Wait;
 
+use crate::commands::CommandSettings;
 use crate::health::{DeviceHealth, ReaderState, STOPPED_WORDS};
 use crate::network::Network;
 use crate::plain::PlainPublisher;
@@ -81,6 +82,10 @@ pub struct BridgeConfig {
     pub mcap: Option<PathBuf>,
     /// How long a device has to answer a request.
     pub request_timeout: Duration,
+    /// Serve each device's tare and use case to ROS 2 ([`crate::commands`]); ROS 2 form only.
+    pub allow_commands: bool,
+    /// The sample sets a tare from ROS 2 averages.
+    pub tare_sample_sets: u16,
 }
 
 /// Runs the bridge until `stop` is set, the duration has passed, or every device stopped.
@@ -235,17 +240,27 @@ fn bridge_ports(
         config.mcap.is_none() || config.mode == Mode::Ros2,
         "--mcap records the ROS 2 messages: it needs --mode ros2"
     );
+    anyhow::ensure!(
+        !config.allow_commands || config.mode == Mode::Ros2,
+        "--allow-commands serves ROS 2 services: it needs --mode ros2"
+    );
     let mut devices = open_devices(ports, config.request_timeout)?;
     let session = zenoh::open(config.network.zenoh_config()?)
         .wait()
         .map_err(|error| anyhow::anyhow!("opening the Zenoh session: {error}"))?;
     let naming = config.naming.clone();
+    let commands_words = if config.allow_commands {
+        "commands accepted from ROS 2 (--allow-commands): tare and set_use_case of each device, from anyone who reaches the bridge"
+    } else {
+        "no commands accepted"
+    };
     noteln!(
-        "bridging {} devices ({}) as node {} in domain {}, Zenoh session {}; {}; no commands accepted; Ctrl-C to stop",
+        "bridging {} devices ({}) as node {} in domain {} for ROS 2 {}, Zenoh session {}; {}; {commands_words}; Ctrl-C to stop",
         ports.len(),
         ports.join(", "),
         naming.node_name,
         naming.domain_id,
+        naming.ros_distro,
         session.zid(),
         config.network.describe()
     );
@@ -257,14 +272,20 @@ fn bridge_ports(
             let file = std::fs::File::create(pending.path())
                 .with_context(|| format!("creating {}", pending.path().display()))?;
             mcap_file = Some(pending);
-            Some(taxel_ros2::McapRecorder::new(std::io::BufWriter::new(
-                file,
-            ))?)
+            let mut recorder = taxel_ros2::McapRecorder::with_distro(
+                std::io::BufWriter::new(file),
+                naming.ros_distro,
+            )?;
+            if let Some(name) = path.file_name() {
+                recorder.set_file_name(&name.to_string_lossy());
+            }
+            Some(recorder)
         }
         None => None,
     };
     let mut ros = None;
     let mut plain = None;
+    let mut commands = None;
     let publisher: &mut dyn FramePublisher = match config.mode {
         Mode::Ros2 => {
             let publisher = ros.insert(RosPublisher::new(session, naming, recorder)?);
@@ -272,6 +293,13 @@ fn bridge_ports(
                 for pad_info in &health.pads {
                     publisher.set_geometry(device, pad_info.pad.get(), pad_geometry(pad_info)?);
                 }
+            }
+            if config.allow_commands {
+                let settings = CommandSettings {
+                    tare_sample_sets: config.tare_sample_sets,
+                    request_timeout: config.request_timeout,
+                };
+                commands = Some(publisher.declare_commands(devices.healths.len(), settings)?);
             }
             publisher
         }
@@ -303,10 +331,14 @@ fn bridge_ports(
         &worker,
         &mut relay,
         &mut publication,
+        commands.as_mut(),
         stop,
         deadline,
         Duration::from_secs(1),
     );
+    if let Some(commands) = commands {
+        commands.finish(&relay);
+    }
     // Every device's last set and its end are in the queue once the worker has finished.
     drop(worker.finish());
     result?;

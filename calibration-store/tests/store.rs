@@ -118,17 +118,18 @@ fn unusable_ranges_are_refused() {
 }
 
 /// A page must hold its header (16 bytes), its commit word (4) and two of the longest records:
-/// 16-byte header + 643-byte body, rounded up to the 4-byte word: 660. 20 + 2 x 660 = 1340.
+/// 16-byte header + 692-byte body (calibration, role and geometry), a multiple of the 4-byte
+/// word: 708. 20 + 2 x 708 = 1436.
 #[test]
 fn pages_must_hold_two_records_and_that_is_enough() {
-    assert_eq!(MAX_BODY_LEN, 643);
-    let mut too_small = Box::new(RamFlash::<{ 2 * 1336 }, 1336>::new());
+    assert_eq!(MAX_BODY_LEN, 692);
+    let mut too_small = Box::new(RamFlash::<{ 2 * 1432 }, 1432>::new());
     assert_eq!(
-        CalibrationStore::new(&mut *too_small, 0..2 * 1336).err(),
+        CalibrationStore::new(&mut *too_small, 0..2 * 1432).err(),
         Some(RegionError::PagesTooSmall)
     );
-    let mut just_enough = Box::new(RamFlash::<{ 2 * 1340 }, 1340>::new());
-    let mut store = CalibrationStore::new(&mut *just_enough, 0..2 * 1340).unwrap();
+    let mut just_enough = Box::new(RamFlash::<{ 2 * 1436 }, 1436>::new());
+    let mut store = CalibrationStore::new(&mut *just_enough, 0..2 * 1436).unwrap();
     for id in 0..20 {
         let saved = worst_case_spec(id);
         block_on(store.save(&saved)).unwrap();
@@ -211,16 +212,16 @@ fn raw_record(body: &[u8], save_counter: u32) -> Vec<u8> {
 fn an_intact_record_with_a_refused_body_is_corrupt_and_a_save_replaces_it() {
     let valid = layout::body(&spec(5));
     let mut later_version = valid.clone();
-    later_version[0] = 2;
+    later_version[0] = 3;
     let mut trailing = valid.clone();
     trailing.push(0);
     let cases: [(Vec<u8>, RecordError); 5] = [
-        (later_version, RecordError::UnsupportedVersion { found: 2 }),
+        (later_version, RecordError::UnsupportedVersion { found: 3 }),
         (vec![], RecordError::Empty),
         (trailing, RecordError::TrailingBytes),
         (vec![0x42; MAX_BODY_LEN + 57], RecordError::TooLong),
         (
-            vec![1, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF],
+            vec![2, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF],
             RecordError::Postcard(postcard::Error::DeserializeBadVarint),
         ),
     ];

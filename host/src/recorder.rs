@@ -156,8 +156,12 @@ impl Recorder {
         let mcap = match &paths.mcap {
             Some(path) => {
                 let (writer, pending) = writer_of(path)?;
-                let file = PadMessagesFile::new(writer, DEFAULT_NAMESPACE, DEFAULT_FRAME_PREFIX)
-                    .with_context(|| format!("starting {}", path.display()))?;
+                let mut file =
+                    PadMessagesFile::new(writer, DEFAULT_NAMESPACE, DEFAULT_FRAME_PREFIX)
+                        .with_context(|| format!("starting {}", path.display()))?;
+                if let Some(name) = path.file_name() {
+                    file.set_file_name(&name.to_string_lossy());
+                }
                 Some((file, pending))
             }
             None => None,

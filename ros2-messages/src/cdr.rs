@@ -3,7 +3,8 @@
 //! primitive aligned to its own size (at most 8) counted from the end of the header.
 //!
 //! Strings are a `u32` length that counts the terminating NUL, the bytes, and the NUL;
-//! sequences are a `u32` element count followed by the elements.
+//! sequences are a `u32` element count followed by the elements. [`CdrReader`] reads the same
+//! layout back (the requests of the bridge's services).
 
 /// The encapsulation header of little-endian plain CDR (XCDR1), as rmw implementations write it.
 pub const ENCAPSULATION_CDR_LE: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
@@ -103,6 +104,94 @@ impl CdrWriter {
     }
 }
 
+/// Why a CDR message could not be read.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CdrError {
+    /// The message ends before a field does.
+    #[error("the message ends at byte {0}, within a field")]
+    Truncated(usize),
+    /// The encapsulation header is not little-endian plain CDR (`00 01`).
+    #[error("encapsulation {0:02x?} is not little-endian CDR (00 01)")]
+    Encapsulation([u8; 2]),
+    /// A string without its terminating NUL, or not UTF-8.
+    #[error("a string is not NUL-terminated UTF-8")]
+    String,
+    /// A `bool` other than 0 or 1.
+    #[error("a bool is {0}")]
+    Bool(u8),
+}
+
+/// Reads the fields of one CDR-serialised message (little-endian, as [`CdrWriter`] writes).
+#[derive(Debug, Clone)]
+pub struct CdrReader<'a> {
+    bytes: &'a [u8],
+    position: usize,
+}
+
+impl<'a> CdrReader<'a> {
+    /// A reader of `bytes`, whose encapsulation header must be little-endian plain CDR.
+    pub fn new(bytes: &'a [u8]) -> Result<Self, CdrError> {
+        match bytes {
+            [0x00, 0x01, _, _, ..] => Ok(Self { bytes, position: 4 }),
+            [first, second, _, _, ..] => Err(CdrError::Encapsulation([*first, *second])),
+            _ => Err(CdrError::Truncated(bytes.len())),
+        }
+    }
+
+    fn take(&mut self, alignment: usize, length: usize) -> Result<&'a [u8], CdrError> {
+        let offset = self.position - ENCAPSULATION_CDR_LE.len();
+        let start = self.position + (alignment - offset % alignment) % alignment;
+        let end = start + length;
+        let field = self
+            .bytes
+            .get(start..end)
+            .ok_or(CdrError::Truncated(self.bytes.len()))?;
+        self.position = end;
+        Ok(field)
+    }
+
+    fn array<const N: usize>(&mut self) -> Result<[u8; N], CdrError> {
+        let mut array = [0; N];
+        array.copy_from_slice(self.take(N, N)?);
+        Ok(array)
+    }
+
+    /// A `uint8`, `byte` or `char`.
+    pub fn read_u8(&mut self) -> Result<u8, CdrError> {
+        Ok(u8::from_le_bytes(self.array()?))
+    }
+
+    /// A `bool`.
+    pub fn read_bool(&mut self) -> Result<bool, CdrError> {
+        match self.read_u8()? {
+            0 => Ok(false),
+            1 => Ok(true),
+            other => Err(CdrError::Bool(other)),
+        }
+    }
+
+    /// A `uint32`.
+    pub fn read_u32(&mut self) -> Result<u32, CdrError> {
+        Ok(u32::from_le_bytes(self.array()?))
+    }
+
+    /// A `float32`.
+    pub fn read_f32(&mut self) -> Result<f32, CdrError> {
+        Ok(f32::from_le_bytes(self.array()?))
+    }
+
+    /// A `string`.
+    pub fn read_string(&mut self) -> Result<String, CdrError> {
+        let length = usize::try_from(self.read_u32()?).map_err(|_| CdrError::String)?;
+        match self.take(1, length)? {
+            [text @ .., 0] => std::str::from_utf8(text)
+                .map(str::to_owned)
+                .map_err(|_| CdrError::String),
+            _ => Err(CdrError::String),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -121,5 +210,28 @@ mod tests {
         expected.extend_from_slice(&[3, 0, 0, 0, b'a', b'b', 0, 1]);
         expected.extend_from_slice(&[5, 0, 0, 0]);
         assert_eq!(bytes, expected);
+    }
+
+    #[test]
+    fn the_reader_reads_what_the_writer_wrote() {
+        let mut writer = CdrWriter::new();
+        writer.write_u8(7);
+        writer.write_f32(1.5);
+        writer.write_bool(true);
+        writer.write_string("ab");
+        writer.write_u32(9);
+        let bytes = writer.finish();
+        let mut reader = CdrReader::new(&bytes).unwrap();
+        assert_eq!(reader.read_u8(), Ok(7));
+        assert_eq!(reader.read_f32(), Ok(1.5));
+        assert_eq!(reader.read_bool(), Ok(true));
+        assert_eq!(reader.read_string().as_deref(), Ok("ab"));
+        assert_eq!(reader.read_u32(), Ok(9));
+        assert_eq!(reader.read_u8(), Err(CdrError::Truncated(bytes.len())));
+        assert_eq!(
+            CdrReader::new(&[0, 0, 0, 0]).unwrap_err(),
+            CdrError::Encapsulation([0, 0])
+        );
+        assert_eq!(CdrReader::new(&[0, 1]).unwrap_err(), CdrError::Truncated(2));
     }
 }

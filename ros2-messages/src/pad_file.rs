@@ -48,6 +48,12 @@ impl<W: Write + Seek> PadMessagesFile<W> {
         })
     }
 
+    /// The file's name (without directory), for the rosbag2 metadata record (see
+    /// [`McapRecorder::set_file_name`]).
+    pub fn set_file_name(&mut self, file_name: &str) {
+        self.recorder.set_file_name(file_name);
+    }
+
     /// Pad `pad` of `device` has `geometry` (the one its PadInfo reports): its pressure clouds
     /// place the taxels there. Until this is called a pad has the built-in geometry.
     pub fn set_geometry(&mut self, device: usize, pad: u8, geometry: PadGeometry) {

@@ -111,7 +111,7 @@ fn an_mcap_recording_holds_every_pads_messages_as_ros_2_types() {
         assert_eq!(schema.name, expected, "{}", message.channel.topic);
         assert_eq!(schema.encoding, "ros2msg");
         assert_eq!(message.channel.message_encoding, "cdr");
-        assert!(message.channel.metadata["type_hash"].starts_with("RIHS01_"));
+        assert!(message.channel.metadata["topic_type_hash"].starts_with("RIHS01_"));
         assert!(
             message.publish_time <= message.log_time,
             "stamped after its arrival"

@@ -233,10 +233,12 @@ impl ReplyFrame {
     /// a PadInfo frame (its body, 60 bytes since version 5, is the largest of Info, Counters,
     /// ModelTier, Baseline and PadInfo).
     pub const MAX_ENCODED_LEN_WITHOUT_CALIBRATION: usize = crate::frame_encoded_len_bound(
-        3 + 1 + 1 + max(
-            PadInfoFrame::MAX_BODY_LEN,
-            max(InfoFrame::MAX_BODY_LEN, CountersFrame::MAX_BODY_LEN),
-        ),
+        3 + 1
+            + 1
+            + max(
+                PadInfoFrame::MAX_BODY_LEN,
+                max(InfoFrame::MAX_BODY_LEN, CountersFrame::MAX_BODY_LEN),
+            ),
     );
     /// The most calibration points a calibration reply can carry and still fit one 63-byte
     /// frame in the worst case of its other fields (an unloaded capacitance included).

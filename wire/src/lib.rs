@@ -30,8 +30,8 @@ mod usb;
 
 pub use checksum::{crc16, CRC_ALGORITHM};
 pub use command::{
-    Command, ErrorCode, Request, SampleRate, TaxelCalibrationRecord, TaxelCalibrationWire, Tier,
-    UseCase, CALIBRATION_POINTS_MAX, COMMAND_COUNT, PadGeometryRecord,
+    Command, ErrorCode, PadGeometryRecord, Request, SampleRate, TaxelCalibrationRecord,
+    TaxelCalibrationWire, Tier, UseCase, CALIBRATION_POINTS_MAX, COMMAND_COUNT,
 };
 pub use device::{
     BaselineWire, CalibrationSource, CountersFrame, DeviceEvent, DeviceFrame, EventFrame,
@@ -39,11 +39,11 @@ pub use device::{
     TemperatureSensor,
 };
 pub use error::{DecodeError, EncodeError};
-pub use model_core::{PadGeometry, PadRole, TaxelGeometry};
 pub use frame::{
     decode_frame, encode_frame, frame_encoded_len_bound, DeviceFrameDecoder, Frame, FrameDecoder,
     RequestDecoder, WireMessage, CRC_LEN, HEADER_LEN, MAX_FRAME_ENCODED_LEN, MAX_PAYLOAD_LEN,
 };
+pub use model_core::{PadGeometry, PadRole, TaxelGeometry};
 pub use sample::{PadIndex, PadSummary, SampleFrame, TaxelSample, TemperatureSource};
 pub use text::{
     format_csv_line, CsvLineTooLong, TextCommand, TextCommandParser, CSV_HEADER, CSV_LINE_MAX_LEN,

@@ -4,8 +4,8 @@
 
 use crate::{
     CalibrationSource, FirmwareVersion, InfoFrame, PadGeometry, PadIndex, PadInfoFrame, PadRole,
-    PadSummary, SampleFrame,
-    SampleRate, TaxelSample, TemperatureSensor, TemperatureSource, Tier, PROTOCOL_VERSION,
+    PadSummary, SampleFrame, SampleRate, TaxelSample, TemperatureSensor, TemperatureSource, Tier,
+    PROTOCOL_VERSION,
 };
 
 /// Pad `pad`'s frame (clamped to the largest pad index) of set 0 at device time 0: four unloaded

@@ -98,12 +98,21 @@ def main():
                 device, pad, sequence, arrival_ns, published_ns = (int(value) for value in line.split(","))
                 published.append((device, pad, sequence, arrival_ns, published_ns))
 
+    # The timing log has the device's sequence numbers; the attachment the publisher's, which
+    # count from 1 at the pad's first frame published and step as the device's do.
+    first_sequence = {}
+    for device, pad, sequence, _, _ in published:
+        first_sequence.setdefault((device, pad), sequence)
+
+    def received_key(device, pad, sequence):
+        return (device, pad, sequence - first_sequence[(device, pad)] + 1)
+
     first_arrival_ns = min(row[3] for row in published)
-    lost = [row for row in published if (row[0], row[1], row[2]) not in received]
+    lost = [row for row in published if received_key(*row[:3]) not in received]
     latencies_ms = [
-        (received[(device, pad, sequence)] - arrival_ns) / 1e6
+        (received[received_key(device, pad, sequence)] - arrival_ns) / 1e6
         for device, pad, sequence, arrival_ns, _ in published
-        if (device, pad, sequence) in received and arrival_ns - first_arrival_ns >= WARM_UP_S * 1e9
+        if received_key(device, pad, sequence) in received and arrival_ns - first_arrival_ns >= WARM_UP_S * 1e9
     ]
     pads = len({(row[0], row[1]) for row in published})
     duration_s = (max(row[3] for row in published) - first_arrival_ns) / 1e9

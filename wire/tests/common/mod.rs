@@ -292,19 +292,18 @@ pub fn pad_role() -> impl Strategy<Value = wire::PadRole> {
 pub fn taxel_geometries(
     float: BoxedStrategy<f32>,
 ) -> impl Strategy<Value = [wire::TaxelGeometry; 4]> {
-    prop::array::uniform4((float.clone(), float.clone(), float).prop_map(|(x_mm, y_mm, area_mm2)| {
-        wire::TaxelGeometry {
+    prop::array::uniform4((float.clone(), float.clone(), float).prop_map(
+        |(x_mm, y_mm, area_mm2)| wire::TaxelGeometry {
             x_mm,
             y_mm,
             area_mm2,
-        }
-    }))
+        },
+    ))
 }
 
 pub fn pad_geometry_record() -> impl Strategy<Value = wire::PadGeometryRecord> {
-    (pad_index(), pad_role(), taxel_geometries(any_f32().boxed())).prop_map(
-        |(pad, role, taxels)| wire::PadGeometryRecord { pad, role, taxels },
-    )
+    (pad_index(), pad_role(), taxel_geometries(any_f32().boxed()))
+        .prop_map(|(pad, role, taxels)| wire::PadGeometryRecord { pad, role, taxels })
 }
 
 pub fn reply_frame() -> impl Strategy<Value = ReplyFrame> {
