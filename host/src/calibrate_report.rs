@@ -6,7 +6,6 @@ use std::fmt::Write as _;
 use model_core::{Calibration, TaxelInverses, TAXEL_COUNT, TAXEL_NAMES};
 
 use crate::calibrate::{cross_validate, curve_points, ReferenceData, TierFitError};
-use crate::noteln;
 
 fn cell(value: Option<f64>) -> String {
     value.map_or_else(|| "n/a".to_owned(), |value| format!("{value:.4}"))
@@ -108,9 +107,14 @@ pub fn conditioning_report(
     (table, warnings)
 }
 
-/// The fit's report for people: levels, the tiers' cross-validated errors, conditioning.
-/// Conditioning warnings go to stderr.
-pub fn fit_report(data: &ReferenceData, calibration: &Calibration, budget_kpa: f32) -> String {
+/// The fit's report for people (levels, the tiers' cross-validated errors, conditioning) and
+/// its conditioning warnings, each starting "warning: ", for the caller to show (the CLI on
+/// stderr, Python through `warnings`).
+pub fn fit_report(
+    data: &ReferenceData,
+    calibration: &Calibration,
+    budget_kpa: f32,
+) -> (String, Vec<String>) {
     let mut text = format!(
         "{} rows, {} levels; C0 - Cp per taxel (pF, at 25 °C): {}\n",
         data.rows.len(),
@@ -138,10 +142,7 @@ pub fn fit_report(data: &ReferenceData, calibration: &Calibration, budget_kpa: f
          each interval:\n",
     );
     text.push_str(&conditioning);
-    for warning in &warnings {
-        noteln!("{warning}");
-    }
-    text
+    (text, warnings)
 }
 
 #[cfg(test)]

@@ -14,7 +14,6 @@ use taxel_host::calibrate::{
     cross_validate, curve_points, fit_calibration, reference_data, LoadRow, ReferenceData,
     TierFitError,
 };
-use taxel_host::calibrate_report::{conditioning_report, cross_validation_table, levels_table};
 use taxel_host::calibration_file;
 
 use crate::arrays::{c_order_values, float64_c_array};
@@ -27,43 +26,14 @@ struct LeaveOneOut {
     result: TierFitError,
 }
 
-/// The report of a fit as `taxel calibrate` prints it on stdout, and its warnings (which the
-/// command prints on stderr, with "warning: " before each): the host library's
-/// `calibrate_report::fit_report` prints its warnings itself, which a Python package must not
-/// do, so the report is put together here from the same parts (a test compares it with the
-/// command's output).
+/// The report of a fit as `taxel calibrate` prints it on stdout, and its warnings without their
+/// "warning: " (Python shows them through `warnings`): the host library's report.
 fn fit_report(
     data: &ReferenceData,
     calibration: &ModelCalibration,
     budget_kpa: f32,
 ) -> (String, Vec<String>) {
-    let mut text = format!(
-        "{} rows, {} levels; C0 - Cp per taxel (pF, at 25 °C): {}\n",
-        data.rows.len(),
-        data.levels.len(),
-        data.unloaded_sensor_pf
-            .iter()
-            .map(|pf| format!("{pf:.6}"))
-            .collect::<Vec<_>>()
-            .join(" ")
-    );
-    text.push_str("\nMean dC/C0 per level (the curve points):\n");
-    text.push_str(&levels_table(data));
-    let results: [Vec<TierFitError>; TAXEL_COUNT] =
-        std::array::from_fn(|taxel| cross_validate(&curve_points(data, taxel)));
-    text.push_str(
-        "\nPressure error per tier, kPa (predicted - applied): fit_max at the points with \
-         the full curve; loo = leave-one-out over the interior levels (folds = levels where \
-         the tier was available):\n",
-    );
-    text.push_str(&cross_validation_table(&results));
-    let (conditioning, warnings) =
-        conditioning_report(calibration, &data.unloaded_sensor_pf, budget_kpa);
-    text.push_str(
-        "\nConditioning: rms pressure noise from 0.5 fF of converter noise, worst point of \
-         each interval:\n",
-    );
-    text.push_str(&conditioning);
+    let (text, warnings) = taxel_host::calibrate_report::fit_report(data, calibration, budget_kpa);
     let warnings = warnings
         .into_iter()
         .map(|warning| {

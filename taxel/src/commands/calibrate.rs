@@ -99,7 +99,12 @@ pub fn run(args: &CalibrateArgs) -> anyhow::Result<ExitCode> {
                 calibration.id(),
                 output_path.display()
             );
-            report = taxel_host::calibrate_report::fit_report(&data, &calibration, args.budget_kpa);
+            let warnings;
+            (report, warnings) =
+                taxel_host::calibrate_report::fit_report(&data, &calibration, args.budget_kpa);
+            for warning in &warnings {
+                noteln!("{warning}");
+            }
             calibration
         }
         _ => bail!("give a load file and -o FILE, or --calibration FILE with --upload"),
