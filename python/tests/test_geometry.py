@@ -1,5 +1,5 @@
 """Each pad's role and geometry as the device reports them: the simulated glove's palm has
-10 mm electrodes (100 mm²) where its fingertips have the article's 5 mm ones, and its force is
+12 mm x 8 mm electrodes (96 mm²) where its fingertips have the article's 5 mm ones, and its force is
 its pressures over those areas."""
 
 import numpy as np
@@ -14,14 +14,14 @@ def test_pad_info_gives_each_pads_role_and_geometry_and_the_force_uses_it() -> N
         palm = device.pad_info(5)
         assert palm["role"] == "palm"
         assert palm["taxels"].shape == (4, 3)
-        np.testing.assert_array_equal(palm["taxels"][:, 2], [100.0] * 4)
-        np.testing.assert_array_equal(palm["taxels"][0, :2], [-6.0, 6.0])
+        np.testing.assert_array_equal(palm["taxels"][:, 2], [96.0] * 4)
+        np.testing.assert_array_equal(palm["taxels"][0, :2], [-6.5, 4.5])
         thumb = device.pad_info(0)
         assert thumb["role"] == "fingertip"
         np.testing.assert_array_equal(thumb["taxels"][:, 2], [25.0] * 4)
         with pytest.raises(taxel.LinkError, match="no pad 6"):
             device.pad_info(6)
-        # The palm's force is its pressures times 100 mm² (kPa x mm² / 1000 = N).
+        # The palm's force is its pressures times 96 mm² (kPa x mm² / 1000 = N).
         compared = 0
         for _ in range(600):
             sample = device.read()
@@ -29,7 +29,7 @@ def test_pad_info_gives_each_pads_role_and_geometry_and_the_force_uses_it() -> N
             force = sample.force_n[5]
             if np.isnan(force) or np.isnan(pressures).any() or force < 0.5:
                 continue
-            assert force == pytest.approx(float(np.sum(pressures) * 100.0 / 1000.0), rel=1e-4)
+            assert force == pytest.approx(float(np.sum(pressures) * 96.0 / 1000.0), rel=1e-4)
             compared += 1
             if compared >= 20:
                 break

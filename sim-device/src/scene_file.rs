@@ -45,9 +45,9 @@
 //! name = "palm"
 //! role = "palm"           # unspecified, fingertip, finger, palm, gripper-jaw
 //! [[pad.taxel]]           # c11, then c12, c21, c22: centre in mm, electrode area in mm²
-//! x_mm = -6.0
-//! y_mm = 6.0
-//! area_mm2 = 100.0
+//! x_mm = -6.5
+//! y_mm = 4.5
+//! area_mm2 = 96.0
 //! # ... three more [[pad.taxel]] tables
 //! ```
 
@@ -426,8 +426,14 @@ mod tests {
             .geometry
             .taxels()
             .iter()
-            .all(|taxel| taxel.area_mm2 == 100.0));
-        assert_eq!(palm.geometry.taxels()[0].x_mm, -6.0);
+            .all(|taxel| taxel.area_mm2 == 96.0));
+        assert_eq!(
+            (
+                palm.geometry.taxels()[0].x_mm,
+                palm.geometry.taxels()[0].y_mm
+            ),
+            (-6.5, 4.5)
+        );
         let thumb = &glove.pads[0];
         assert_eq!(thumb.role, PadRole::Fingertip);
         assert_eq!(thumb.geometry, PadGeometry::ARTICLE);

@@ -261,7 +261,8 @@ fn each_pad_has_its_own_geometry_reported_used_and_kept() {
     let info = pad_info(&mut host, palm);
     assert_eq!(info.role, PadRole::Palm);
     assert_eq!(&info.taxels, scene.pads[pads - 1].geometry.taxels());
-    assert!(info.taxels.iter().all(|taxel| taxel.area_mm2 == 100.0));
+    assert!(info.taxels.iter().all(|taxel| taxel.area_mm2 == 96.0));
+    assert_eq!((info.taxels[0].x_mm, info.taxels[0].y_mm), (-6.5, 4.5));
     let thumb = pad_info(&mut host, 0);
     assert_eq!(thumb.role, PadRole::Fingertip);
     assert_eq!(&thumb.taxels, PadGeometry::ARTICLE.taxels());

@@ -1,5 +1,5 @@
 //! A pad's geometry through the binaries: `taxel calibration geometry` reads what the simulated
-//! glove's pads leave the factory with (the palm's 100 mm² electrodes), sets another one and
+//! glove's pads leave the factory with (the palm's 96 mm² electrodes, not square), sets another one and
 //! saves it; a recording of the device carries each pad's geometry in its state, and `taxel
 //! convert` computes the force with it, as the device does.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
@@ -38,7 +38,7 @@ fn a_pads_geometry_is_read_set_saved_recorded_and_converted_with() {
     assert!(ok, "{errors}");
     assert!(palm.starts_with("pad 5: palm"), "{palm}");
     assert!(
-        palm.contains("c11: centre (-6.000, 6.000) mm, area 100.000 mm²"),
+        palm.contains("c11: centre (-6.500, 4.500) mm, area 96.000 mm²"),
         "{palm}"
     );
 
@@ -105,7 +105,7 @@ fn a_pads_geometry_is_read_set_saved_recorded_and_converted_with() {
     let state =
         RecordedDeviceState::read(&directory.path().join("glove.csv.dev0.device.json")).unwrap();
     let geometry_of = |pad: u8| state.pad_state(pad).unwrap().geometry;
-    assert_eq!(geometry_of(5).taxels()[0].area_mm2, 100.0);
+    assert_eq!(geometry_of(5).taxels()[0].area_mm2, 96.0);
     assert_eq!(geometry_of(1).taxels()[3].y_mm, -6.0);
     assert_eq!(geometry_of(0).taxels()[0].area_mm2, 25.0);
     let converted = directory.path().join("converted.csv");
@@ -131,11 +131,11 @@ fn a_pads_geometry_is_read_set_saved_recorded_and_converted_with() {
         assert_eq!(device.force_n, host.force_n, "{recorded:?}");
         assert_eq!(device.centre_of_pressure_mm, host.centre_of_pressure_mm);
         if recorded.pad == 5 && device.force_n.is_some_and(|force_n| force_n > 0.5) {
-            // The palm's force is its pressures over 100 mm² electrodes.
+            // The palm's force is its pressures over 96 mm² electrodes.
             let expected_n: f32 = device
                 .pressure_kpa
                 .iter()
-                .map(|kpa| kpa.unwrap() * 100.0 * 1e-3)
+                .map(|kpa| kpa.unwrap() * 96.0 * 1e-3)
                 .sum();
             assert!((device.force_n.unwrap() - expected_n).abs() < 1e-3 * expected_n);
             loaded_palm_rows += 1;
