@@ -27,32 +27,45 @@ def rows_for_at_least(seconds):
     return int(min(20_000_000, max(1_000_000, seconds / per_row_s)))
 
 
-def sigint_after(delay_s, sent):
-    def fire():
-        sent.append(time.perf_counter())
-        os.kill(os.getpid(), signal.SIGINT)
+class SigintDuring:
+    """Sends SIGINT to this process `delay_s` after it starts, but only while the work it guards
+    runs: a signal that came after the work ended would interrupt the test session itself."""
 
-    timer = threading.Timer(delay_s, fire)
-    timer.start()
-    return timer
+    def __init__(self, delay_s):
+        self.sent = []
+        self._lock = threading.Lock()
+        self._active = True
+        self._timer = threading.Timer(delay_s, self._fire)
+
+    def _fire(self):
+        with self._lock:
+            if self._active:
+                self.sent.append(time.perf_counter())
+                os.kill(os.getpid(), signal.SIGINT)
+
+    def __enter__(self):
+        self._timer.start()
+        return self
+
+    def __exit__(self, *exception):
+        with self._lock:
+            self._active = False
+        self._timer.cancel()
+        return False
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGINT") or os.name != "posix", reason="POSIX signals")
 def test_ctrl_c_interrupts_a_large_convert_within_100_ms():
-    rows = rows_for_at_least(4 * SIGNAL_AFTER_S)
+    rows = rows_for_at_least(6 * SIGNAL_AFTER_S)
     capacitance = np.full((rows, 4), 5.0)
     temperature = np.full(rows, 25.0)
-    sent = []
-    timer = sigint_after(SIGNAL_AFTER_S, sent)
     started = time.perf_counter()
-    try:
-        with pytest.raises(KeyboardInterrupt):
+    with pytest.raises(KeyboardInterrupt):
+        with SigintDuring(SIGNAL_AFTER_S) as sigint:
             taxel.convert(capacitance, temperature)
-        raised = time.perf_counter()
-    finally:
-        timer.cancel()
-    assert sent, "the conversion ended before the signal: give it more rows"
-    delay_ms = (raised - sent[0]) * 1e3
+    raised = time.perf_counter()
+    assert sigint.sent, "the conversion ended before the signal: give it more rows"
+    delay_ms = (raised - sigint.sent[0]) * 1e3
     assert delay_ms < 100, f"KeyboardInterrupt {delay_ms:.1f} ms after SIGINT ({rows:,} rows)"
     assert raised - started < 3 * SIGNAL_AFTER_S + 1
     # The package is still usable afterwards.
