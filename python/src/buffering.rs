@@ -4,8 +4,6 @@
 //! to Python as arrays with the counts of what was lost. A [`Buffer`] also becomes a pandas
 //! table of the recording schema, or a recording file of it.
 
-use std::fs::File;
-use std::io::BufWriter;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -16,6 +14,8 @@ use model_core::{TaxelFlags, TAXEL_COUNT};
 use numpy::ndarray::{Array2, Array3, ArrayView1, ArrayView2, ArrayView3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
+use taxel_host::console::error_message;
+use taxel_host::output_file::OutputFile;
 use taxel_host::schema::{PadReading, PadRow, RowWriter};
 use wire::TemperatureSource;
 
@@ -218,22 +218,23 @@ impl Buffer {
 
     /// Writes the sets as a recording of the schema (the CSV file ``taxel record`` writes,
     /// without its raw log and device state), which :func:`taxel.read_recording`,
-    /// :func:`taxel.convert_recording`, ``taxel convert`` and ``taxel plot`` read. The file is
-    /// replaced if it exists.
+    /// :func:`taxel.convert_recording`, ``taxel convert`` and ``taxel plot`` read. It is written
+    /// under a temporary name and renamed over ``path`` once complete: a failed save leaves an
+    /// existing file as it was.
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let rows = self.rows(py)?;
-        py.allow_threads(|| -> std::io::Result<()> {
-            let mut writer = RowWriter::new(BufWriter::new(File::create(&path)?))?;
+        py.allow_threads(|| -> anyhow::Result<()> {
+            let mut writer = RowWriter::new(OutputFile::create(&path)?)?;
             for row in &rows {
                 writer.write(row)?;
             }
             writer.flush()?;
-            writer.into_inner().into_inner()?.sync_all()
+            writer.into_inner().commit()
         })
         .map_err(|error| {
             taxel_error(
                 ErrorKind::Other,
-                format!("writing {}: {error}", path.display()),
+                format!("writing {}: {}", path.display(), error_message(&error)),
             )
         })
     }

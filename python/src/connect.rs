@@ -57,10 +57,59 @@ pub fn unix_now_s() -> f64 {
         .map_or(0.0, |elapsed| elapsed.as_secs_f64())
 }
 
-/// Opens the session and starts the worker on a thread of its own, waited for in slices with
-/// the GIL released so that Ctrl-C interrupts it, and for `timeout` in all (the start makes
-/// several requests, each bounded by `timeout`); an abandoned start ends by itself within its
-/// own timeouts.
+/// Runs `start` on a thread of its own, waited for in slices with the GIL released so that
+/// Ctrl-C interrupts it, until `deadline`; `what` says what did not finish in time. An abandoned
+/// start ends by itself within its own timeouts.
+fn run_interruptibly<T: Send + 'static>(
+    py: Python<'_>,
+    deadline: Instant,
+    what: String,
+    start: impl FnOnce() -> anyhow::Result<T> + Send + 'static,
+) -> PyResult<T> {
+    let (sender, receiver) = mpsc::channel();
+    thread::Builder::new()
+        .name("taxel-connect".into())
+        .spawn(move || {
+            let _ = sender.send(start());
+        })
+        .map_err(|error| {
+            taxel_error(
+                ErrorKind::Other,
+                format!("starting the connection: {error}"),
+            )
+        })?;
+    match wait_interruptibly(py, receiver, deadline)? {
+        Some(started) => started.map_err(|error| anyhow_error(&error, ErrorKind::Other)),
+        None => Err(taxel_error(ErrorKind::Timeout, what)),
+    }
+}
+
+/// Opens every link's session and starts its stream (`names` name the devices in errors).
+fn open_and_start(
+    links: Vec<Link>,
+    names: &[String],
+    timeout: Duration,
+) -> anyhow::Result<Vec<DeviceSession<Link>>> {
+    let config = SessionConfig {
+        request_timeout: timeout,
+        follow_state: false,
+    };
+    let mut sessions = Vec::new();
+    for (link, name) in links.into_iter().zip(names) {
+        let session = DeviceSession::open(DeviceLink::new(link), config)
+            .with_context(|| format!("the device {name}"))?;
+        sessions.push(session);
+    }
+    for (session, name) in sessions.iter_mut().zip(names) {
+        session
+            .start()
+            .with_context(|| format!("starting the stream of {name}"))?;
+    }
+    Ok(sessions)
+}
+
+/// Opens the session, starts its stream and the worker reading it (see [`run_interruptibly`]),
+/// for `timeout` in all (the start makes several requests, each bounded by `timeout`).
 pub fn start_interruptibly(
     py: Python<'_>,
     port: Link,
@@ -71,55 +120,35 @@ pub fn start_interruptibly(
     // A little over the timeout, so that a first request that times out reports itself (with
     // the request it was) rather than this overall bound.
     let deadline = Instant::now() + timeout + 2 * SLICE;
-    let (sender, receiver) = mpsc::channel();
-    thread::Builder::new()
-        .name("taxel-connect".into())
-        .spawn(move || {
-            let config = SessionConfig {
-                request_timeout: timeout,
-                follow_state: false,
-            };
-            let started =
-                DeviceSession::open(DeviceLink::new(port), config).and_then(|mut session| {
-                    session.start()?;
-                    let info = *session.info();
-                    let queue = Arc::new(EventQueue::new(queue_sets, Overflow::DropOldestSet));
-                    let origin_unix_s = unix_now_s();
-                    let worker = Worker::start(
-                        vec![session],
-                        Arc::clone(&queue),
-                        Arc::new(MonotonicClock::new()),
-                    )
-                    .context("starting the device's reader thread")?;
-                    Ok((
-                        worker,
-                        Arc::new(Stream::new(queue, queue_sets, origin_unix_s, info)),
-                    ))
-                });
-            let _ = sender.send(started);
-        })
-        .map_err(|error| {
-            taxel_error(
-                ErrorKind::Other,
-                format!("starting the connection: {error}"),
-            )
-        })?;
-    match wait_interruptibly(py, receiver, deadline)? {
-        Some(started) => started.map_err(|error| anyhow_error(&error, ErrorKind::Other)),
-        None => Err(taxel_error(
-            ErrorKind::Timeout,
-            format!(
-                "the device did not finish connecting (identity and stream start) within {} ms{slow_hint}",
-                timeout.as_millis()
-            ),
-        )),
-    }
+    let what = format!(
+        "the device did not finish connecting (identity and stream start) within {} ms{slow_hint}",
+        timeout.as_millis()
+    );
+    run_interruptibly(py, deadline, what, move || {
+        let sessions = open_and_start(vec![port], &["on its port".to_owned()], timeout)?;
+        let info = sessions
+            .first()
+            .map(|session| *session.info())
+            .context("the device's session")?;
+        let queue = Arc::new(EventQueue::new(queue_sets, Overflow::DropOldestSet));
+        let origin_unix_s = unix_now_s();
+        let worker = Worker::start(
+            sessions,
+            Arc::clone(&queue),
+            Arc::new(MonotonicClock::new()),
+        )
+        .context("starting the device's reader thread")?;
+        Ok((
+            worker,
+            Arc::new(Stream::new(queue, queue_sets, origin_unix_s, info)),
+        ))
+    })
 }
 
-/// Opens every device's session, starts their streams and one worker reading them all, on a
-/// thread of its own, waited for as [`start_interruptibly`] does (`timeout` per device). Each
-/// device's arrivals are stamped with `clock`, which must have started before the links were
-/// opened. `names` name the devices in errors.
+/// Opens every device's session, starts their streams and one worker reading them all (see
+/// [`run_interruptibly`]), `timeout` per device. Each device's arrivals are stamped with
+/// `clock`, which must have started before the links were opened. `names` name the devices in
+/// errors.
 pub fn start_many_interruptibly(
     py: Python<'_>,
     links: Vec<Link>,
@@ -131,51 +160,19 @@ pub fn start_many_interruptibly(
 ) -> PyResult<(Worker<Link>, Arc<Timeline>)> {
     let count = u32::try_from(links.len().max(1)).unwrap_or(u32::MAX);
     let deadline = Instant::now() + timeout * count + 2 * SLICE;
-    let (sender, receiver) = mpsc::channel();
-    thread::Builder::new()
-        .name("taxel-connect".into())
-        .spawn(move || {
-            let config = SessionConfig {
-                request_timeout: timeout,
-                follow_state: false,
-            };
-            let started = (|| -> anyhow::Result<(Worker<Link>, Arc<Timeline>)> {
-                let mut sessions = Vec::new();
-                for (link, name) in links.into_iter().zip(&names) {
-                    let session = DeviceSession::open(DeviceLink::new(link), config)
-                        .with_context(|| format!("the device {name}"))?;
-                    sessions.push(session);
-                }
-                for (session, name) in sessions.iter_mut().zip(&names) {
-                    session
-                        .start()
-                        .with_context(|| format!("starting the stream of {name}"))?;
-                }
-                let infos = sessions.iter().map(|session| *session.info()).collect();
-                let queue = Arc::new(EventQueue::new(queue_sets, Overflow::DropOldestSet));
-                let worker = Worker::start(sessions, Arc::clone(&queue), Arc::new(clock))
-                    .context("starting the devices' reader threads")?;
-                Ok((
-                    worker,
-                    Arc::new(Timeline::new(queue, clock, infos, names).with_queue_sets(queue_sets)),
-                ))
-            })();
-            let _ = sender.send(started);
-        })
-        .map_err(|error| {
-            taxel_error(
-                ErrorKind::Other,
-                format!("starting the connection: {error}"),
-            )
-        })?;
-    match wait_interruptibly(py, receiver, deadline)? {
-        Some(started) => started.map_err(|error| anyhow_error(&error, ErrorKind::Other)),
-        None => Err(taxel_error(
-            ErrorKind::Timeout,
-            format!(
-                "the devices did not finish connecting (identity and stream start) within {} ms{slow_hint}",
-                (timeout * count).as_millis()
-            ),
-        )),
-    }
+    let what = format!(
+        "the devices did not finish connecting (identity and stream start) within {} ms{slow_hint}",
+        (timeout * count).as_millis()
+    );
+    run_interruptibly(py, deadline, what, move || {
+        let sessions = open_and_start(links, &names, timeout)?;
+        let infos = sessions.iter().map(|session| *session.info()).collect();
+        let queue = Arc::new(EventQueue::new(queue_sets, Overflow::DropOldestSet));
+        let worker = Worker::start(sessions, Arc::clone(&queue), Arc::new(clock))
+            .context("starting the devices' reader threads")?;
+        Ok((
+            worker,
+            Arc::new(Timeline::new(queue, clock, infos, names).with_queue_sets(queue_sets)),
+        ))
+    })
 }
