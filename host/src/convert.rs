@@ -2,9 +2,11 @@
 //! its calibration, tier and baselines, force and centre of pressure, the contact detector —
 //! for every pad of every device, each with its own state. `taxel convert` runs it over a
 //! recording of the schema ([`crate::schema`]) or a raw byte log, and the Python package's
-//! `convert_recording` over a recording (its `convert` of arrays runs the model's batch path,
-//! tested equal to this engine). With the device's recorded state (`NAME.dev<n>.device.json` beside the recording),
-//! re-processing reproduces what the device computed; options given replace its parts.
+//! `convert_recording` over a recording and `convert` over arrays. Each pad's rows run through
+//! its pipeline's batch path ([`ConversionEngine::convert_rows`]), which gives what the
+//! pipeline gives one set at a time. With the device's recorded state
+//! (`NAME.dev<n>.device.json` beside the recording), re-processing reproduces what the device
+//! computed; options given replace its parts.
 //!
 //! Output: the same rows (identity, times, capacitances and temperature kept) with the
 //! pressures, flags, force, centre of pressure, partial and contact computed again; or, with
@@ -212,19 +214,41 @@ impl ConversionEngine {
 
     /// Computes the row's pad outputs again, in place (a missing frame stays missing).
     pub fn convert(&mut self, row: &mut PadRow) -> anyhow::Result<()> {
-        self.convert_row(row, true)
+        self.convert_rows(std::slice::from_mut(row), true)
     }
 
     /// As [`convert`](Self::convert), for a row whose device time is not known (arrays given
     /// without times): the model takes the time between a pad's sets as unknown.
     pub fn convert_untimed(&mut self, row: &mut PadRow) -> anyhow::Result<()> {
-        self.convert_row(row, false)
+        self.convert_rows(std::slice::from_mut(row), false)
     }
 
-    fn convert_row(&mut self, row: &mut PadRow, timed: bool) -> anyhow::Result<()> {
-        let (device, pad, sequence) = (row.device, row.pad, row.sequence);
-        if let Some(reading) = &mut row.reading {
-            *reading = self.run(device, pad)?.process(sequence, reading, timed);
+    /// [`convert`](Self::convert) (or, without `timed`, [`convert_untimed`](Self::convert_untimed))
+    /// of every row in turn, faster: each pad's rows go through its pipeline's batch path
+    /// together. Pads are independent, so the result is that of converting the rows one by one
+    /// in order (tested).
+    pub fn convert_rows(&mut self, rows: &mut [PadRow], timed: bool) -> anyhow::Result<()> {
+        if let [row] = rows {
+            // A row at a time: no lists to make.
+            if let Some(reading) = &mut row.reading {
+                let run = self.run(row.device, row.pad)?;
+                run.process(&mut [(row.sequence, reading)], timed);
+            }
+            return Ok(());
+        }
+        let mut pads: Vec<(u32, u8)> = Vec::new();
+        for row in rows.iter() {
+            if row.reading.is_some() && !pads.contains(&(row.device, row.pad)) {
+                pads.push((row.device, row.pad));
+            }
+        }
+        for (device, pad) in pads {
+            let mut readings: Vec<(u32, &mut PadReading)> = rows
+                .iter_mut()
+                .filter(|row| (row.device, row.pad) == (device, pad))
+                .filter_map(|row| row.reading.as_mut().map(|reading| (row.sequence, reading)))
+                .collect();
+            self.run(device, pad)?.process(&mut readings, timed);
         }
         Ok(())
     }

@@ -40,6 +40,7 @@ pub mod conditioning;
 pub mod contact;
 pub mod flags;
 pub mod inverse;
+mod measured_instructions;
 pub mod monotone_cubic;
 pub mod pad;
 #[cfg(feature = "batch")]

@@ -1,10 +1,12 @@
-//! The host's batch path (feature `batch`): [`PadModel::process`] over a whole recording with
-//! the tier's inverses of many sample sets computed together, which a superscalar core runs
-//! faster. The firmware calls `process` set by set and does not build this.
+//! The host's batch path (feature `batch`): [`PadModel::process`] and [`PadPipeline::process`]
+//! over many sample sets with the tier's inverses of the sets computed together, which a
+//! superscalar core runs faster. The firmware calls `process` set by set and does not build
+//! this.
 
 use crate::calibration::TAXEL_COUNT;
 use crate::flags::TaxelFlags;
 use crate::pad::{PadModel, PadOutput, SampleInput};
+use crate::pad_pipeline::{PadPipeline, PadReport};
 use crate::taxel::TaxelOutput;
 use crate::temperature::TemperatureUsed;
 
@@ -14,11 +16,12 @@ pub const BATCH_SAMPLE_SETS: usize = 64;
 
 impl PadModel {
     /// [`PadModel::process`] of every sample set in turn, handing each output to `each` in
-    /// order: the same outputs bit for bit (tested), faster when a host converts a recording,
+    /// order with its set's position: the same outputs bit for bit (tested), faster when a host
+    /// converts a recording,
     /// because the tier's inverses of up to [`BATCH_SAMPLE_SETS`] sets run together per taxel
     /// (nothing the sets change depends on them). It holds those sets' outputs on the stack
     /// (about 7 KB): a host's path; the device calls `process`.
-    pub fn process_all<I>(&mut self, samples: I, mut each: impl FnMut(&PadOutput))
+    pub fn process_all<I>(&mut self, samples: I, mut each: impl FnMut(usize, &PadOutput))
     where
         I: IntoIterator<Item = SampleInput>,
     {
@@ -32,6 +35,7 @@ impl PadModel {
             },
         };
         let mut outputs = [(unset, 0u8); BATCH_SAMPLE_SETS];
+        let mut position = 0;
         loop {
             let mut count = 0;
             for (slot, sample) in outputs.iter_mut().zip(samples.by_ref()) {
@@ -50,7 +54,8 @@ impl PadModel {
             }
             self.invert_batch(outputs);
             for (output, _) in outputs.iter() {
-                each(output);
+                each(position, output);
+                position += 1;
             }
         }
     }
@@ -89,5 +94,32 @@ impl PadModel {
                 }
             }
         }
+    }
+}
+
+impl PadPipeline {
+    /// [`PadPipeline::process`] of every sample set of `samples` in turn, handing each report to
+    /// `each` in order with its set's position: the same reports bit for bit (tested), with the
+    /// model's inverses run together as [`PadModel::process_all`] runs them.
+    pub fn process_all(
+        &mut self,
+        samples: &[SampleInput],
+        mut each: impl FnMut(usize, &PadReport),
+    ) {
+        let (model, force_and_contact) = self.parts_mut();
+        model.process_all(samples.iter().copied(), |position, output| {
+            let time_us = samples
+                .get(position)
+                .and_then(|sample| sample.time_us)
+                .unwrap_or(0);
+            let contact = force_and_contact.update(&output.taxels, time_us);
+            each(
+                position,
+                &PadReport {
+                    output: *output,
+                    contact,
+                },
+            );
+        });
     }
 }

@@ -150,6 +150,12 @@ impl PadPipeline {
         &mut self.force_and_contact
     }
 
+    /// The model and the second half, each borrowed on its own.
+    #[cfg(feature = "batch")]
+    pub(crate) fn parts_mut(&mut self) -> (&mut PadModel, &mut ForceAndContact) {
+        (&mut self.model, &mut self.force_and_contact)
+    }
+
     /// One sample set through the whole pipeline. Contact events carry the sample's time (0 for
     /// a sample without one).
     pub fn process(&mut self, sample: &SampleInput) -> PadReport {

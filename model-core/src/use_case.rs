@@ -25,22 +25,9 @@ use crate::conditioning::{worst_noise_kpa, CONVERTER_NOISE_PF};
 use crate::inverse::{TaxelInverses, Tier};
 use crate::validation::leave_one_out_errors_kpa;
 
-/// Instructions per taxel conversion (temperature correction included) on the Cortex-M4F:
-/// `TaxelModel::convert`, mean over a 0–50 kPa x 5–55 °C grid, measured under QEMU in the
-/// build the firmware ships (opt-level "z", fat LTO, one codegen unit; see
-/// docs/PERFORMANCE.md). Written by `cargo xtask report` or `cargo xtask m4-test --write`,
-/// never by hand. `cargo xtask m4-test` fails when the measured order of the tiers differs
-/// from this one (counts within 2 instructions are tied), or when a count drifts
-/// further than half the smallest gap between neighbouring tiers.
-pub const MEASURED_INSTRUCTIONS: [(Tier, u32); 7] = [
-    (Tier::Linear, 115),
-    (Tier::PiecewiseLinear, 167),
-    (Tier::MonotoneCubic, 279),
-    (Tier::Saturating, 173),
-    (Tier::SaturatingMicromath, 165),
-    (Tier::Table, 163),
-    (Tier::Polynomial, 180),
-];
+/// Instructions per taxel conversion on the Cortex-M4F, per tier: generated from a measurement
+/// (see the module it comes from).
+pub use crate::measured_instructions::MEASURED_INSTRUCTIONS;
 
 /// Uncertainty of the pad's temperature sensor, °C (TMP117: +-0.1 °C from -20 to 50 °C).
 pub const TEMPERATURE_UNCERTAINTY_C: f32 = 0.1;

@@ -1,13 +1,14 @@
 //! The batch paths a host uses to convert recordings, `ActiveInverse::pressures_kpa` and
-//! `PadModel::process_all`, against the one-at-a-time paths the device runs: the same bits for
+//! `PadModel::process_all` and `PadPipeline::process_all`, against the one-at-a-time paths the device runs: the same bits for
 //! every tier, on generated hard calibrations, for fault, edge and arbitrary inputs. A batch that
 //! differed in one ulp would make a re-processed recording disagree with what the device sent.
 
 use model_core::baseline::BaselineTracking;
 use model_core::inverse::ActiveInverse;
 use model_core::{
-    Calibration, CalibrationCurve, CalibrationSpec, CurvePoint, PadModel, PadOutput, SampleInput,
-    TaxelFlags, TaxelReading, Tier, BATCH_SAMPLE_SETS,
+    Calibration, CalibrationCurve, CalibrationSpec, ContactConfig, CurvePoint, ForceAndContact,
+    PadGeometry, PadModel, PadOutput, PadPipeline, PadReport, PadRole, SampleInput, TaxelFlags,
+    TaxelReading, Tier, BATCH_SAMPLE_SETS,
 };
 use proptest::prelude::*;
 use reference_curves::{hard_calibration, probes, ForwardCubic};
@@ -278,10 +279,39 @@ proptest! {
         let want: Vec<PadOutput> = samples.iter().map(|sample| one_by_one.process(sample)).collect();
         let mut batched = pad_for(&case);
         let mut got = Vec::new();
-        batched.process_all(samples.iter().copied(), |output| got.push(*output));
+        batched.process_all(samples.iter().copied(), |position, output| {
+            assert_eq!(position, got.len());
+            got.push(*output);
+        });
         prop_assert_eq!(got.len(), want.len());
         for (set, (got, want)) in got.iter().zip(&want).enumerate() {
             // Debug shows every float exactly (and -0.0, NaN), so equal text is equal bits.
+            prop_assert_eq!(format!("{got:?}"), format!("{want:?}"), "set {}", set);
+        }
+        prop_assert_eq!(format!("{batched:?}"), format!("{one_by_one:?}"));
+    }
+
+    /// The whole pipeline's batch (model, force, centre of pressure, contact with its timing)
+    /// gives the reports and final state of `PadPipeline::process` set by set.
+    #[test]
+    fn pipeline_process_all_is_process_set_by_set(case in case()) {
+        let samples = samples(&case);
+        let pipeline = || {
+            PadPipeline::new(
+                pad_for(&case),
+                ForceAndContact::new(PadRole::Unspecified, PadGeometry::ARTICLE, ContactConfig::DEFAULT),
+            )
+        };
+        let mut one_by_one = pipeline();
+        let want: Vec<PadReport> = samples.iter().map(|sample| one_by_one.process(sample)).collect();
+        let mut batched = pipeline();
+        let mut got = Vec::new();
+        batched.process_all(&samples, |position, report| {
+            assert_eq!(position, got.len());
+            got.push(*report);
+        });
+        prop_assert_eq!(got.len(), want.len());
+        for (set, (got, want)) in got.iter().zip(&want).enumerate() {
             prop_assert_eq!(format!("{got:?}"), format!("{want:?}"), "set {}", set);
         }
         prop_assert_eq!(format!("{batched:?}"), format!("{one_by_one:?}"));
@@ -293,7 +323,7 @@ fn process_all_of_nothing_calls_nothing() {
     let mut pad = PadModel::new(Calibration::default());
     let before = pad.clone();
     let mut calls = 0;
-    pad.process_all(core::iter::empty(), |_| calls += 1);
+    pad.process_all(core::iter::empty(), |_, _| calls += 1);
     assert_eq!(calls, 0);
     assert_eq!(pad, before);
 }

@@ -38,7 +38,12 @@ impl SignalCheck {
     /// Counts a row; runs Python's signal handlers when [`INTERVAL`] has passed since the last
     /// time, and returns the exception one raised. Call it without holding the GIL.
     pub fn tick(&mut self) -> PyResult<()> {
-        self.rows += 1;
+        self.tick_rows(1)
+    }
+
+    /// [`tick`](Self::tick) for `rows` rows done together.
+    pub fn tick_rows(&mut self, rows: u32) -> PyResult<()> {
+        self.rows = self.rows.saturating_add(rows);
         if self.rows < ROWS_PER_LOOK {
             return Ok(());
         }

@@ -160,7 +160,7 @@ pub(super) fn drift(out: &mut String, data: &ReportData) {
     let tolerance = crate::measured::drift_tolerance(&MEASURED_INSTRUCTIONS);
     let _ = writeln!(
         out,
-        "The constants in `model-core/src/use_case.rs` that `select_tier` ranks tiers by: \
+        "The constants in the generated file `model-core/src/measured_instructions.rs` that `select_tier` ranks tiers by: \
          `TaxelModel::convert`, grid mean, in the shipped build (opt-level \"{}\"). `cargo xtask \
          report` rewrites them from its own run before it writes this page (and `cargo xtask \
          m4-test --write` does the same), so they are never typed in. `cargo xtask m4-test` fails \
