@@ -76,6 +76,10 @@ pub struct PadOptions {
     pub tare: TareSource,
     /// The taxels' centres and areas, for force and centre of pressure.
     pub geometry: PadGeometry,
+    /// Rows before this sequence number may have been computed by the device with another
+    /// calibration, tier or geometry than the recorded ones used here (they changed while the
+    /// host was reading); 0 when none.
+    pub recorded_from_sequence: u32,
 }
 
 impl PadOptions {
@@ -110,11 +114,18 @@ impl PadOptions {
         // The device's geometry is what its force was computed with; without a recorded state,
         // the built-in one (the device's too until a geometry is set).
         let geometry = recorded.map_or(PadGeometry::ARTICLE, |recorded| recorded.geometry);
+        let recorded_from_sequence = match recorded {
+            Some(recorded) if settings.calibration.is_none() || settings.tier.is_none() => {
+                recorded.state_from_sequence
+            }
+            _ => 0,
+        };
         Ok(Self {
             calibration,
             tier,
             tare,
             geometry,
+            recorded_from_sequence,
         })
     }
 }

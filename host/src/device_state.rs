@@ -63,6 +63,11 @@ pub struct RecordedPadState {
     pub geometry: PadGeometry,
     /// The pad's baselines, in the order they took effect; empty when the device could not say.
     pub baselines: Vec<BaselineChange>,
+    /// The first sample (by sequence number) known to be computed with this calibration, tier
+    /// and geometry: 0 when they held from the start. The pad's earlier samples may have been
+    /// computed with others the file does not hold (they changed while the host was reading).
+    #[serde(default)]
+    pub state_from_sequence: u32,
 }
 
 impl RecordedPadState {
@@ -77,6 +82,7 @@ impl RecordedPadState {
             role: pad_info.role,
             geometry: pad_geometry(pad_info)?,
             baselines: Vec::new(),
+            state_from_sequence: 0,
         })
     }
 
@@ -225,6 +231,20 @@ fn tared_pads(frames: &[DeviceFrame]) -> Vec<PadIndex> {
     pads
 }
 
+/// Pad `pad`'s calibration, tier, role and geometry as the device reports them now (its
+/// PadInfo and calibration: five requests and four per taxel), without baselines.
+pub fn read_pad_state<P: Read + Write>(
+    link: &mut DeviceLink<P>,
+    pad: PadIndex,
+    timeout: Duration,
+) -> anyhow::Result<RecordedPadState> {
+    let pad_info = pad_info(link, pad, timeout)?;
+    let calibration = pull(link, pad, pad_info.calibration_id, timeout)
+        .with_context(|| format!("reading the calibration of pad {}", pad.get()))?;
+    RecordedPadState::new(&pad_info, &calibration)
+        .with_context(|| format!("reading pad {}", pad.get()))
+}
+
 /// Reads every pad's whole calibration, geometry and baselines as the state a recording starts
 /// with: per pad its PadInfo (tier, role, geometry, calibration id), four ReadCalibration and
 /// four ReadBaseline requests.
@@ -239,13 +259,7 @@ pub fn read_device_state<P: Read + Write>(
     let mut state = RecordedDeviceState::new(info);
     let pads: Vec<PadIndex> = (0..state.pad_count).filter_map(PadIndex::new).collect();
     for &pad in &pads {
-        let pad_info = pad_info(link, pad, timeout)?;
-        let calibration = pull(link, pad, pad_info.calibration_id, timeout)
-            .with_context(|| format!("reading the calibration of pad {}", pad.get()))?;
-        state.add_pad(
-            RecordedPadState::new(&pad_info, &calibration)
-                .with_context(|| format!("reading pad {}", pad.get()))?,
-        );
+        state.add_pad(read_pad_state(link, pad, timeout)?);
     }
     let mut to_read = pads.clone();
     for attempt in 1..=BASELINE_READ_ATTEMPTS {

@@ -22,7 +22,7 @@ use wire::{
 
 use crate::calibration_transfer::pull_baselines;
 use crate::device_link::{DeviceLink, LinkError, LinkStatistics, RequestError};
-use crate::device_state::{read_device_state, BaselineChange, RecordedDeviceState};
+use crate::device_state::{read_device_state, read_pad_state, BaselineChange, RecordedDeviceState};
 use crate::pad_set::{PadSet, PadSetAssembler};
 use crate::stream_accounting::{sequence_gap, StreamAccounting};
 
@@ -261,6 +261,84 @@ impl<P: Read + Write> DeviceSession<P> {
     /// [`SessionConfig::follow_state`]).
     pub fn state(&self) -> Option<&RecordedDeviceState> {
         self.state.as_ref()
+    }
+
+    /// Starts following the device's state on a session opened without
+    /// [`SessionConfig::follow_state`], once its stream runs: every pad's calibration, tier,
+    /// role, geometry and baselines are read now (the baselines as in force from the start).
+    /// Unlike following from [`DeviceSession::open`], no frame is discarded: the frames that
+    /// arrive meanwhile become events later, in order, and a tare they report is followed.
+    pub fn start_following_state(&mut self) -> anyhow::Result<()> {
+        if self.state.is_some() {
+            return Ok(());
+        }
+        let timeout = self.config.request_timeout;
+        let mut state = RecordedDeviceState::new(&self.info);
+        for pad in (0..state.pad_count).filter_map(PadIndex::new) {
+            let mut pad_state = read_pad_state(&mut self.link, pad, timeout)?;
+            let taxels = pull_baselines(&mut self.link, pad, timeout)
+                .with_context(|| format!("reading the baselines of pad {}", pad.get()))?;
+            pad_state.baselines = vec![BaselineChange {
+                from_sequence: 0,
+                taxels,
+            }];
+            state.add_pad(pad_state);
+        }
+        self.state = Some(state);
+        self.config.follow_state = true;
+        Ok(())
+    }
+
+    /// Reads every pad's calibration, tier, role and geometry again into the followed state,
+    /// each pad's baselines kept (with [`SessionConfig::follow_state`]; nothing otherwise): after
+    /// a request that may have changed them (a calibration written, a tier or use case set,
+    /// the defaults restored). Frames arriving meanwhile become events later, in order.
+    /// The device's identity is asked again too ([`DeviceSession::info`]).
+    pub fn refresh_state(&mut self) -> anyhow::Result<()> {
+        let timeout = self.config.request_timeout;
+        if let ReplyPayload::Info(info) = self
+            .link
+            .request(Command::Info, timeout)
+            .context("asking the device who it is")?
+        {
+            self.info = info;
+            if let Some(state) = self.state.as_mut() {
+                state.converter_rate_sps = info.rate.sps();
+            }
+        }
+        let Some(pads) = self.state.as_ref().map(|state| state.pad_count) else {
+            return Ok(());
+        };
+        let mut fresh_pads = Vec::new();
+        for pad in (0..pads).filter_map(PadIndex::new) {
+            fresh_pads.push(read_pad_state(&mut self.link, pad, timeout)?);
+        }
+        // Every frame received so far goes through first: a set up to the one still open may
+        // have been computed before the change (or during it); the sets after it were not.
+        for frame in self.link.take_queued() {
+            self.take_frame(frame);
+        }
+        let from_sequence = self
+            .last_set_sequence
+            .map_or(0, |sequence| sequence.wrapping_add(2));
+        if let Some(state) = self.state.as_mut() {
+            for mut fresh in fresh_pads {
+                let Some(old) = state.pad_state(fresh.pad) else {
+                    state.add_pad(fresh);
+                    continue;
+                };
+                let changed = (&old.calibration, &old.tier, old.role, old.geometry)
+                    != (&fresh.calibration, &fresh.tier, fresh.role, fresh.geometry);
+                fresh.state_from_sequence = if changed {
+                    from_sequence
+                } else {
+                    old.state_from_sequence
+                };
+                fresh.baselines = old.baselines;
+                state.add_pad(fresh);
+            }
+        }
+        Ok(())
     }
 
     /// Where every sample set went: received, missing from the sequence numbers, dropped by the

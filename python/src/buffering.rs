@@ -15,7 +15,9 @@ use numpy::ndarray::{Array2, Array3, ArrayView1, ArrayView2, ArrayView3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use taxel_host::console::error_message;
+use taxel_host::device_state::RecordedDeviceState;
 use taxel_host::output_file::OutputFile;
+use taxel_host::recorder::device_file;
 use taxel_host::schema::{PadReading, PadRow, RowWriter};
 use wire::TemperatureSource;
 
@@ -141,54 +143,77 @@ fn collect(
 /// arrays over the pads have shape ``(N, pads)`` (``cop_mm`` ``(N, pads, 2)``); the others
 /// ``(N,)``. :meth:`to_pandas` gives the long table of the recording schema, :meth:`save` its
 /// file.
-#[pyclass(frozen, get_all, module = "taxel")]
+#[pyclass(frozen, module = "taxel")]
 pub struct Buffer {
     /// The device (0 for :class:`taxel.Device`; its index for :class:`taxel.Devices`).
+    #[pyo3(get)]
     pub device: usize,
     /// Sequence numbers, ``(N,)`` ``int64``.
+    #[pyo3(get)]
     pub sequence: Py<PyArray1<i64>>,
     /// Device clock at each set (pad 0's conversion), µs since boot, ``(N,)`` ``int64``.
+    #[pyo3(get)]
     pub device_time_us: Py<PyArray1<i64>>,
     /// Device clock at each pad's conversion, µs since boot, ``(N, pads)`` ``int64``; -1 for a
     /// missing frame.
+    #[pyo3(get)]
     pub pad_device_time_us: Py<PyArray2<i64>>,
     /// Host clock of each set, seconds since the Unix epoch, ``(N,)``: its arrival
     /// (:class:`taxel.Device`), or its device time mapped onto the host clock
     /// (:class:`taxel.Devices`).
+    #[pyo3(get)]
     pub host_time_s: Py<PyArray1<f64>>,
     /// Bound on ``host_time_s``'s error, ms, ``(N,)``; NaN where it is the arrival.
+    #[pyo3(get)]
     pub sync_error_ms: Py<PyArray1<f64>>,
     /// Temperature per pad, °C, ``(N, pads)``; NaN where there is none.
+    #[pyo3(get)]
     pub temperature_c: Py<PyArray2<f64>>,
     /// Where each temperature came from, ``(N, pads)`` strings (``tmp117``, ``mcu_internal``,
     /// ``last_known``, ``none``).
+    #[pyo3(get)]
     pub temperature_source: PyObject,
     /// Pressure per taxel, kPa, ``(N, taxels)``; NaN where there is none.
+    #[pyo3(get)]
     pub pressure_kpa: Py<PyArray2<f64>>,
     /// Capacitance per taxel, pF, ``(N, taxels)``; NaN for a missing pad frame.
+    #[pyo3(get)]
     pub capacitance_pf: Py<PyArray2<f64>>,
     /// Flags per taxel (bits of :class:`taxel.Flags`), ``(N, taxels)`` ``uint16``.
+    #[pyo3(get)]
     pub flags: Py<PyArray2<u16>>,
     /// Total normal force per pad, N, ``(N, pads)``; NaN where there is none.
+    #[pyo3(get)]
     pub force_n: Py<PyArray2<f64>>,
     /// Centre of pressure per pad in the pad's frame, mm, ``(N, pads, 2)`` (x, y); NaN where
     /// there is none.
+    #[pyo3(get)]
     pub cop_mm: Py<PyArray3<f64>>,
     /// Whether each pad is in contact (the device's detector), ``(N, pads)`` ``bool``.
+    #[pyo3(get)]
     pub contact: Py<PyArray2<bool>>,
     /// Whether faulted taxels were left out of a pad's force and centre, ``(N, pads)`` ``bool``.
+    #[pyo3(get)]
     pub partial: Py<PyArray2<bool>>,
     /// Whether a pad's frame of the set never arrived, ``(N, pads)`` ``bool``.
+    #[pyo3(get)]
     pub missing: Py<PyArray2<bool>>,
     /// Sets missing just before each one in the sequence numbers, ``(N,)`` ``int64``.
+    #[pyo3(get)]
     pub sets_missing_before: Py<PyArray1<i64>>,
     /// The number of pads.
+    #[pyo3(get)]
     pub pads: usize,
     /// Sets that arrived while the buffer was full and were discarded (since the last read).
+    #[pyo3(get)]
     pub overflowed_sets: u64,
     /// Sets missing from the sequence numbers among these (dropped by the device or on the
     /// link): the sum of ``sets_missing_before``.
+    #[pyo3(get)]
     pub sequence_gap_sets: u64,
+    /// What the device computed these sets with (identity, and per pad calibration, tier,
+    /// geometry and baselines), when it could say: saved beside the recording.
+    state: Option<RecordedDeviceState>,
 }
 
 #[pymethods]
@@ -217,26 +242,72 @@ impl Buffer {
     }
 
     /// Writes the sets as a recording of the schema (the CSV file ``taxel record`` writes,
-    /// without its raw log and device state), which :func:`taxel.read_recording`,
-    /// :func:`taxel.convert_recording`, ``taxel convert`` and ``taxel plot`` read. It is written
-    /// under a temporary name and renamed over ``path`` once complete: a failed save leaves an
-    /// existing file as it was.
+    /// without its raw log), which :func:`taxel.read_recording`, :func:`taxel.convert_recording`,
+    /// ``taxel convert`` and ``taxel plot`` read, and beside it, as ``taxel record`` does,
+    /// ``PATH.dev<device>.device.json``: what the device computed the sets with (its calibration,
+    /// tier, geometry and baselines per pad), so that :func:`taxel.convert_recording` and
+    /// ``taxel convert`` reproduce the device's pressures rather than use the defaults. When the
+    /// device could not say (it went away before its state was read), only the recording is
+    /// written, with a :class:`taxel.TaxelWarning`. Each file is written under a temporary name
+    /// and renamed once complete: a failed save leaves an existing file as it was.
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let rows = self.rows(py)?;
+        let state_path = device_file(&path, self.device, "device.json");
         py.allow_threads(|| -> anyhow::Result<()> {
             let mut writer = RowWriter::new(OutputFile::create(&path)?)?;
             for row in &rows {
                 writer.write(row)?;
             }
             writer.flush()?;
-            writer.into_inner().commit()
+            writer.into_inner().commit()?;
+            if let Some(state) = &self.state {
+                state.write(&state_path)?;
+            }
+            Ok(())
         })
         .map_err(|error| {
             taxel_error(
                 ErrorKind::Other,
                 format!("writing {}: {}", path.display(), error_message(&error)),
             )
-        })
+        })?;
+        let message = match &self.state {
+            None => Some(format!(
+                "{}: saved without the device's state ({} not written): the device could not \
+                 say what it computed these sets with, so converting the recording again uses \
+                 the default calibration and a tare on its first rows",
+                path.display(),
+                state_path.display()
+            )),
+            Some(state) => {
+                let sequences = self.sequence.bind(py).to_vec()?;
+                let changed: Vec<String> = state
+                    .pads
+                    .iter()
+                    .filter(|pad| {
+                        sequences
+                            .iter()
+                            .any(|sequence| *sequence < i64::from(pad.state_from_sequence))
+                    })
+                    .map(|pad| format!("pad {} before set {}", pad.pad, pad.state_from_sequence))
+                    .collect();
+                (!changed.is_empty()).then(|| {
+                    format!(
+                        "{}: the device's calibration, tier or geometry changed while these sets \
+                         were read ({}): the state saved is the one after, so converting the \
+                         recording again gives other values for the sets before it",
+                        path.display(),
+                        changed.join(", ")
+                    )
+                })
+            }
+        };
+        if let Some(message) = message {
+            let warning = py.import("taxel")?.getattr("TaxelWarning")?;
+            py.import("warnings")?
+                .call_method1("warn", (message, warning, 2))?;
+        }
+        Ok(())
     }
 
     /// A short description.
@@ -278,13 +349,15 @@ fn matrix<T: Copy + numpy::Element>(
 }
 
 impl Buffer {
-    /// The arrays of `sets` of device `device` of `pads` pads, with the overflow count.
+    /// The arrays of `sets` of device `device` of `pads` pads, with the overflow count and what
+    /// the device computed them with.
     pub fn new(
         py: Python<'_>,
         device: usize,
         sets: &[SetRecord],
         pads: usize,
         overflowed_sets: u64,
+        state: Option<RecordedDeviceState>,
     ) -> PyResult<Self> {
         let taxels = pads * TAXEL_COUNT;
         let column = |value: &dyn Fn(&SetRecord) -> i64| -> Py<PyArray1<i64>> {
@@ -380,6 +453,7 @@ impl Buffer {
             pads,
             overflowed_sets,
             sequence_gap_sets: sets.iter().map(|set| set.sets_missing_before).sum(),
+            state,
         })
     }
 
@@ -498,13 +572,14 @@ impl Arrays<'_> {
     }
 }
 
-/// Splits collected sets by device into one [`Buffer`] per device (of `pads[device]` pads);
-/// the overflow count goes to every buffer (the store is shared).
+/// Splits collected sets by device into one [`Buffer`] per device (of `pads[device]` pads, with
+/// `states[device]`); the overflow count goes to every buffer (the store is shared).
 pub fn buffers_by_device(
     py: Python<'_>,
     sets: Vec<SetRecord>,
     pads: &[usize],
     overflowed_sets: u64,
+    states: Vec<Option<RecordedDeviceState>>,
 ) -> PyResult<Vec<Buffer>> {
     let mut by_device: Vec<Vec<SetRecord>> = pads.iter().map(|_| Vec::new()).collect();
     for set in sets {
@@ -512,11 +587,20 @@ pub fn buffers_by_device(
             device_sets.push(set);
         }
     }
+    let mut states = states.into_iter();
     by_device
         .iter()
         .enumerate()
         .map(|(device, device_sets)| {
-            Buffer::new(py, device, device_sets, pads[device], overflowed_sets)
+            let state = states.next().flatten();
+            Buffer::new(
+                py,
+                device,
+                device_sets,
+                pads[device],
+                overflowed_sets,
+                state,
+            )
         })
         .collect()
 }

@@ -104,6 +104,12 @@ fn open_and_start(
         session
             .start()
             .with_context(|| format!("starting the stream of {name}"))?;
+        // The device's state (per pad calibration, tier, geometry, baselines) is followed so
+        // that a saved buffer carries it, as `taxel record` writes it beside a recording; read
+        // once the stream runs, so that no event of the device is discarded.
+        session
+            .start_following_state()
+            .with_context(|| format!("reading the state of {name}"))?;
     }
     Ok(sessions)
 }

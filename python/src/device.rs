@@ -14,6 +14,7 @@ use pyo3::types::PyDict;
 use taxel_host::device_link::{
     open_serial, select_port, LinkStatistics, RequestError, DEFAULT_PID, DEFAULT_VID,
 };
+use taxel_host::device_state::RecordedDeviceState;
 use taxel_host::session::DeviceSession;
 use taxel_host::stream_accounting::StreamAccounting;
 use wire::{Command, InfoFrame, PadIndex, ReplyPayload, SampleRate};
@@ -26,6 +27,10 @@ use crate::errors::{anyhow_error, taxel_error, ErrorKind};
 use crate::events::DeviceEvent;
 use crate::sample_set::{SampleSet, SetRecord};
 use crate::stream::{SetSource, Stream, QUEUE_SETS};
+
+/// How long the device's thread may take to hand over the device's state (it does between two
+/// reads of the link, every 20 ms).
+pub const STATE_WAIT: Duration = Duration::from_millis(500);
 
 /// The read timeout of a serial port: one poll of the link waits at most this.
 pub const PORT_READ_TIMEOUT: Duration = Duration::from_millis(20);
@@ -203,6 +208,22 @@ impl Device {
             .request(py, 0, command, what, timeout, &|| self.ended_error())
     }
 
+    /// What the device computes with now (its state as its session follows it), or as it was
+    /// when its stream ended; `None` when it never said.
+    fn device_state(&self, py: Python<'_>) -> Option<RecordedDeviceState> {
+        let now = self
+            .on_session(py, STATE_WAIT, |session| session.state().cloned())
+            .ok()
+            .flatten();
+        now.or_else(|| {
+            self.stream
+                .state()
+                .ended
+                .as_ref()
+                .and_then(|end| end.state.clone())
+        })
+    }
+
     /// Why the device can no longer be asked anything: closed, or its stream ended.
     fn ended_error(&self) -> PyErr {
         match self.stream.is_ended() {
@@ -211,12 +232,18 @@ impl Device {
         }
     }
 
+    /// After a request that may have changed them: the device's identity, and the state its
+    /// session follows (what a saved buffer carries), asked again.
     fn refresh_info(&self, py: Python<'_>) -> PyResult<()> {
-        if let ReplyPayload::Info(info) =
-            self.request(py, Command::Info, "Info", self.control.timeout)?
-        {
-            self.stream.state().info = info;
-        }
+        let timeout = self.control.timeout;
+        // The identity, then per pad its info and calibration (four requests per taxel).
+        let requests = 1 + self.pads as u32 * 18;
+        let info = self
+            .on_session(py, timeout * requests, |session| {
+                session.refresh_state().map(|()| *session.info())
+            })?
+            .map_err(|error| anyhow_error(&error, ErrorKind::Other))?;
+        self.stream.state().info = info;
         Ok(())
     }
 }
@@ -451,7 +478,15 @@ impl Device {
     #[pyo3(signature = (strict=true))]
     fn read_buffer(&self, py: Python<'_>, strict: bool) -> PyResult<Buffer> {
         let (collected, capacity_sets) = self.control.take_buffer(py)?;
-        let buffer = Buffer::new(py, 0, &collected.sets, self.pads, collected.overflowed_sets)?;
+        let state = self.device_state(py);
+        let buffer = Buffer::new(
+            py,
+            0,
+            &collected.sets,
+            self.pads,
+            collected.overflowed_sets,
+            state,
+        )?;
         if let Some(error) = &collected.error {
             let error = anyhow_error(error, ErrorKind::Link);
             error.value(py).setattr("buffer", Py::new(py, buffer)?)?;
@@ -475,7 +510,15 @@ impl Device {
     /// empty buffer when none was running). Sets arriving afterwards are for :meth:`read`.
     fn stop_buffering(&self, py: Python<'_>) -> PyResult<Buffer> {
         let collected = self.control.stop_buffering(py);
-        Buffer::new(py, 0, &collected.sets, self.pads, collected.overflowed_sets)
+        let state = self.device_state(py);
+        Buffer::new(
+            py,
+            0,
+            &collected.sets,
+            self.pads,
+            collected.overflowed_sets,
+            state,
+        )
     }
 
     /// Whether sets are being collected in the background.

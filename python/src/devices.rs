@@ -10,6 +10,7 @@ use pyo3::exceptions::{PyStopIteration, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use taxel_host::device_link::open_serial;
+use taxel_host::device_state::RecordedDeviceState;
 use taxel_host::host_clock::UnixClock;
 use taxel_host::stamping::MAX_WAIT_US;
 use wire::Command;
@@ -19,7 +20,7 @@ use crate::connect::start_many_interruptibly;
 use crate::control::{closed_error, data_loss_message, Backend, Control, Link};
 use crate::device::{
     expect_ack, info_dict, next_set_until, queue_sets_checked, stats_dict, tare_duration,
-    timeout_from_s, StatsCounts, PORT_READ_TIMEOUT,
+    timeout_from_s, StatsCounts, PORT_READ_TIMEOUT, STATE_WAIT,
 };
 use crate::errors::{anyhow_error, link_error, taxel_error, ErrorKind};
 use crate::events::DeviceEvent;
@@ -250,7 +251,14 @@ impl Devices {
     #[pyo3(signature = (strict=true))]
     fn read_buffer<'py>(&self, py: Python<'py>, strict: bool) -> PyResult<Bound<'py, PyList>> {
         let (collected, capacity_sets) = self.control.take_buffer(py)?;
-        let buffers = buffers_by_device(py, collected.sets, &self.pads, collected.overflowed_sets)?;
+        let states = self.device_states(py);
+        let buffers = buffers_by_device(
+            py,
+            collected.sets,
+            &self.pads,
+            collected.overflowed_sets,
+            states,
+        )?;
         let gaps: u64 = buffers.iter().map(|buffer| buffer.sequence_gap_sets).sum();
         let list = PyList::empty(py);
         for buffer in buffers {
@@ -274,7 +282,14 @@ impl Devices {
     /// :class:`taxel.Buffer` per device.
     fn stop_buffering(&self, py: Python<'_>) -> PyResult<Vec<Buffer>> {
         let collected = self.control.stop_buffering(py);
-        buffers_by_device(py, collected.sets, &self.pads, collected.overflowed_sets)
+        let states = self.device_states(py);
+        buffers_by_device(
+            py,
+            collected.sets,
+            &self.pads,
+            collected.overflowed_sets,
+            states,
+        )
     }
 
     /// Whether sets are being collected in the background.
@@ -384,6 +399,33 @@ impl Devices {
 }
 
 impl Devices {
+    /// What each device computes with now, or as it was when its stream ended (`None` for a
+    /// device that never said); see `Device`'s.
+    fn device_states(&self, py: Python<'_>) -> Vec<Option<RecordedDeviceState>> {
+        let counts = self.timeline.counts();
+        (0..self.pads.len())
+            .map(|device| {
+                let now = self
+                    .control
+                    .on_session(
+                        py,
+                        device,
+                        STATE_WAIT,
+                        &|| self.ended_error(device),
+                        |session| session.state().cloned(),
+                    )
+                    .ok()
+                    .flatten();
+                now.or_else(|| {
+                    counts
+                        .get(device)
+                        .and_then(|track| track.ended.as_ref())
+                        .and_then(|end| end.state.clone())
+                })
+            })
+            .collect()
+    }
+
     fn ended_error(&self, device: usize) -> PyErr {
         match self.timeline.device_ended(device) {
             Some(ended) => taxel_error(ErrorKind::Link, ended.0),

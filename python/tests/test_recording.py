@@ -2,7 +2,9 @@
 simulated devices of 1 and 2 pads) read as arrays, and converted again through the host
 library's engine — the numbers `taxel convert` writes, and the device's own."""
 
+import json
 import subprocess
+import time
 
 import numpy as np
 import pytest
@@ -72,3 +74,46 @@ def test_a_file_of_another_shape_is_refused_and_a_bad_row_is_reported(tmp_path, 
     with pytest.warns(taxel.TaxelWarning, match="line 6"):
         rec = taxel.read_recording(broken)
     assert len(rec) == 9  # the header, 4 rows, the bad line, 5 rows
+
+
+def scaled_calibration(factor):
+    """The default calibration with every curve's dC/C0 scaled by ``factor``: a calibration the
+    device does not start with."""
+    spec = json.loads(taxel.Calibration.default().to_json())
+    for taxel_spec in spec["calibration"]["taxels"]:
+        for point in taxel_spec["points"]:
+            point["relative_change"] *= factor
+    return taxel.Calibration.from_json(json.dumps(spec))
+
+
+def test_a_saved_buffer_converts_again_to_what_the_device_computed(tmp_path):
+    # Pad 1 gets a calibration of its own while the device streams: converting the saved
+    # buffer again must use it and the device's baselines (the state saved beside it), not the
+    # defaults and a tare on the first rows; the sets read before the change are named.
+    with taxel.Simulator(scene="gripper", speed=20.0) as sim:
+        sim.start_buffering()
+        time.sleep(0.2)
+        sim.write_calibration(scaled_calibration(1.4), pad=1)
+        time.sleep(0.5)
+        buffer = sim.stop_buffering()
+    path = tmp_path / "grip.csv"
+    with pytest.warns(taxel.TaxelWarning, match="changed while these sets were read \\(pad 1 before set"):
+        buffer.save(path)
+    state = json.loads((tmp_path / "grip.csv.dev0.device.json").read_text())
+    changed_from = state["pads"][1]["state_from_sequence"]
+    assert state["pads"][0]["state_from_sequence"] == 0
+    assert buffer.sequence[0] < changed_from < buffer.sequence[-1] - 10
+    live = buffer.to_pandas()
+    with pytest.warns(taxel.TaxelWarning, match=f"rows before sequence {changed_from} may have been computed"):
+        again = taxel.convert_recording(path).to_pandas()
+    after = live["seq"] >= changed_from
+    columns = ["p11_kpa", "p12_kpa", "p21_kpa", "p22_kpa", "flags11", "flags12", "flags21",
+               "flags22", "force_n", "cop_x_mm", "cop_y_mm", "contact"]
+    assert live.loc[after, "contact"].any() and np.isfinite(live.loc[after, "p11_kpa"]).any()
+    for column in columns:
+        np.testing.assert_array_equal(again.loc[after, column].to_numpy(), live.loc[after, column].to_numpy(),
+                                      err_msg=column)
+    # The same file without the state beside it converts with the defaults: pad 1 differs.
+    defaults = taxel.convert_recording(path, use_device_state=False).to_pandas()
+    pad_one = after & (live["pad"] == 1)
+    assert not np.allclose(defaults.loc[pad_one, "p11_kpa"], live.loc[pad_one, "p11_kpa"], equal_nan=True)

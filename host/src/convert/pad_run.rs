@@ -150,6 +150,10 @@ pub(super) struct PadRun {
     first: bool,
     // The model inputs of a batch (kept to reuse their memory).
     inputs: Vec<SampleInput>,
+    // Rows before this sequence number may have been computed with another state than the
+    // recorded one; how many came.
+    recorded_from_sequence: u32,
+    rows_before_recorded_state: u64,
 }
 
 impl PadRun {
@@ -167,6 +171,8 @@ impl PadRun {
             last_temperature_sensor: None,
             first: true,
             inputs: Vec::new(),
+            recorded_from_sequence: options.recorded_from_sequence,
+            rows_before_recorded_state: 0,
         })
     }
 
@@ -188,6 +194,9 @@ impl PadRun {
                 break;
             };
             let (sequence, source) = (*sequence, reading.temperature_source);
+            if sequence < self.recorded_from_sequence {
+                self.rows_before_recorded_state += 1;
+            }
             if self.first
                 || self.baselines.change_at(Some(sequence)).is_some()
                 || self.temperature_sensor_changes(source)
@@ -291,6 +300,12 @@ impl PadRun {
     /// The tare's problems, at the end.
     pub(super) fn warnings(self) -> Vec<String> {
         let mut warnings = self.baselines.warnings;
+        if self.rows_before_recorded_state > 0 {
+            warnings.push(format!(
+                "{} rows before sequence {} may have been computed by the device with another calibration, tier or geometry than the recorded one (it changed while the host was reading); they are converted with the recorded one and may differ from what the device sent",
+                self.rows_before_recorded_state, self.recorded_from_sequence
+            ));
+        }
         warnings.extend(self.tare_watch.finish(self.pipeline.model()));
         warnings
     }
