@@ -1,6 +1,7 @@
 //! `taxel-bridge` (also `taxel bridge`): the command line of the `taxel-bridge` library. See
 //! `taxel-bridge --help` and docs/BRIDGE.md.
 
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -10,6 +11,7 @@ use anyhow::Context;
 use clap::Parser;
 use taxel_args::{LinkArgs, MultiBoardArgs};
 use taxel_bridge::commands::DEFAULT_TARE_SAMPLE_SETS;
+use taxel_bridge::foxglove::DEFAULT_FOXGLOVE_ADDRESS;
 use taxel_bridge::network::Network;
 use taxel_bridge::publisher::Naming;
 use taxel_bridge::run::{run, BridgeConfig, Devices, Mode, DEFAULT_QUEUE_CAPACITY};
@@ -37,8 +39,14 @@ Network: as an rmw_zenoh node, the bridge connects to the Zenoh router on this m
 listens on loopback only (tcp/127.0.0.1:7448) for a plain Zenoh subscriber on this machine. \
 Nothing outside the machine reaches it unless you say so: --listen on another interface, \
 --multicast-scouting, or --zenoh-config. See docs/BRIDGE.md.\n\n\
+Foxglove: --foxglove [ADDR] also serves the pads, read-only, over the Foxglove WebSocket \
+protocol (default 127.0.0.1:8765, this machine only): per pad <namespace>/device<d>/pad<p>/state \
+(JSON), a 3D scene of every pad (<namespace>/scene, <namespace>/transforms) and the devices' \
+health (<namespace>/health). In Foxglove: Open connection, Foxglove WebSocket, \
+ws://127.0.0.1:8765.\n\n\
 Examples:\n  taxel bridge --sim 2\n  taxel bridge /dev/ttyACM0\n  \
-taxel bridge --serial 0123ABCD --domain-id 3\n  taxel bridge --sim 1 --listen tcp/0.0.0.0:7448";
+taxel bridge --serial 0123ABCD --domain-id 3\n  taxel bridge --sim 1 --listen tcp/0.0.0.0:7448\n  \
+taxel bridge --sim 1 --sim-scene glove --foxglove";
 
 /// The ROS 2 distribution of the subscribers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -144,6 +152,11 @@ struct BridgeArgs {
     /// so that the reply comes within rmw_zenoh clients' 10 s query timeout.
     #[arg(long, value_name = "SETS", default_value_t = DEFAULT_TARE_SAMPLE_SETS, value_parser = clap::value_parser!(u16).range(1..=128), requires = "allow_commands")]
     tare_sets: u16,
+    /// Also serve the pads to the Foxglove app over the Foxglove WebSocket protocol, read-only,
+    /// on ADDR (default 127.0.0.1:8765: this machine only; 0.0.0.0:PORT opens it to the
+    /// network). Give ADDR as --foxglove=ADDR, or put --foxglove after the ports.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = DEFAULT_FOXGLOVE_ADDRESS)]
+    foxglove: Option<SocketAddr>,
     /// How long to wait for the devices.
     #[command(flatten)]
     link: LinkArgs,
@@ -199,6 +212,7 @@ impl BridgeArgs {
             request_timeout: self.link.timeout(),
             allow_commands: self.allow_commands,
             tare_sample_sets: self.tare_sets,
+            foxglove: self.foxglove,
         })
     }
 }
@@ -279,6 +293,32 @@ mod tests {
         assert_eq!(config.naming.ros_distro, RosDistro::Humble);
         assert!(
             BridgeArgs::try_parse_from(["taxel-bridge", "--sim", "1", "--tare-sets", "8"]).is_err()
+        );
+    }
+
+    #[test]
+    fn foxglove_is_off_unless_asked_and_on_loopback_when_no_address_is_given() {
+        let config = |args: &[&str]| {
+            BridgeArgs::try_parse_from(["taxel-bridge", "--sim", "1"].iter().chain(args))
+                .unwrap()
+                .config()
+                .unwrap()
+                .foxglove
+        };
+        assert_eq!(config(&[]), None);
+        let default = config(&["--foxglove"]).unwrap();
+        assert!(default.ip().is_loopback());
+        assert_eq!(default.port(), 8765);
+        assert_eq!(
+            config(&["--foxglove", "0.0.0.0:9000"]),
+            Some("0.0.0.0:9000".parse().unwrap())
+        );
+        assert_eq!(
+            config(&["--foxglove=127.0.0.1:0", "--duration", "1"]),
+            Some("127.0.0.1:0".parse().unwrap())
+        );
+        assert!(
+            BridgeArgs::try_parse_from(["taxel-bridge", "--foxglove", "/dev/ttyACM0"]).is_err()
         );
     }
 }

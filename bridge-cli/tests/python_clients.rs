@@ -5,7 +5,9 @@
 //! bridge/tests/python/plateau.toml; and the Python MCAP readers again on what
 //! `taxel record --mcap` wrote of a simulated device playing the same scene; and a ROS 2 service
 //! client written from rmw_zenoh's source calling `taxel-bridge --allow-commands`
-//! (bridge/tests/python/call_services.py).
+//! (bridge/tests/python/call_services.py); and a Foxglove WebSocket client written from the
+//! protocol's specification reading `taxel-bridge --foxglove` playing
+//! bridge/tests/python/foxglove_plateau.toml (bridge/tests/python/foxglove_client.py).
 //!
 //! The Python interpreter is `$TAXEL_PYTHON`, a virtual environment with the packages of
 //! bridge/tests/python/requirements.txt (`.ci/run` makes it). Without it the tests say so and
@@ -46,12 +48,17 @@ fn free_port() -> u16 {
 }
 
 fn run_script(python: &str, name: &str, extra: &[String]) {
+    run_script_on(python, name, "plateau.toml", extra);
+}
+
+/// Runs the client `name` on the bridge playing the scene `scene` (of bridge/tests/python/).
+fn run_script_on(python: &str, name: &str, scene: &str, extra: &[String]) {
     let output = Command::new(python)
         .arg(script(name))
         .arg("--bridge")
         .arg(env!("CARGO_BIN_EXE_taxel-bridge"))
         .arg("--scene")
-        .arg(script("plateau.toml"))
+        .arg(script(scene))
         .args(extra)
         .output()
         .unwrap();
@@ -252,6 +259,19 @@ fn a_plain_zenoh_subscriber_reads_the_documented_records() {
     run_script(
         &python,
         "subscribe_plain.py",
+        &["--port".to_owned(), free_port().to_string()],
+    );
+}
+
+#[test]
+fn a_foxglove_client_written_from_the_protocol_specification_sees_the_pads() {
+    let Some(python) = python() else {
+        return;
+    };
+    run_script_on(
+        &python,
+        "foxglove_client.py",
+        "foxglove_plateau.toml",
         &["--port".to_owned(), free_port().to_string()],
     );
 }

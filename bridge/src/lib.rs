@@ -16,12 +16,18 @@
 //! - [`commands`]: the devices' tare and use case served to ROS 2 (`--allow-commands`);
 //! - [`plain`]: the plain mode, for Zenoh users without ROS;
 //! - [`network`]: the Zenoh session's endpoints and their defaults;
+//! - [`foxglove`]: a live view in Foxglove (`--foxglove`): a Foxglove WebSocket server, its
+//!   messages built by [`foxglove_messages`]; [`fanout`] gives every message to it and to the
+//!   Zenoh side;
 //! - [`run`]: a run of the bridge from its [`run::BridgeConfig`] (the command line that fills
 //!   one is the `taxel-bridge` program's, in the `taxel-bridge-cli` package).
 #![deny(missing_docs)]
 #![deny(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod commands;
+pub mod fanout;
+pub mod foxglove;
+pub mod foxglove_messages;
 pub mod health;
 pub mod names;
 pub mod network;

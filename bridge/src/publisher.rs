@@ -161,7 +161,8 @@ pub struct PublishCounts {
 }
 
 /// Where the publishing loop puts frames and health: the ROS 2 form ([`RosPublisher`]) or the
-/// plain one ([`crate::plain::PlainPublisher`]).
+/// plain one ([`crate::plain::PlainPublisher`]), and the Foxglove view
+/// ([`crate::foxglove::FoxglovePublisher`]); [`crate::fanout::FanOut`] gives each to several.
 pub trait FramePublisher {
     /// Publishes one stamped sample frame or contact event.
     fn publish(&mut self, outgoing: &Outgoing) -> anyhow::Result<()>;

@@ -3,6 +3,7 @@
 //! duration, or every device stopped. What the run needs is a [`BridgeConfig`]; the command line
 //! that fills one is the `taxel-bridge` program's.
 
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -22,6 +23,8 @@ use wire::{Command, PadIndex, PadInfoFrame, ReplyPayload};
 use zenoh::Wait;
 
 use crate::commands::CommandSettings;
+use crate::fanout::FanOut;
+use crate::foxglove::{FoxgloveNaming, FoxglovePublisher};
 use crate::health::{DeviceHealth, ReaderState, STOPPED_WORDS};
 use crate::network::Network;
 use crate::plain::PlainPublisher;
@@ -86,6 +89,8 @@ pub struct BridgeConfig {
     pub allow_commands: bool,
     /// The sample sets a tare from ROS 2 averages.
     pub tare_sample_sets: u16,
+    /// Also serve the pads to Foxglove on this address ([`crate::foxglove`]); either mode.
+    pub foxglove: Option<SocketAddr>,
 }
 
 /// Runs the bridge until `stop` is set, the duration has passed, or every device stopped.
@@ -230,6 +235,35 @@ fn closing_words(health: &DeviceHealth) -> String {
     words
 }
 
+/// The Foxglove view's server on `address`, with every pad of `healths` described, its
+/// address said on the console.
+fn start_foxglove(
+    address: SocketAddr,
+    config: &BridgeConfig,
+    healths: &[DeviceHealth],
+) -> anyhow::Result<FoxglovePublisher> {
+    let naming = FoxgloveNaming {
+        namespace: config.naming.namespace.clone(),
+        frame_prefix: config.naming.frame_prefix.clone(),
+    };
+    let mut view = FoxglovePublisher::start(address, naming)?;
+    for (device, health) in healths.iter().enumerate() {
+        for pad_info in &health.pads {
+            view.set_geometry(device, pad_info.pad.get(), pad_geometry(pad_info)?)?;
+        }
+    }
+    let reach = if view.address().ip().is_loopback() {
+        "this machine only"
+    } else {
+        "anyone who reaches this address (read-only)"
+    };
+    noteln!(
+        "Foxglove: ws://{} (Open connection, Foxglove WebSocket), reachable from {reach}",
+        view.address()
+    );
+    Ok(view)
+}
+
 fn bridge_ports(
     config: &BridgeConfig,
     ports: &[String],
@@ -305,6 +339,18 @@ fn bridge_ports(
         }
         Mode::Plain => plain.insert(PlainPublisher::new(session, &config.naming.namespace)),
     };
+    let mut foxglove = match config.foxglove {
+        Some(address) => Some(start_foxglove(address, config, &devices.healths)?),
+        None => None,
+    };
+    let mut fan_out;
+    let publisher: &mut dyn FramePublisher = match foxglove.as_mut() {
+        Some(view) => {
+            fan_out = FanOut::new(vec![publisher, view]);
+            &mut fan_out
+        }
+        None => publisher,
+    };
     // Written under a temporary name and renamed when the bridge ends cleanly, as every file.
     let (timing_log, timing_pending): (Option<TimingLog>, _) = match &config.timing_log {
         Some(path) => {
@@ -351,6 +397,7 @@ fn bridge_ports(
     publication.health(&relay, &queue)?;
     // Flushes and closes the timing log, which can then take its name.
     let counts = publication.finish()?;
+    drop(foxglove);
     if let Some(pending) = timing_pending {
         pending.commit()?;
     }
