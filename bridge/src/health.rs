@@ -21,6 +21,8 @@ pub enum ReaderState {
     Connecting,
     /// Streaming.
     Streaming,
+    /// The device went away (the reason): its port is tried again until it is back.
+    Reconnecting(String),
     /// Stopped: asked to, or the device went away or never answered (the reason).
     Stopped(String),
 }
@@ -29,6 +31,17 @@ pub enum ReaderState {
 pub const STOPPED_WORDS: &str = "stopped";
 
 impl ReaderState {
+    /// The state after the device's stream ended for `reason`, when a device that went away
+    /// is looked for again (`reconnect`) or not.
+    pub fn after_end(reason: &EndReason, reconnect: bool) -> Self {
+        match reason {
+            EndReason::Disconnected(message) if reconnect => Self::Reconnecting(format!(
+                "the device went away ({message}); looking for it again"
+            )),
+            _ => Self::ended(reason),
+        }
+    }
+
     /// The state after the device's stream ended for `reason`.
     pub fn ended(reason: &EndReason) -> Self {
         Self::Stopped(match reason {
@@ -67,6 +80,9 @@ pub struct DeviceHealth {
     /// Sample sets the bridge dropped because its queue was full: one queue for every device,
     /// so this is the count of all devices.
     pub sets_dropped_by_bridge: u64,
+    /// Times the device went away and was read again (the accounting is the current
+    /// connection's).
+    pub reconnections: u64,
 }
 
 fn temperature_source_words(source: Option<TemperatureSource>) -> &'static str {
@@ -109,6 +125,7 @@ pub fn device_status(device: usize, health: &DeviceHealth) -> DiagnosticStatus {
             "frames and events stamped with their arrival (no clock estimate)",
             health.stamped_at_arrival,
         ),
+        KeyValue::new("reconnections", health.reconnections),
     ];
     let mut warnings = Vec::new();
     if let Some(counters) = &health.counters {
@@ -206,7 +223,9 @@ pub fn device_status(device: usize, health: &DeviceHealth) -> DiagnosticStatus {
         ));
     }
     let (level, message) = match &health.state {
-        ReaderState::Stopped(reason) => (DiagnosticLevel::Error, reason.clone()),
+        ReaderState::Stopped(reason) | ReaderState::Reconnecting(reason) => {
+            (DiagnosticLevel::Error, reason.clone())
+        }
         ReaderState::Connecting => (DiagnosticLevel::Stale, "connecting".to_owned()),
         ReaderState::Streaming if warnings.is_empty() => {
             (DiagnosticLevel::Ok, "streaming".to_owned())

@@ -16,6 +16,7 @@
 //! - [`commands`]: the devices' tare and use case served to ROS 2 (`--allow-commands`);
 //! - [`plain`]: the plain mode, for Zenoh users without ROS;
 //! - [`network`]: the Zenoh session's endpoints and their defaults;
+//! - [`reconnect`]: a device that went away looked for again on its port until it is back;
 //! - [`foxglove`]: a live view in Foxglove (`--foxglove`): a Foxglove WebSocket server, its
 //!   messages built by [`foxglove_messages`]; [`fanout`] gives every message to it and to the
 //!   Zenoh side;
@@ -33,6 +34,7 @@ pub mod names;
 pub mod network;
 pub mod plain;
 pub mod publisher;
+pub mod reconnect;
 pub mod relay;
 pub mod run;
 pub mod sequence;

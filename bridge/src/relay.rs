@@ -22,6 +22,7 @@
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::Receiver;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use taxel_host::host_clock::{HostClock, UnixClock};
@@ -29,7 +30,7 @@ use taxel_host::session::{contact_change, SessionEvent};
 use taxel_host::stamping::{Stamped, Stamper};
 use taxel_host::stream_accounting::StreamAccounting;
 use taxel_host::worker::{ArrivedEvent, EventQueue, Worker, WorkerEvent};
-use wire::SampleFrame;
+use wire::{InfoFrame, PadInfoFrame, SampleFrame};
 
 use crate::commands::DeviceCommands;
 use crate::health::{DeviceHealth, ReaderState};
@@ -57,6 +58,8 @@ pub struct Relay {
     /// The bridge's device number of each of the worker's devices (the devices that could not
     /// be opened are not the worker's).
     worker_devices: Vec<usize>,
+    /// A device that went away is looked for again ([`crate::reconnect`]).
+    reconnect: bool,
 }
 
 impl Relay {
@@ -80,7 +83,67 @@ impl Relay {
                 })
                 .collect(),
             worker_devices,
+            reconnect: false,
         }
+    }
+
+    /// From now on a device that goes away is looked for again: its state becomes
+    /// [`ReaderState::Reconnecting`] (the run goes on) instead of stopped.
+    pub fn reconnect_devices(&mut self) {
+        self.reconnect = true;
+    }
+
+    /// The devices looking for their board again: (the bridge's number, the worker's).
+    pub fn reconnecting(&self) -> Vec<(usize, usize)> {
+        self.worker_devices
+            .iter()
+            .enumerate()
+            .filter(|(_, &device)| {
+                self.devices.get(device).is_some_and(|stream| {
+                    matches!(stream.health.state, ReaderState::Reconnecting(_))
+                })
+            })
+            .map(|(worker_device, &device)| (device, worker_device))
+            .collect()
+    }
+
+    /// Device `device` is read again (its session started and handed to the worker): a board
+    /// of `info` with `pads`. Its clock is estimated anew (the board may have restarted), so
+    /// its first items wait for the estimate again. A board whose pads differ from the ones
+    /// the bridge publishes (their number or geometry) is refused: its state becomes stopped
+    /// and the reason is returned.
+    pub fn reattached(
+        &mut self,
+        device: usize,
+        info: InfoFrame,
+        pads: Vec<PadInfoFrame>,
+    ) -> Result<(), String> {
+        let Some(stream) = self.devices.get_mut(device) else {
+            return Err(format!("there is no device {device}"));
+        };
+        let layout = |pads: &[PadInfoFrame]| -> Vec<_> {
+            pads.iter().map(|pad| (pad.pad, pad.taxels)).collect()
+        };
+        if layout(&pads) != layout(&stream.health.pads) {
+            let reason = format!(
+                "another board came back on {} (its pads differ: {} instead of {}); restart the bridge to publish it",
+                stream.health.name,
+                pads.len(),
+                stream.health.pads.len()
+            );
+            stream.health.state = ReaderState::Stopped(reason.clone());
+            return Err(reason);
+        }
+        let mut stamper = Stamper::default();
+        stamper.set_clock_us_per_s(info.clock_us_per_s);
+        stream.stamper = stamper;
+        stream.health.info = Some(info);
+        stream.health.pads = pads;
+        stream.health.state = ReaderState::Streaming;
+        stream.health.reconnections += 1;
+        stream.health.clock = None;
+        stream.accounting = None;
+        Ok(())
     }
 
     /// The clock arrivals are on.
@@ -111,8 +174,8 @@ impl Relay {
                     "device {device} ({name}) is not connected: {reason}"
                 ));
             }
-            ReaderState::Connecting => {
-                return Err(format!("device {device} ({name}) is not connected yet"));
+            ReaderState::Connecting | ReaderState::Reconnecting(_) => {
+                return Err(format!("device {device} ({name}) is not connected"));
             }
             ReaderState::Streaming => {}
         }
@@ -122,7 +185,7 @@ impl Relay {
             .ok_or_else(|| format!("device {device} ({name}) is not read by the bridge"))
     }
 
-    /// Whether any of the worker's devices is still streaming.
+    /// Whether any of the worker's devices is still streaming, or looking for its board.
     pub fn is_running(&self) -> bool {
         self.worker_devices.iter().any(|&device| {
             self.devices
@@ -150,7 +213,7 @@ impl Relay {
                 stream.stamper.release(arrival_us)
             }
             WorkerEvent::Ended(end) => {
-                stream.health.state = ReaderState::ended(&end.reason);
+                stream.health.state = ReaderState::after_end(&end.reason, self.reconnect);
                 stream.health.info = Some(end.info);
                 stream.health.accounting = end.accounting;
                 if end.counters.is_some() {
@@ -358,19 +421,24 @@ impl<'a> Publication<'a> {
 /// How often items waiting for a clock estimate are looked at when no event comes.
 const RELEASE_PERIOD: Duration = Duration::from_millis(100);
 
+/// What the relay loop calls between events to bring devices back ([`crate::reconnect`]).
+pub type ReconnectHook<'a, P> = &'a mut dyn FnMut(&mut Worker<P>, &mut Relay);
+
 /// Publishes the worker's events until `stop` is set, `deadline` passes or every device's
-/// stream ended, and every device's health each `health_period`; serves `commands`, if any,
-/// between events.
+/// stream ended (and none is looked for again), and every device's health each
+/// `health_period`; serves `commands`, if any, and calls `reconnect`, if any, between events.
+#[allow(clippy::too_many_arguments)]
 pub fn relay_events<P: Read + Write + Send + 'static>(
-    worker: &Worker<P>,
+    worker: &mut Worker<P>,
     relay: &mut Relay,
     publication: &mut Publication<'_>,
     mut commands: Option<&mut DeviceCommands>,
+    mut reconnect: Option<ReconnectHook<'_, P>>,
     stop: &AtomicBool,
     deadline: Option<Instant>,
     health_period: Duration,
 ) -> anyhow::Result<()> {
-    let queue = worker.queue();
+    let queue = Arc::clone(worker.queue());
     let mut last_health = Instant::now();
     let mut last_release = Instant::now();
     relay.request_accounting(worker);
@@ -391,8 +459,11 @@ pub fn relay_events<P: Read + Write + Send + 'static>(
         if let Some(commands) = commands.as_deref_mut() {
             commands.poll(worker, relay);
         }
+        if let Some(reconnect) = reconnect.as_deref_mut() {
+            reconnect(worker, relay);
+        }
         if last_health.elapsed() >= health_period {
-            publication.health(relay, queue)?;
+            publication.health(relay, &queue)?;
             relay.request_accounting(worker);
             last_health = Instant::now();
         }
@@ -579,5 +650,71 @@ mod tests {
             ReaderState::Stopped("the device went away: unplugged".into())
         );
         assert_eq!(health.info.map(|info| info.calibration_id), Some(7));
+    }
+
+    #[test]
+    fn a_device_that_went_away_is_looked_for_and_read_again_with_a_new_clock() {
+        let mut relay = relay_of_one_device();
+        relay.reconnect_devices();
+        for step in 0..300_u64 {
+            let true_us = 1_000_000 + step * 10_000;
+            relay.take(set_event(0, true_us + 500, step as u32, true_us));
+        }
+        assert!(relay.healths(0)[1].clock.is_some());
+        let info = wire::testing::info_frame(2);
+        let ended = |reason| ArrivedEvent {
+            device: 0,
+            arrival_us: 4_000_000,
+            event: WorkerEvent::Ended(Box::new(taxel_host::worker::DeviceEnd {
+                reason,
+                info,
+                accounting: StreamAccounting::new(),
+                link: taxel_host::device_link::LinkStatistics::default(),
+                counters: None,
+                state: None,
+            })),
+        };
+        relay.take(ended(taxel_host::worker::EndReason::Disconnected(
+            "unplugged".into(),
+        )));
+        assert!(
+            relay.is_running(),
+            "the run goes on while the board is looked for"
+        );
+        assert_eq!(relay.reconnecting(), vec![(1, 0)]);
+        assert!(matches!(
+            relay.healths(0)[1].state,
+            ReaderState::Reconnecting(_)
+        ));
+        assert!(relay.command_target(1).is_err());
+        // Back: streaming again, its clock estimated anew (the board may have restarted: its
+        // first sets wait for the estimate instead of being stamped with the old one).
+        relay.reattached(1, info, Vec::new()).unwrap();
+        let health = &relay.healths(0)[1];
+        assert_eq!(
+            (health.state.clone(), health.reconnections),
+            (ReaderState::Streaming, 1)
+        );
+        assert!(health.clock.is_none());
+        assert!(relay.reconnecting().is_empty());
+        assert!(
+            relay.take(set_event(0, 9_000_000, 0, 5)).is_empty(),
+            "waits for the clock"
+        );
+        // A board with other pads is refused.
+        relay.take(ended(taxel_host::worker::EndReason::Disconnected(
+            "unplugged".into(),
+        )));
+        let refused = relay
+            .reattached(1, info, vec![wire::testing::pad_info_frame(0)])
+            .unwrap_err();
+        assert!(refused.contains("another board"), "{refused}");
+        assert!(matches!(relay.healths(0)[1].state, ReaderState::Stopped(_)));
+        assert!(!relay.is_running());
+        // A device stopped on purpose is not looked for.
+        let mut relay = relay_of_one_device();
+        relay.reconnect_devices();
+        relay.take(ended(taxel_host::worker::EndReason::Stopped));
+        assert!(relay.reconnecting().is_empty() && !relay.is_running());
     }
 }

@@ -29,6 +29,7 @@ use crate::health::{DeviceHealth, ReaderState, STOPPED_WORDS};
 use crate::network::Network;
 use crate::plain::PlainPublisher;
 use crate::publisher::{FramePublisher, Naming, RosPublisher, TimingLog};
+use crate::reconnect::Reconnector;
 use crate::relay::{relay_events, Publication, Relay};
 
 /// How long one read of a device's port waits (the worker's threads read in slices of 20 ms).
@@ -122,10 +123,13 @@ pub fn run(config: &BridgeConfig, stop: &AtomicBool) -> anyhow::Result<()> {
 }
 
 /// A device's session over its serial port.
-type PortSession = DeviceSession<Box<dyn serialport::SerialPort>>;
+pub(crate) type PortSession = DeviceSession<Box<dyn serialport::SerialPort>>;
 
 /// A device's port opened, identified and its pads described (its stream not started yet).
-fn open_device(port: &str, timeout: Duration) -> anyhow::Result<(PortSession, Vec<PadInfoFrame>)> {
+pub(crate) fn open_device(
+    port: &str,
+    timeout: Duration,
+) -> anyhow::Result<(PortSession, Vec<PadInfoFrame>)> {
     let opened = open_serial(port, PORT_READ_TIMEOUT)?;
     let config = SessionConfig {
         request_timeout: timeout,
@@ -366,18 +370,34 @@ fn bridge_ports(
         config.queue_capacity,
         Overflow::DropOldestSet,
     ));
-    let worker = Worker::start(devices.sessions, Arc::clone(&queue), Arc::new(clock))
+    let mut worker = Worker::start(devices.sessions, Arc::clone(&queue), Arc::new(clock))
         .context("starting the devices' reader threads")?;
     let mut relay = Relay::new(clock, devices.healths, devices.worker_devices);
+    // A board unplugged is looked for again on its port; a simulated device's port goes with
+    // it, so those stop.
+    let mut reconnector = match &config.devices {
+        Devices::Ports(ports) => {
+            relay.reconnect_devices();
+            Some(Reconnector::new(ports.clone(), config.request_timeout))
+        }
+        Devices::Simulated { .. } => None,
+    };
+    let mut reconnect = |worker: &mut Worker<Box<dyn serialport::SerialPort>>,
+                         relay: &mut Relay| {
+        if let Some(reconnector) = reconnector.as_mut() {
+            reconnector.poll(worker, relay);
+        }
+    };
     let mut publication = Publication::new(publisher, timing_log);
     let deadline = config
         .duration_s
         .map(|seconds| Instant::now() + Duration::from_secs_f64(seconds.max(0.0)));
     let result = relay_events(
-        &worker,
+        &mut worker,
         &mut relay,
         &mut publication,
         commands.as_mut(),
+        Some(&mut reconnect),
         stop,
         deadline,
         Duration::from_secs(1),

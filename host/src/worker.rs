@@ -229,6 +229,9 @@ pub struct Worker<P> {
     jobs: Vec<Sender<Job<P>>>,
     stop: Arc<AtomicBool>,
     queue: Arc<EventQueue>,
+    clock: Arc<dyn HostClock>,
+    // Per device: its thread has sent its end (and returns at once).
+    ended: Vec<Arc<AtomicBool>>,
 }
 
 impl<P: Read + Write + Send + 'static> Worker<P> {
@@ -239,29 +242,21 @@ impl<P: Read + Write + Send + 'static> Worker<P> {
         queue: Arc<EventQueue>,
         clock: Arc<dyn HostClock>,
     ) -> std::io::Result<Self> {
-        let stop = Arc::new(AtomicBool::new(false));
         let mut worker = Self {
             threads: Vec::new(),
             jobs: Vec::new(),
-            stop: Arc::clone(&stop),
-            queue: Arc::clone(&queue),
+            stop: Arc::new(AtomicBool::new(false)),
+            queue,
+            clock,
+            ended: Vec::new(),
         };
         for (device, session) in sessions.into_iter().enumerate() {
-            let (sender, jobs) = mpsc::channel();
-            let context = ThreadContext {
-                device,
-                queue: Arc::clone(&queue),
-                clock: Arc::clone(&clock),
-                stop: Arc::clone(&stop),
-                jobs,
-            };
-            let spawned = thread::Builder::new()
-                .name(format!("taxel-device-{device}"))
-                .spawn(move || read_device(session, &context));
-            match spawned {
-                Ok(handle) => {
+            let ended = Arc::new(AtomicBool::new(false));
+            match worker.spawn(device, session, Arc::clone(&ended)) {
+                Ok((handle, sender)) => {
                     worker.threads.push(Some(handle));
                     worker.jobs.push(sender);
+                    worker.ended.push(ended);
                 }
                 Err(error) => {
                     worker.stop_threads();
@@ -270,6 +265,61 @@ impl<P: Read + Write + Send + 'static> Worker<P> {
             }
         }
         Ok(worker)
+    }
+
+    /// Device `device`'s thread, reading `session`.
+    #[allow(clippy::type_complexity)]
+    fn spawn(
+        &self,
+        device: usize,
+        session: DeviceSession<P>,
+        ended: Arc<AtomicBool>,
+    ) -> std::io::Result<(thread::JoinHandle<DeviceSession<P>>, Sender<Job<P>>)> {
+        let (sender, jobs) = mpsc::channel();
+        let context = ThreadContext {
+            device,
+            ended,
+            queue: Arc::clone(&self.queue),
+            clock: Arc::clone(&self.clock),
+            stop: Arc::clone(&self.stop),
+            jobs,
+        };
+        let handle = thread::Builder::new()
+            .name(format!("taxel-device-{device}"))
+            .spawn(move || read_device(session, &context))?;
+        Ok((handle, sender))
+    }
+
+    /// Reads `session` (started) as device `device` again, after that device's stream ended
+    /// (it was unplugged and is back): its events come with the same device number, after its
+    /// end. Fails when there is no such device or its stream has not ended (its end is not
+    /// in the queue yet).
+    pub fn reattach(&mut self, device: usize, session: DeviceSession<P>) -> anyhow::Result<()> {
+        let (Some(slot), Some(ended)) = (self.threads.get_mut(device), self.ended.get(device))
+        else {
+            anyhow::bail!("there is no device {device}");
+        };
+        if !ended.load(Ordering::Acquire) {
+            anyhow::bail!("device {device}'s stream has not ended");
+        }
+        if let Some(handle) = slot.take() {
+            // The old session is over (its thread returns right after its end); its link goes
+            // with it.
+            let _ = handle.join();
+        }
+        let ended = Arc::new(AtomicBool::new(false));
+        let (handle, sender) = self
+            .spawn(device, session, Arc::clone(&ended))
+            .map_err(|error| anyhow::anyhow!("starting a thread for device {device}: {error}"))?;
+        if let Some(flag) = self.ended.get_mut(device) {
+            *flag = ended;
+        }
+        if let (Some(slot), Some(jobs)) = (self.threads.get_mut(device), self.jobs.get_mut(device))
+        {
+            *slot = Some(handle);
+            *jobs = sender;
+        }
+        Ok(())
     }
 
     /// The queue the events arrive in.
@@ -371,6 +421,7 @@ impl<P> Drop for Worker<P> {
 
 struct ThreadContext<P> {
     device: usize,
+    ended: Arc<AtomicBool>,
     queue: Arc<EventQueue>,
     clock: Arc<dyn HostClock>,
     stop: Arc<AtomicBool>,
@@ -487,5 +538,8 @@ fn read_device<P: Read + Write>(
         counters,
         state: session.state().cloned(),
     })));
+    // After the end is in the queue (delivering may wait for room): from here the thread only
+    // returns, so `reattach` can join it.
+    context.ended.store(true, Ordering::Release);
     session
 }

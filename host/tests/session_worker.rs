@@ -205,3 +205,61 @@ fn a_live_queue_drops_its_oldest_sets_counted_and_keeps_every_other_event() {
     drop(worker);
     device.stop();
 }
+
+#[test]
+fn a_device_that_went_away_is_read_again_under_its_number_when_it_is_back() {
+    let first = simulator(None);
+    let queue = Arc::new(EventQueue::new(100_000, Overflow::Wait));
+    let mut worker = Worker::start(
+        vec![session(&first, false)],
+        Arc::clone(&queue),
+        Arc::new(MonotonicClock::new()),
+    )
+    .unwrap();
+    let next_set = |deadline: Instant| loop {
+        assert!(Instant::now() < deadline, "no set");
+        if let Some(arrived) = queue.pop_until(deadline) {
+            if let WorkerEvent::Session(SessionEvent::Set { .. }) = arrived.event {
+                return arrived.device;
+            }
+        }
+    };
+    assert_eq!(next_set(Instant::now() + Duration::from_secs(10)), 0);
+    // A device still streaming cannot be replaced.
+    let other = simulator(None);
+    let refused = worker.reattach(0, session(&other, false)).unwrap_err();
+    assert!(refused.to_string().contains("has not ended"), "{refused}");
+    other.stop();
+    let second = simulator(None);
+    // Unplugged: its stream ends, as a disconnection.
+    first.stop();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let reason = loop {
+        assert!(Instant::now() < deadline, "no end");
+        if let Some(arrived) = queue.pop_until(deadline) {
+            if let WorkerEvent::Ended(end) = arrived.event {
+                assert_eq!(arrived.device, 0);
+                break end.reason;
+            }
+        }
+    };
+    assert!(matches!(reason, EndReason::Disconnected(_)), "{reason:?}");
+    // Back (here another board): its sets come as device 0 again, and requests reach it.
+    let mut back = Some(session(&second, false));
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while let Some(session) = back.take() {
+        if let Err(error) = worker.reattach(0, session) {
+            // The end was taken a moment before the thread marked it: open again.
+            assert!(Instant::now() < deadline, "{error}");
+            std::thread::sleep(Duration::from_millis(100));
+            back = Some(self::session(&second, false));
+        }
+    }
+    assert_eq!(next_set(Instant::now() + Duration::from_secs(10)), 0);
+    let reply = worker
+        .request(0, Command::ReadCounters, Duration::from_secs(5))
+        .unwrap();
+    assert!(matches!(reply, ReplyPayload::Counters(_)), "{reply:?}");
+    drop(worker);
+    second.stop();
+}
