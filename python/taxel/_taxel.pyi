@@ -145,7 +145,8 @@ class Buffer:
         """The sets as the recording schema's long table: one row per pad per set (needs
         pandas)."""
     def save(self, path: Union[str, "os.PathLike[str]"]) -> None:
-        """Writes the sets as a recording of the schema (what ``taxel record`` writes)."""
+        """Writes the sets as a recording of the schema (what ``taxel record`` writes) and,
+        beside it, ``PATH.dev<n>.device.json``: what the device computed them with."""
     def __len__(self) -> int: ...
 
 class DeviceEvent:
