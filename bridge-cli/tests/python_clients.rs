@@ -7,7 +7,9 @@
 //! client written from rmw_zenoh's source calling `taxel-bridge --allow-commands`
 //! (bridge/tests/python/call_services.py); and a Foxglove WebSocket client written from the
 //! protocol's specification reading `taxel-bridge --foxglove` playing
-//! bridge/tests/python/foxglove_plateau.toml (bridge/tests/python/foxglove_client.py).
+//! bridge/tests/python/foxglove_plateau.toml (bridge/tests/python/foxglove_client.py); and a
+//! device unplugged and plugged back while the bridge runs (bridge/tests/python/bridge_faults.py,
+//! its replug scenario in short).
 //!
 //! The Python interpreter is `$TAXEL_PYTHON`, a virtual environment with the packages of
 //! bridge/tests/python/requirements.txt (`.ci/run` makes it). Without it the tests say so and
@@ -273,6 +275,57 @@ fn a_foxglove_client_written_from_the_protocol_specification_sees_the_pads() {
         "foxglove_client.py",
         "foxglove_plateau.toml",
         &["--port".to_owned(), free_port().to_string()],
+    );
+}
+
+/// A device unplugged and plugged back, in short (bridge/tests/python/bridge_faults.py's replug
+/// scenario with `--quick`): two `taxel sim` processes of two pads each, device 0 given to the
+/// bridge as a symbolic link to its terminal; its process killed after 4 s, a new one started
+/// 2 s later and the link repointed to it. The script checks that device 0 is published again,
+/// its status went through ERROR "looking for it again" and says `reconnections` 1, no stamp
+/// of the new connection comes from before it, its sequence numbers go on, and device 1 lost
+/// nothing.
+#[test]
+fn a_device_unplugged_and_plugged_back_is_published_again() {
+    let Some(python) = python() else {
+        return;
+    };
+    let started = std::time::Instant::now();
+    let output = Command::new(&python)
+        .arg(script("bridge_faults.py"))
+        .args(["--scenario", "replug", "--quick"])
+        .arg("--bridge")
+        .arg(env!("CARGO_BIN_EXE_taxel-bridge"))
+        .arg("--taxel")
+        .arg(taxel_cli())
+        .args(["--port", &free_port().to_string()])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success(),
+        "bridge_faults.py failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    // The expectations this test is for, each said to have held.
+    for expectation in [
+        "ok: unplug and replug: from the replug until the subscriber receives device 0 again",
+        "ok: unplug and replug: device 0's status while unplugged",
+        "ok: unplug and replug: device 0's last status: reconnections",
+    ] {
+        assert!(
+            stdout.contains(expectation),
+            "{expectation} missing:\n{stdout}"
+        );
+    }
+    let summary: Vec<&str> = stdout
+        .lines()
+        .filter(|line| line.contains(" passed, ") || line.contains("receives device 0 again"))
+        .collect();
+    eprintln!(
+        "bridge_faults.py --scenario replug --quick: {} ({:.1} s)",
+        summary.join("; "),
+        started.elapsed().as_secs_f64()
     );
 }
 

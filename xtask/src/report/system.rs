@@ -224,7 +224,7 @@ pub(super) fn measured_elsewhere(out: &mut String) {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     for (what, path) in [
         (
-            "The Zenoh / ROS 2 bridge (8 pads bridged on loopback to a Python subscriber)",
+            "The Zenoh / ROS 2 bridge (16 pads bridged on loopback to a Python subscriber; its fault scenarios are in its page)",
             "bridge/PERFORMANCE.md",
         ),
         (
@@ -246,7 +246,12 @@ pub(super) fn measured_elsewhere(out: &mut String) {
                     .collect();
                 let regenerate = regenerate.join(" ");
                 let _ = writeln!(out, "From [{path}](../{path}). {regenerate}\n");
-                for line in text.lines().filter(|line| line.starts_with('|')) {
+                // The page's first table (a page may hold more, such as the bridge's faults).
+                for line in text
+                    .lines()
+                    .skip_while(|line| !line.starts_with('|'))
+                    .take_while(|line| line.starts_with('|'))
+                {
                     let _ = writeln!(out, "{line}");
                 }
                 out.push('\n');
