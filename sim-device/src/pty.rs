@@ -34,7 +34,10 @@ impl PtyPort {
     /// Opens a new pseudo-terminal in raw mode (no echo, no line editing, no newline
     /// translation: binary frames pass unchanged).
     pub fn open() -> io::Result<Self> {
-        let master = posix_openpt(OFlag::O_RDWR | OFlag::O_NOCTTY | OFlag::O_NONBLOCK)?;
+        // Close-on-exec: a child process (a bridge or recorder the host starts) must not keep
+        // the master open, or the device would never look unplugged when the simulator stops.
+        let master =
+            posix_openpt(OFlag::O_RDWR | OFlag::O_NOCTTY | OFlag::O_NONBLOCK | OFlag::O_CLOEXEC)?;
         grantpt(&master)?;
         unlockpt(&master)?;
         let terminal_path = PathBuf::from(ptsname_r(&master)?);
@@ -137,5 +140,35 @@ impl HostPort for PtyPort {
         self.output.extend(&encoded[..length]);
         self.flush();
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::PtyPort;
+
+    #[test]
+    fn a_child_process_does_not_inherit_the_master() {
+        let port = match PtyPort::open() {
+            Ok(port) => port,
+            Err(error) => panic!("opening a pseudo-terminal: {error}"),
+        };
+        // The child lists its own open files: the master is /dev/ptmx (or /dev/pts/ptmx).
+        let listing = std::process::Command::new("ls")
+            .args(["-l", "/proc/self/fd"])
+            .output();
+        let listing = match listing {
+            Ok(output) => String::from_utf8_lossy(&output.stdout).into_owned(),
+            Err(error) => panic!("running ls: {error}"),
+        };
+        assert!(
+            listing.contains("/proc/self/fd") || listing.contains("->"),
+            "{listing}"
+        );
+        assert!(
+            !listing.contains("ptmx"),
+            "the child holds the master:\n{listing}"
+        );
+        drop(port);
     }
 }
