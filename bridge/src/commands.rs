@@ -220,15 +220,7 @@ impl DeviceCommands {
                     ServiceResponse::failed("the device went away before it answered")
                 }
             };
-            answer(
-                &call.query,
-                &call.key,
-                &call.request,
-                call.device,
-                call.kind,
-                response,
-                relay,
-            );
+            call.answer(response, relay);
         }
     }
 
@@ -285,12 +277,7 @@ impl DeviceCommands {
     /// Answers every call still waiting (the bridge is stopping) and undeclares the services.
     pub fn finish(self, relay: &Relay) {
         for call in self.pending {
-            answer(
-                &call.query,
-                &call.key,
-                &call.request,
-                call.device,
-                call.kind,
+            call.answer(
                 ServiceResponse::failed("the bridge stopped before the device answered"),
                 relay,
             );
@@ -374,6 +361,21 @@ fn refusal_words(kind: CommandKind, code: ErrorCode) -> String {
 }
 
 /// Replies `response` to `query` (and says so on the console).
+impl PendingCall {
+    /// Sends `response` as this call's reply.
+    fn answer(&self, response: ServiceResponse, relay: &Relay) {
+        answer(
+            &self.query,
+            &self.key,
+            &self.request,
+            self.device,
+            self.kind,
+            response,
+            relay,
+        );
+    }
+}
+
 fn answer(
     query: &Query,
     key: &str,
