@@ -1,16 +1,15 @@
 """`taxel.Device` on serial ports: against `taxel sim` on a pseudo-terminal (the same shapes as
 `taxel.Simulator`), and the errors of ports that are missing, wrong or silent."""
 
-import _thread
 import os
 import subprocess
-import threading
 import time
 
 import numpy as np
 import pytest
 
 import taxel
+from interrupting import InterruptDuring
 
 
 def start_cli_simulator(taxel_cli, tmp_path, *arguments):
@@ -102,14 +101,13 @@ def test_a_silent_port_times_out_with_the_cli_message():
 
 def test_ctrl_c_interrupts_a_blocking_call():
     controller, terminal = os.openpty()
-    timer = threading.Timer(0.3, _thread.interrupt_main)
     try:
         started = time.monotonic()
-        timer.start()
         with pytest.raises(KeyboardInterrupt):
-            taxel.Device(port=os.ttyname(terminal), timeout=30)
+            with InterruptDuring(0.3) as interrupt:
+                taxel.Device(port=os.ttyname(terminal), timeout=30)
+        assert interrupt.sent, "a device that never answers connected"
         assert time.monotonic() - started < 3
     finally:
-        timer.cancel()
         os.close(controller)
         os.close(terminal)

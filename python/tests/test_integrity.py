@@ -3,7 +3,6 @@ type gives the same numbers (or a clear refusal), flags read from any integer, c
 anywhere ends a blocked read, every wait is bounded, and nothing collected is lost to an
 exception."""
 
-import _thread
 import signal
 import subprocess
 import threading
@@ -14,6 +13,7 @@ import pandas as pd
 import pytest
 
 import taxel
+from interrupting import InterruptDuring
 from test_device import start_cli_simulator
 
 # A pad's reference loads: several unloaded rows, then increasing loads; each taxel has its own
@@ -146,14 +146,13 @@ def test_a_slow_simulator_never_waits_beyond_its_timeout():
 
 
 def test_ctrl_c_interrupts_a_slow_simulator():
-    timer = threading.Timer(0.3, _thread.interrupt_main)
+    # At 1e-9 simulated seconds per second the device answers its first request at most: the
+    # connection cannot finish before the interrupt.
     started = time.monotonic()
-    timer.start()
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            taxel.Simulator(speed=1e-5, timeout=60)
-    finally:
-        timer.cancel()
+    with pytest.raises(KeyboardInterrupt):
+        with InterruptDuring(0.3) as interrupt:
+            taxel.Simulator(speed=1e-9, timeout=60)
+    assert interrupt.sent, "the slow simulator connected before Ctrl-C"
     assert time.monotonic() - started < 3
 
 

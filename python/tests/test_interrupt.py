@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import taxel
+from interrupting import InterruptDuring, send_sigint
 
 # Enough rows that the conversion takes far longer than the wait before the signal, in a debug
 # build (a few µs per row) and in a release build (about 0.1 µs per row) alike: 20 million rows
@@ -27,33 +28,6 @@ def rows_for_at_least(seconds):
     return int(min(20_000_000, max(1_000_000, seconds / per_row_s)))
 
 
-class SigintDuring:
-    """Sends SIGINT to this process `delay_s` after it starts, but only while the work it guards
-    runs: a signal that came after the work ended would interrupt the test session itself."""
-
-    def __init__(self, delay_s):
-        self.sent = []
-        self._lock = threading.Lock()
-        self._active = True
-        self._timer = threading.Timer(delay_s, self._fire)
-
-    def _fire(self):
-        with self._lock:
-            if self._active:
-                self.sent.append(time.perf_counter())
-                os.kill(os.getpid(), signal.SIGINT)
-
-    def __enter__(self):
-        self._timer.start()
-        return self
-
-    def __exit__(self, *exception):
-        with self._lock:
-            self._active = False
-        self._timer.cancel()
-        return False
-
-
 @pytest.mark.skipif(not hasattr(signal, "SIGINT") or os.name != "posix", reason="POSIX signals")
 def test_ctrl_c_interrupts_a_large_convert_within_100_ms():
     rows = rows_for_at_least(6 * SIGNAL_AFTER_S)
@@ -61,7 +35,7 @@ def test_ctrl_c_interrupts_a_large_convert_within_100_ms():
     temperature = np.full(rows, 25.0)
     started = time.perf_counter()
     with pytest.raises(KeyboardInterrupt):
-        with SigintDuring(SIGNAL_AFTER_S) as sigint:
+        with InterruptDuring(SIGNAL_AFTER_S, send_sigint) as sigint:
             taxel.convert(capacitance, temperature)
     raised = time.perf_counter()
     assert sigint.sent, "the conversion ended before the signal: give it more rows"
