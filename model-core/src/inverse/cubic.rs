@@ -114,6 +114,8 @@ struct IntervalData {
     first_cell: u8,
     /// The last seed cell's index in the table.
     last_cell: u8,
+    /// The interval's own index.
+    index: u8,
 }
 
 impl IntervalData {
@@ -123,6 +125,7 @@ impl IntervalData {
         cells_per_relative_change: 0.0,
         first_cell: 0,
         last_cell: 0,
+        index: 0,
     };
 }
 
@@ -196,6 +199,7 @@ impl CubicKnots {
             let rise = high.relative_change - low.relative_change;
             let start_slope = width_kpa * start_tangent;
             let end_slope = width_kpa * end_tangent;
+            data.index = index as u8;
             data.higher_coefficients = [
                 start_slope,
                 3.0 * rise - 2.0 * start_slope - end_slope,
@@ -308,11 +312,19 @@ impl CubicKnots {
         self.solve(curve, relative_change).0
     }
 
-    /// [`CubicKnots::pressure_kpa`] with the number of Newton steps taken outside the bracketed
-    /// stage (one more than [`FAST_NEWTON_STEPS`]: the bracketed stage ran).
+    /// A reading's interval (its points and data), seed cell and position in that cell.
     #[inline(always)]
-    fn solve(&self, curve: &CalibrationCurve, relative_change: f32) -> (f32, usize) {
-        let points = curve.points();
+    fn lookup<'a>(
+        &'a self,
+        points: &'a [CurvePoint],
+        relative_change: f32,
+    ) -> Option<(
+        &'a CurvePoint,
+        &'a CurvePoint,
+        &'a IntervalData,
+        &'a SeedCell,
+        f32,
+    )> {
         // `interval_index`'s scan, from the hint's interval (a saturating conversion: NaN and
         // negative readings start at the first interval, those past the top at the last hint).
         let hint = (relative_change * self.hints_per_relative_change) as usize;
@@ -334,20 +346,30 @@ impl CubicKnots {
             points.get(index + 1),
             self.intervals.get(index),
         ) else {
-            return (0.0, 0);
+            return None;
         };
         let position = (relative_change - low.relative_change) * data.cells_per_relative_change;
         // Saturating again: NaN and negative positions are the first cell, those past the
         // interval's end the last (the seed is then clamped into the interval).
         let local =
             (position as usize).min(usize::from(data.last_cell.saturating_sub(data.first_cell)));
-        let Some(cell) = self.seed_cells.get(usize::from(data.first_cell) + local) else {
+        let cell = self.seed_cells.get(usize::from(data.first_cell) + local)?;
+        Some((low, high, data, cell, position - local as f32))
+    }
+
+    /// [`CubicKnots::pressure_kpa`] with the number of Newton steps taken outside the bracketed
+    /// stage (one more than [`FAST_NEWTON_STEPS`]: the bracketed stage ran).
+    #[inline(always)]
+    fn solve(&self, curve: &CalibrationCurve, relative_change: f32) -> (f32, usize) {
+        let points = curve.points();
+        let Some((low, high, data, cell, u)) = self.lookup(points, relative_change) else {
             return (0.0, 0);
         };
+        let index = usize::from(data.index);
         // Not clamped: for a reading of the interval the seed lies between the cell's end roots
         // (a monotone cubic, up to rounding far inside the cell's reach); for any other the
         // clamps below decide the result.
-        let t = cell.seed(position - local as f32);
+        let t = cell.seed(u);
         let [c1, c2, c3] = data.higher_coefficients;
         let cubic = CubicSegment {
             x_start: 0.0,
@@ -361,14 +383,7 @@ impl CubicKnots {
             // With `next` in `0 ..= 1` the pressure is at least the start (both non-negative);
             // only rounding can take it past the interval's end, and so past the top.
             let pressure_kpa = low.pressure_kpa + next * (high.pressure_kpa - low.pressure_kpa);
-            return (
-                if pressure_kpa > high.pressure_kpa {
-                    high.pressure_kpa
-                } else {
-                    pressure_kpa
-                },
-                1,
-            );
+            return (end_clamped(pressure_kpa, high.pressure_kpa), 1);
         }
         self.solve_further(curve, index, relative_change, next)
     }
@@ -410,10 +425,44 @@ impl CubicKnots {
         )
     }
 
-    /// Pressures for many relative changes, in place: [`CubicKnots::pressure_kpa`] of each.
+    /// Pressures for many relative changes, in place: bit for bit what
+    /// [`CubicKnots::pressure_kpa`] gives for each (tested), arranged for a host converting a
+    /// recording: [`BATCH_LANES`] values at a time, their lookups done one by one and their
+    /// arithmetic (seed, Newton step, test, pressure) step by step across the lanes, which a
+    /// compiler turns into vector instructions (the same IEEE operations per lane). A value whose
+    /// first step is not accepted goes through [`CubicKnots::pressure_kpa`] itself.
     pub(crate) fn pressures_kpa(&self, curve: &CalibrationCurve, values: &mut [f32]) {
-        for value in values.iter_mut() {
+        let mut lanes = values.chunks_exact_mut(BATCH_LANES);
+        for lane_values in &mut lanes {
+            if let Ok(lane_values) = <&mut [f32; BATCH_LANES]>::try_from(lane_values) {
+                self.lanes_pressure_kpa(curve, lane_values);
+            }
+        }
+        for value in lanes.into_remainder() {
             *value = self.pressure_kpa(curve, *value);
+        }
+    }
+
+    /// [`CubicKnots::pressures_kpa`] of one group of lanes.
+    #[inline(always)]
+    fn lanes_pressure_kpa(&self, curve: &CalibrationCurve, values: &mut [f32; BATCH_LANES]) {
+        let points = curve.points();
+        let mut lanes = Lanes::default();
+        for (lane, value) in values.iter().enumerate() {
+            if let Some((low, high, data, cell, u)) = self.lookup(points, *value) {
+                lanes.set(lane, low, high, data, cell, u);
+            }
+        }
+        let mut accepted = [false; BATCH_LANES];
+        let mut pressures_kpa = [0.0f32; BATCH_LANES];
+        lanes.first_step(values, &mut pressures_kpa, &mut accepted);
+        for ((value, pressure_kpa), accepted) in values.iter_mut().zip(pressures_kpa).zip(accepted)
+        {
+            *value = if accepted {
+                pressure_kpa
+            } else {
+                self.pressure_kpa(curve, *value)
+            };
         }
     }
 
@@ -439,6 +488,142 @@ impl CubicKnots {
             }
             _ => 0.0,
         }
+    }
+}
+
+/// Values converted together by [`CubicKnots::pressures_kpa`].
+const BATCH_LANES: usize = 8;
+
+/// Per lane, what the first Newton step from the seed needs, field by field so that each step is
+/// one loop over plain arrays. A lane without a lookup keeps zeros and an infinite bound (never
+/// accepted: it goes the scalar way).
+struct Lanes {
+    seed: [[f32; BATCH_LANES]; 4],
+    u: [f32; BATCH_LANES],
+    cubic: [[f32; BATCH_LANES]; 4],
+    bound_kpa: [f32; BATCH_LANES],
+    start_kpa: [f32; BATCH_LANES],
+    end_kpa: [f32; BATCH_LANES],
+}
+
+impl Default for Lanes {
+    fn default() -> Self {
+        Self {
+            seed: [[0.0; BATCH_LANES]; 4],
+            u: [0.0; BATCH_LANES],
+            cubic: [[0.0; BATCH_LANES]; 4],
+            bound_kpa: [f32::INFINITY; BATCH_LANES],
+            start_kpa: [0.0; BATCH_LANES],
+            end_kpa: [0.0; BATCH_LANES],
+        }
+    }
+}
+
+impl Lanes {
+    /// Lane `lane` takes a reading's lookup.
+    #[inline(always)]
+    fn set(
+        &mut self,
+        lane: usize,
+        low: &CurvePoint,
+        high: &CurvePoint,
+        data: &IntervalData,
+        cell: &SeedCell,
+        u: f32,
+    ) {
+        let [c1, c2, c3] = data.higher_coefficients;
+        let cubic = [low.relative_change, c1, c2, c3];
+        for (column, value) in self.seed.iter_mut().zip(cell.unit_seed) {
+            if let Some(slot) = column.get_mut(lane) {
+                *slot = value;
+            }
+        }
+        for (column, value) in self.cubic.iter_mut().zip(cubic) {
+            if let Some(slot) = column.get_mut(lane) {
+                *slot = value;
+            }
+        }
+        for (column, value) in [
+            (&mut self.u, u),
+            (&mut self.bound_kpa, cell.bound_kpa),
+            (&mut self.start_kpa, low.pressure_kpa),
+            (&mut self.end_kpa, high.pressure_kpa),
+        ] {
+            if let Some(slot) = column.get_mut(lane) {
+                *slot = value;
+            }
+        }
+    }
+
+    /// The scalar fast path's first step in every lane: the pressure and whether it is
+    /// accepted, by the same operations as [`CubicKnots::pressure_kpa`].
+    #[inline(always)]
+    fn first_step(
+        &self,
+        values: &[f32; BATCH_LANES],
+        pressures_kpa: &mut [f32; BATCH_LANES],
+        accepted: &mut [bool; BATCH_LANES],
+    ) {
+        let [s0, s1, s2, s3] = &self.seed;
+        let [c0, c1, c2, c3] = &self.cubic;
+        for lane in 0..BATCH_LANES {
+            let (
+                Some(value),
+                Some(pressure_kpa),
+                Some(accepted),
+                Some(u),
+                Some(bound),
+                Some(start),
+                Some(end),
+            ) = (
+                values.get(lane),
+                pressures_kpa.get_mut(lane),
+                accepted.get_mut(lane),
+                self.u.get(lane),
+                self.bound_kpa.get(lane),
+                self.start_kpa.get(lane),
+                self.end_kpa.get(lane),
+            )
+            else {
+                continue;
+            };
+            let (Some(s0), Some(s1), Some(s2), Some(s3), Some(c0), Some(c1), Some(c2), Some(c3)) = (
+                s0.get(lane),
+                s1.get(lane),
+                s2.get(lane),
+                s3.get(lane),
+                c0.get(lane),
+                c1.get(lane),
+                c2.get(lane),
+                c3.get(lane),
+            ) else {
+                continue;
+            };
+            let seed = SeedCell {
+                unit_seed: [*s0, *s1, *s2, *s3],
+                bound_kpa: *bound,
+            };
+            let cubic = CubicSegment {
+                x_start: 0.0,
+                width: 1.0,
+                coefficients: [*c0, *c1, *c2, *c3],
+            };
+            let t = seed.seed(*u);
+            let step = (cubic.value_at(t) - value) / cubic.slope_at(t);
+            let next = clamp_f32(t - step, 0.0, 1.0);
+            *accepted = *bound * step * step <= ACCEPTED_ERROR_KPA;
+            *pressure_kpa = end_clamped(*start + next * (*end - *start), *end);
+        }
+    }
+}
+
+/// `pressure_kpa`, or `end_kpa` where rounding took it past (module doc, stage 1).
+#[inline(always)]
+fn end_clamped(pressure_kpa: f32, end_kpa: f32) -> f32 {
+    if pressure_kpa > end_kpa {
+        end_kpa
+    } else {
+        pressure_kpa
     }
 }
 
