@@ -32,8 +32,10 @@ host clock (a frame or event that waited 3 s for its device's first clock estima
 its arrival); the attachment's sequence number is the device's, extended to 64 bits and counted \
 from 1 per topic.\n\n\
 Commands: none unless --allow-commands, which serves per device <namespace>/device<d>/tare \
-(std_srvs/srv/Trigger) and <namespace>/device<d>/set_use_case (taxel_msgs/srv/SetUseCase) to \
-anyone who reaches the bridge; calibration writes are never served.\n\n\
+(std_srvs/srv/Trigger: every pad), per pad <namespace>/device<d>/pad<p>/tare \
+(std_srvs/srv/Trigger: that pad only) and per device <namespace>/device<d>/set_use_case \
+(taxel_msgs/srv/SetUseCase) to anyone who reaches the bridge; calibration writes are never \
+served.\n\n\
 Network: as an rmw_zenoh node, the bridge connects to the Zenoh router on this machine \
 (tcp/localhost:7447; it keeps trying while there is none) and does not scout by multicast; it \
 listens on loopback only (tcp/127.0.0.1:7448) for a plain Zenoh subscriber on this machine. \
@@ -143,9 +145,10 @@ struct BridgeArgs {
     /// `ros2 bag` open it).
     #[arg(long, value_name = "FILE")]
     mcap: Option<PathBuf>,
-    /// Serve each device's tare (<namespace>/device<d>/tare, std_srvs/srv/Trigger) and use
-    /// case (<namespace>/device<d>/set_use_case, taxel_msgs/srv/SetUseCase) to ROS 2. Anyone
-    /// who reaches the bridge can then call them: see docs/BRIDGE.md to restrict callers.
+    /// Serve each device's tare (<namespace>/device<d>/tare, std_srvs/srv/Trigger), each pad's
+    /// tare (<namespace>/device<d>/pad<p>/tare) and each device's use case
+    /// (<namespace>/device<d>/set_use_case, taxel_msgs/srv/SetUseCase) to ROS 2. Anyone who
+    /// reaches the bridge can then call them: see docs/BRIDGE.md to restrict callers.
     #[arg(long)]
     allow_commands: bool,
     /// Sample sets a tare from ROS 2 averages (keep the pads unloaded meanwhile); at most 128,

@@ -175,7 +175,7 @@ fn a_service_client_written_from_rmw_zenoh_calls_the_devices_commands() {
     let Some(python) = python() else {
         return;
     };
-    let scene = script("at_rest.toml");
+    let scene = script("held.toml");
     let directory = tempfile::tempdir().unwrap();
     let (mut kept, kept_path) = simulator_process(&scene, 60.0, directory.path(), "kept");
     let (mut unplugged, unplugged_path) =

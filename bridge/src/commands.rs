@@ -1,10 +1,13 @@
-//! Commands from ROS 2, served only with `--allow-commands`: per device `d`, two services in
-//! rmw_zenoh's form (its docs/design.md, "Service servers", and rmw_zenoh_cpp's
-//! `rmw_service_data.cpp`):
+//! Commands from ROS 2, served only with `--allow-commands`: per device `d`, two services, and
+//! one per pad `p` of the device, in rmw_zenoh's form (its docs/design.md, "Service servers",
+//! and rmw_zenoh_cpp's `rmw_service_data.cpp`):
 //!
-//! - `<namespace>/device<d>/tare` (`std_srvs/srv/Trigger`): the device's Tare, over
-//!   [`CommandSettings::tare_sample_sets`] sample sets. The device tares every pad at once
-//!   (`wire::Command::Tare` names no pad), so there is no per-pad tare service;
+//! - `<namespace>/device<d>/tare` (`std_srvs/srv/Trigger`): the device's Tare of every pad, over
+//!   [`CommandSettings::tare_sample_sets`] sample sets;
+//! - `<namespace>/device<d>/pad<p>/tare` (`std_srvs/srv/Trigger`, named like the pad's topics):
+//!   the device's Tare of pad `p` only, over as many sample sets; the other pads keep their
+//!   baselines and go on streaming undisturbed. Served for the pads the device reported when
+//!   the bridge opened it (a device that did not answer then has no per-pad services);
 //! - `<namespace>/device<d>/set_use_case` (`taxel_msgs/srv/SetUseCase`,
 //!   ros2-messages/srv/SetUseCase.srv): the device's SetUseCase; the reply names the model tier
 //!   the device chose.
@@ -32,7 +35,7 @@ use taxel_host::noteln;
 use taxel_host::worker::Worker;
 use taxel_ros2::services::{read_trigger_request, SET_USE_CASE_SERVICE, TRIGGER_SERVICE};
 use taxel_ros2::{ServiceResponse, ServiceType, SetUseCaseRequest};
-use wire::{Command, ErrorCode, ReplyPayload, UseCase};
+use wire::{Command, ErrorCode, PadIndex, ReplyPayload, UseCase};
 use zenoh::handlers::FifoChannelHandler;
 use zenoh::liveliness::LivelinessToken;
 use zenoh::query::{Query, Queryable};
@@ -79,6 +82,17 @@ impl CommandKind {
         )
     }
 
+    /// The service of pad `pad` of device `device` under `namespace`, beside the pad's topics
+    /// (only [`CommandKind::Tare`] is served per pad).
+    pub fn pad_service_name(self, namespace: &str, device: usize, pad: PadIndex) -> String {
+        format!(
+            "{}/device{device}/pad{}/{}",
+            namespace.trim_end_matches('/'),
+            pad.get(),
+            self.word()
+        )
+    }
+
     /// The service's type.
     pub fn service_type(self) -> &'static ServiceType {
         match self {
@@ -113,6 +127,8 @@ impl CommandSettings {
 struct Server {
     device: usize,
     kind: CommandKind,
+    // The one pad the service is for, or the whole device.
+    pad: Option<PadIndex>,
     key: String,
     queryable: Queryable<FifoChannelHandler<Query>>,
     _token: LivelinessToken,
@@ -125,6 +141,7 @@ struct PendingCall {
     request: Attachment,
     device: usize,
     kind: CommandKind,
+    pad: Option<PadIndex>,
     reply: Receiver<Result<ReplyPayload, RequestError>>,
     deadline: Instant,
     timeout: Duration,
@@ -142,20 +159,28 @@ fn zenoh_error(error: zenoh::Error) -> anyhow::Error {
 }
 
 impl DeviceCommands {
-    /// Declares the services of devices `0..devices` on `session`, as entities of `node`
-    /// numbered from `next_entity_id` on.
+    /// Declares the services of devices `0..pad_counts.len()` on `session`, with a tare of
+    /// each of device `d`'s first `pad_counts[d]` pads, as entities of `node` numbered from
+    /// `next_entity_id` on.
     pub fn declare(
         session: &Session,
         node: &GraphNode,
         next_entity_id: &mut u32,
         naming: &Naming,
-        devices: usize,
+        pad_counts: &[u8],
         settings: CommandSettings,
     ) -> anyhow::Result<Self> {
         let mut servers = Vec::new();
-        for device in 0..devices {
-            for kind in CommandKind::ALL {
-                let name = kind.service_name(&naming.namespace, device);
+        for (device, &pad_count) in pad_counts.iter().enumerate() {
+            let device_services = CommandKind::ALL.into_iter().map(|kind| (kind, None));
+            let pad_services = (0..pad_count)
+                .filter_map(PadIndex::new)
+                .map(|pad| (CommandKind::Tare, Some(pad)));
+            for (kind, pad) in device_services.chain(pad_services) {
+                let name = match pad {
+                    Some(pad) => kind.pad_service_name(&naming.namespace, device, pad),
+                    None => kind.service_name(&naming.namespace, device),
+                };
                 let key = key_expression(
                     naming.domain_id,
                     &name,
@@ -176,6 +201,7 @@ impl DeviceCommands {
                 servers.push(Server {
                     device,
                     kind,
+                    pad,
                     key,
                     queryable,
                     _token: token,
@@ -200,14 +226,18 @@ impl DeviceCommands {
         }
         for (index, query) in arrived {
             if let Some(server) = self.servers.get(index) {
-                let (device, kind, key) = (server.device, server.kind, server.key.clone());
-                self.start(query, device, kind, key, worker, relay);
+                let service = Service {
+                    device: server.device,
+                    kind: server.kind,
+                    pad: server.pad,
+                };
+                self.start(query, service, server.key.clone(), worker, relay);
             }
         }
         let now = Instant::now();
         for call in std::mem::take(&mut self.pending) {
             let response = match call.reply.try_recv() {
-                Ok(result) => outcome(call.kind, self.settings, result),
+                Ok(result) => outcome(call.kind, call.pad, self.settings, result),
                 Err(TryRecvError::Empty) if now < call.deadline => {
                     self.pending.push(call);
                     continue;
@@ -227,19 +257,19 @@ impl DeviceCommands {
     fn start<P: Read + Write + Send + 'static>(
         &mut self,
         query: Query,
-        device: usize,
-        kind: CommandKind,
+        service: Service,
         key: String,
         worker: &Worker<P>,
         relay: &Relay,
     ) {
+        let Service { device, kind, pad } = service;
         let request = query
             .attachment()
             .and_then(|bytes| Attachment::parse(&bytes.to_bytes()));
         let Some(request) = request else {
             noteln!(
                 "device {device}: a {} request without rmw_zenoh's attachment, refused",
-                kind.word()
+                service.words()
             );
             let _ = query
                 .reply_err("a request needs rmw_zenoh's attachment: sequence number, source timestamp, client GID")
@@ -251,7 +281,7 @@ impl DeviceCommands {
             .map(|payload| payload.to_bytes().into_owned())
             .unwrap_or_default();
         let timeout = self.settings.timeout(kind);
-        let sent = command_of(kind, &payload, self.settings).and_then(|command| {
+        let sent = command_of(kind, pad, &payload, self.settings).and_then(|command| {
             let worker_device = relay
                 .command_target(device)
                 .map_err(ServiceResponse::failed)?;
@@ -266,11 +296,12 @@ impl DeviceCommands {
                 request,
                 device,
                 kind,
+                pad,
                 reply,
                 deadline: Instant::now() + timeout + Duration::from_millis(200),
                 timeout,
             }),
-            Err(response) => answer(&query, &key, &request, device, kind, response, relay),
+            Err(response) => answer(&query, &key, &request, service, response, relay),
         }
     }
 
@@ -285,9 +316,29 @@ impl DeviceCommands {
     }
 }
 
-/// The device command of a request, or the response refusing it.
+/// Which service a call came to.
+#[derive(Debug, Clone, Copy)]
+struct Service {
+    device: usize,
+    kind: CommandKind,
+    pad: Option<PadIndex>,
+}
+
+impl Service {
+    /// The service, for people: `tare`, `pad 1 tare`.
+    fn words(self) -> String {
+        match self.pad {
+            Some(pad) => format!("pad {} {}", pad.get(), self.kind.word()),
+            None => self.kind.word().to_owned(),
+        }
+    }
+}
+
+/// The device command of a request to `kind` (of pad `pad` only, if given), or the response
+/// refusing it.
 fn command_of(
     kind: CommandKind,
+    pad: Option<PadIndex>,
     payload: &[u8],
     settings: CommandSettings,
 ) -> Result<Command, ServiceResponse> {
@@ -295,6 +346,7 @@ fn command_of(
         CommandKind::Tare => read_trigger_request(payload)
             .map(|()| Command::Tare {
                 sample_sets: settings.tare_sample_sets,
+                pad,
             })
             .map_err(|error| {
                 ServiceResponse::failed(format!("not a std_srvs/srv/Trigger request: {error}"))
@@ -314,17 +366,22 @@ fn command_of(
     }
 }
 
-/// The response to the device's answer to `kind`.
+/// The response to the device's answer to `kind` (of pad `pad` only, if given).
 fn outcome(
     kind: CommandKind,
+    pad: Option<PadIndex>,
     settings: CommandSettings,
     answer: Result<ReplyPayload, RequestError>,
 ) -> ServiceResponse {
     match (kind, answer) {
-        (CommandKind::Tare, Ok(ReplyPayload::Ack)) => ServiceResponse::done(format!(
-            "tared over {} sample sets",
-            settings.tare_sample_sets
-        )),
+        (CommandKind::Tare, Ok(ReplyPayload::Ack)) => ServiceResponse::done(match pad {
+            Some(pad) => format!(
+                "tared pad {} over {} sample sets",
+                pad.get(),
+                settings.tare_sample_sets
+            ),
+            None => format!("tared over {} sample sets", settings.tare_sample_sets),
+        }),
         (CommandKind::SetUseCase, Ok(ReplyPayload::ModelTier(tier))) => {
             ServiceResponse::done(format!("the device chose model tier {}", tier_words(tier)))
         }
@@ -340,6 +397,9 @@ fn refusal_words(kind: CommandKind, code: ErrorCode) -> String {
         (_, ErrorCode::Busy) => "it is busy (a tare is already running)",
         (CommandKind::Tare, ErrorCode::TareNotStill) => {
             "a pad was not still (pressed or moving); tare again with the pads unloaded and at rest"
+        }
+        (CommandKind::Tare, ErrorCode::InvalidArgument) => {
+            "it has no such pad (fewer pads than when the bridge opened it)"
         }
         (CommandKind::Tare, ErrorCode::TareFailed) => {
             "the tare finished without a baseline for every taxel (a pad was loaded, or a taxel is open or shorted)"
@@ -364,12 +424,16 @@ fn refusal_words(kind: CommandKind, code: ErrorCode) -> String {
 impl PendingCall {
     /// Sends `response` as this call's reply.
     fn answer(&self, response: ServiceResponse, relay: &Relay) {
+        let service = Service {
+            device: self.device,
+            kind: self.kind,
+            pad: self.pad,
+        };
         answer(
             &self.query,
             &self.key,
             &self.request,
-            self.device,
-            self.kind,
+            service,
             response,
             relay,
         );
@@ -380,11 +444,11 @@ fn answer(
     query: &Query,
     key: &str,
     request: &Attachment,
-    device: usize,
-    kind: CommandKind,
+    service: Service,
     response: ServiceResponse,
     relay: &Relay,
 ) {
+    let device = service.device;
     let now_ns = i64::try_from(relay.now_ns()).unwrap_or(i64::MAX);
     let attachment = attachment(request.sequence_number, now_ns, &request.gid);
     let sent = query
@@ -395,12 +459,12 @@ fn answer(
     match sent {
         Ok(()) => noteln!(
             "device {device}: {} from ROS 2 {outcome}: {}",
-            kind.word(),
+            service.words(),
             response.message
         ),
         Err(error) => noteln!(
             "device {device}: {} from ROS 2 {outcome} ({}), and the reply failed: {error}",
-            kind.word(),
+            service.words(),
             response.message
         ),
     }
@@ -426,6 +490,10 @@ mod tests {
             "/taxel/device0/set_use_case"
         );
         assert_eq!(
+            CommandKind::Tare.pad_service_name("/taxel/", 1, PadIndex::new(3).unwrap()),
+            "/taxel/device1/pad3/tare"
+        );
+        assert_eq!(
             SETTINGS.timeout(CommandKind::Tare),
             Duration::from_millis(5_200)
         );
@@ -434,8 +502,23 @@ mod tests {
     #[test]
     fn requests_become_the_devices_commands() {
         assert_eq!(
-            command_of(CommandKind::Tare, &[0, 1, 0, 0, 0], SETTINGS),
-            Ok(Command::Tare { sample_sets: 64 })
+            command_of(CommandKind::Tare, None, &[0, 1, 0, 0, 0], SETTINGS),
+            Ok(Command::Tare {
+                sample_sets: 64,
+                pad: None
+            })
+        );
+        assert_eq!(
+            command_of(
+                CommandKind::Tare,
+                PadIndex::new(2),
+                &[0, 1, 0, 0, 0],
+                SETTINGS
+            ),
+            Ok(Command::Tare {
+                sample_sets: 64,
+                pad: PadIndex::new(2)
+            })
         );
         let request = SetUseCaseRequest {
             pressure_max_kpa: 50.0,
@@ -444,10 +527,11 @@ mod tests {
             error_budget_kpa: 0.5,
         };
         assert_eq!(
-            command_of(CommandKind::SetUseCase, &request.to_cdr(), SETTINGS),
+            command_of(CommandKind::SetUseCase, None, &request.to_cdr(), SETTINGS),
             Ok(Command::SetUseCase(UseCase::GRIPPER))
         );
-        let refused = command_of(CommandKind::SetUseCase, &[0, 1, 0, 0, 1], SETTINGS).unwrap_err();
+        let refused =
+            command_of(CommandKind::SetUseCase, None, &[0, 1, 0, 0, 1], SETTINGS).unwrap_err();
         assert!(!refused.success);
         assert!(refused
             .message
@@ -456,22 +540,38 @@ mod tests {
 
     #[test]
     fn the_devices_answers_become_responses() {
-        let done = outcome(CommandKind::Tare, SETTINGS, Ok(ReplyPayload::Ack));
+        let done = outcome(CommandKind::Tare, None, SETTINGS, Ok(ReplyPayload::Ack));
         assert_eq!(done, ServiceResponse::done("tared over 64 sample sets"));
+        let pad = PadIndex::new(1);
+        let done = outcome(CommandKind::Tare, pad, SETTINGS, Ok(ReplyPayload::Ack));
+        assert_eq!(
+            done,
+            ServiceResponse::done("tared pad 1 over 64 sample sets")
+        );
+        let refused = outcome(
+            CommandKind::Tare,
+            pad,
+            SETTINGS,
+            Err(RequestError::Refused(ErrorCode::InvalidArgument)),
+        );
+        assert!(!refused.success && refused.message.contains("no such pad"));
         let chose = outcome(
             CommandKind::SetUseCase,
+            None,
             SETTINGS,
             Ok(ReplyPayload::ModelTier(wire::Tier::Linear)),
         );
         assert!(chose.success && chose.message.starts_with("the device chose model tier"));
         let refused = outcome(
             CommandKind::Tare,
+            None,
             SETTINGS,
             Err(RequestError::Refused(ErrorCode::TareNotStill)),
         );
         assert!(!refused.success && refused.message.contains("not still"));
         let timeout = outcome(
             CommandKind::SetUseCase,
+            None,
             SETTINGS,
             Err(RequestError::Timeout {
                 request_id: 3,

@@ -13,7 +13,8 @@
 //! - [`names`]: rmw_zenoh's key expressions, liveliness tokens, GIDs and attachment;
 //! - [`sequence`]: the device's 32-bit sequence numbers as a publisher's 64-bit ones from 1;
 //! - [`publisher`]: the Zenoh session and the publishers in the ROS 2 form;
-//! - [`commands`]: the devices' tare and use case served to ROS 2 (`--allow-commands`);
+//! - [`commands`]: the devices' tare and use case, and each pad's tare, served to ROS 2
+//!   (`--allow-commands`);
 //! - [`plain`]: the plain mode, for Zenoh users without ROS;
 //! - [`network`]: the Zenoh session's endpoints and their defaults;
 //! - [`reconnect`]: a device that went away looked for again on its port until it is back;

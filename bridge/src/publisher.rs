@@ -258,12 +258,12 @@ impl RosPublisher {
         })
     }
 
-    /// Serves the commands of `devices` devices from ROS 2 (`--allow-commands`): their
-    /// services are entities of the bridge's node, numbered after the publishers declared so
-    /// far.
+    /// Serves the commands of devices `0..pad_counts.len()` from ROS 2 (`--allow-commands`),
+    /// with a tare of each of device `d`'s `pad_counts[d]` pads: their services are entities of
+    /// the bridge's node, numbered after the publishers declared so far.
     pub fn declare_commands(
         &mut self,
-        devices: usize,
+        pad_counts: &[u8],
         settings: CommandSettings,
     ) -> anyhow::Result<DeviceCommands> {
         DeviceCommands::declare(
@@ -271,7 +271,7 @@ impl RosPublisher {
             &self.node,
             &mut self.next_entity_id,
             &self.naming,
-            devices,
+            pad_counts,
             settings,
         )
     }

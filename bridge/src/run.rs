@@ -86,7 +86,8 @@ pub struct BridgeConfig {
     pub mcap: Option<PathBuf>,
     /// How long a device has to answer a request.
     pub request_timeout: Duration,
-    /// Serve each device's tare and use case to ROS 2 ([`crate::commands`]); ROS 2 form only.
+    /// Serve each device's tare and use case, and each pad's tare, to ROS 2
+    /// ([`crate::commands`]); ROS 2 form only.
     pub allow_commands: bool,
     /// The sample sets a tare from ROS 2 averages.
     pub tare_sample_sets: u16,
@@ -288,7 +289,7 @@ fn bridge_ports(
         .map_err(|error| anyhow::anyhow!("opening the Zenoh session: {error}"))?;
     let naming = config.naming.clone();
     let commands_words = if config.allow_commands {
-        "commands accepted from ROS 2 (--allow-commands): tare and set_use_case of each device, from anyone who reaches the bridge"
+        "commands accepted from ROS 2 (--allow-commands): tare and set_use_case of each device, tare of each pad, from anyone who reaches the bridge"
     } else {
         "no commands accepted"
     };
@@ -337,7 +338,13 @@ fn bridge_ports(
                     tare_sample_sets: config.tare_sample_sets,
                     request_timeout: config.request_timeout,
                 };
-                commands = Some(publisher.declare_commands(devices.healths.len(), settings)?);
+                // A device that did not answer has no pads known, and so no per-pad tare.
+                let pad_counts: Vec<u8> = devices
+                    .healths
+                    .iter()
+                    .map(|health| health.info.map_or(0, |info| info.pad_count))
+                    .collect();
+                commands = Some(publisher.declare_commands(&pad_counts, settings)?);
             }
             publisher
         }

@@ -216,11 +216,19 @@ pub struct Device<A, P> {
     streaming: bool,
     text_mode: bool,
     host_connected: bool,
-    pending_tare: Option<u16>,
+    pending_tare: Option<PendingTare>,
     host_counters: HostCounters,
     sets_since_counters: u32,
     announce_flash_corrupt: bool,
     pads: heapless::Vec<PadReporting, MAX_PADS>,
+}
+
+/// A tare command waiting for its pads to finish.
+#[derive(Clone, Copy)]
+struct PendingTare {
+    request_id: u16,
+    // The one pad tared, or every pad.
+    pad: Option<usize>,
 }
 
 /// Every taxel of a pad, as a mask (bit n: taxel n).
@@ -539,10 +547,10 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         }
     }
 
-    /// The reply to a tare every pad finished, and the periodic counters.
+    /// The reply to a tare every pad it tares finished, and the periodic counters.
     fn after_set<H: HostPort>(&mut self, host: &mut H) {
-        if let Some(request_id) = self.pending_tare {
-            if let Some(result) = self.tare_result() {
+        if let Some(PendingTare { request_id, pad }) = self.pending_tare {
+            if let Some(result) = self.tare_result(pad) {
                 self.pending_tare = None;
                 self.send(
                     host,
@@ -560,12 +568,16 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
         }
     }
 
-    /// The reply to a tare once every pad finished it (`None` while one is still averaging):
-    /// Ack when every taxel of every pad was tared, else why not.
-    fn tare_result(&self) -> Option<Result<ReplyPayload, ErrorCode>> {
+    /// The reply to a tare once every pad it tares (`only`, or every pad) finished it (`None`
+    /// while one is still averaging): Ack when every taxel of those pads was tared, else why not.
+    fn tare_result(&self, only: Option<usize>) -> Option<Result<ReplyPayload, ErrorCode>> {
         let mut all_tared = true;
         let mut not_still = false;
-        for pad in 0..self.control.pad_count() {
+        let pads = match only {
+            Some(pad) => pad..pad.saturating_add(1),
+            None => 0..self.control.pad_count(),
+        };
+        for pad in pads {
             let model = self.control.pad(pad)?;
             let TareStatus::Finished { tared_mask } = model.tare_status() else {
                 return None;
@@ -719,18 +731,23 @@ impl<A: DeviceControl, P: CalibrationPersistence> Device<A, P> {
                 self.control.set_sample_rate(rate);
                 Ok(ReplyPayload::Ack)
             }
-            Command::Tare { sample_sets } => {
+            Command::Tare { sample_sets, pad } => {
+                let pad = pad.map(|pad| usize::from(pad.get()));
                 if self.pending_tare.is_some() {
                     Err(ErrorCode::Busy)
                 } else if self.control.pad_count() == 0 {
                     Err(ErrorCode::NotSupported)
+                } else if pad.is_some_and(|pad| pad >= self.control.pad_count()) {
+                    Err(ErrorCode::InvalidArgument)
                 } else {
-                    for pad in 0..self.control.pad_count() {
-                        if let Some(model) = self.control.pad_mut(pad) {
-                            model.start_tare(sample_sets);
+                    for index in 0..self.control.pad_count() {
+                        if pad.is_none_or(|pad| pad == index) {
+                            if let Some(model) = self.control.pad_mut(index) {
+                                model.start_tare(sample_sets);
+                            }
                         }
                     }
-                    self.pending_tare = Some(request_id);
+                    self.pending_tare = Some(PendingTare { request_id, pad });
                     return None;
                 }
             }

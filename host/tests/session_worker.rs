@@ -81,7 +81,10 @@ fn two_devices_deliver_every_set_in_order_and_answer_requests_while_streaming() 
                 let reply = worker
                     .request(
                         device,
-                        Command::Tare { sample_sets: 8 },
+                        Command::Tare {
+                            sample_sets: 8,
+                            pad: None,
+                        },
                         Duration::from_secs(5),
                     )
                     .unwrap();
@@ -174,7 +177,14 @@ fn a_live_queue_drops_its_oldest_sets_counted_and_keeps_every_other_event() {
     // Nobody reads for a while; then a tare, whose events must survive the full queue.
     std::thread::sleep(Duration::from_millis(500));
     worker
-        .request(0, Command::Tare { sample_sets: 4 }, Duration::from_secs(5))
+        .request(
+            0,
+            Command::Tare {
+                sample_sets: 4,
+                pad: None,
+            },
+            Duration::from_secs(5),
+        )
         .unwrap();
     std::thread::sleep(Duration::from_millis(1500));
     let events = queue.drain();

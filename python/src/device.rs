@@ -541,17 +541,19 @@ impl Device {
             .collect()
     }
 
-    /// Tares every pad: the unloaded reference of each taxel becomes the mean of the next
-    /// ``sample_sets`` sets (keep the pads unloaded). Returns when the device says it is done.
-    #[pyo3(signature = (sample_sets=64))]
-    fn tare(&self, py: Python<'_>, sample_sets: u16) -> PyResult<()> {
+    /// Tares every pad, or pad ``pad`` only: the unloaded reference of each of its taxels
+    /// becomes the mean of the next ``sample_sets`` sets (keep the pads unloaded); the other
+    /// pads keep theirs. Returns when the device says it is done.
+    #[pyo3(signature = (sample_sets=64, pad=None))]
+    fn tare(&self, py: Python<'_>, sample_sets: u16, pad: Option<u8>) -> PyResult<()> {
         if sample_sets == 0 {
             return Err(PyValueError::new_err("sample_sets must be at least 1"));
         }
+        let pad = pad.map(|pad| self.pad_index(pad)).transpose()?;
         let rate_sps = self.stream.state().info.rate.sps();
         let payload = self.request(
             py,
-            Command::Tare { sample_sets },
+            Command::Tare { sample_sets, pad },
             "Tare",
             self.control.timeout + tare_duration(sample_sets, rate_sps),
         )?;

@@ -321,7 +321,10 @@ impl Devices {
             let payload = self.control.request(
                 py,
                 device,
-                Command::Tare { sample_sets },
+                Command::Tare {
+                    sample_sets,
+                    pad: None,
+                },
                 &format!("Tare (device {device})"),
                 self.control.timeout + tare_duration(sample_sets, rate_sps),
                 &|| self.ended_error(device),

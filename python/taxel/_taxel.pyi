@@ -271,8 +271,8 @@ class Device:
         """Whether sets are being collected in the background."""
     def events(self) -> List[DeviceEvent]:
         """The device events that arrived since the last call, oldest first."""
-    def tare(self, sample_sets: int = 64) -> None:
-        """Tares every pad on the mean of the next ``sample_sets`` sets."""
+    def tare(self, sample_sets: int = 64, pad: Optional[int] = None) -> None:
+        """Tares every pad (or ``pad`` only) on the mean of the next ``sample_sets`` sets."""
     def set_rate(self, rate_sps: int) -> None:
         """Sets the converter rate: 100, 200 or 400 conversions per second."""
     def set_tier(self, tier: str) -> None:

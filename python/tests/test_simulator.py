@@ -215,3 +215,59 @@ def test_closed_device_and_bad_arguments():
         taxel.Simulator(speed=0)
     with pytest.raises(ValueError, match="timeout must be a positive number"):
         taxel.Simulator(timeout=-1)
+
+
+HELD_SCENE = """
+name = "two pads held"
+repeat = false
+{pads}
+"""
+
+HELD_PAD = """
+[[pad]]
+name = "pad {pad}"
+[[pad.keyframe]]
+time_s = 0.0
+pressure_kpa = [0.0, 0.0, 0.0, 0.0]
+temperature_c = 25.0
+[[pad.keyframe]]
+time_s = 0.8
+pressure_kpa = [0.0, 0.0, 0.0, 0.0]
+temperature_c = 25.0
+[[pad.keyframe]]
+time_s = 1.0
+pressure_kpa = [4.0, 4.0, 4.0, 4.0]
+temperature_c = 25.0
+[[pad.keyframe]]
+time_s = 1000.0
+pressure_kpa = [4.0, 4.0, 4.0, 4.0]
+temperature_c = 25.0
+"""
+
+
+def test_a_tare_of_one_pad_leaves_the_other_pads_alone(tmp_path):
+    # Both pads unloaded for the tare at power-on, then pressed with 4 kPa and held still: a
+    # tare takes the held load as the tared pad's zero, so each pad's pressure shows whether
+    # that pad was tared.
+    scene = tmp_path / "held.toml"
+    scene.write_text(HELD_SCENE.format(pads="".join(HELD_PAD.format(pad=pad) for pad in (0, 1))))
+    with taxel.Simulator(scene=str(scene), speed=5.0) as sim:
+        assert sim.pads == 2
+        sample = sim.read()
+        while sample.device_time_s < 1.5:
+            sample = sim.read()
+        np.testing.assert_allclose(sample.pressure_kpa, 4.0, atol=0.5)
+        sim.events()
+        sim.tare(sample_sets=8, pad=1)
+        tares = [(event.kind, event.pad) for event in sim.events() if event.kind.startswith("tare")]
+        assert tares == [("tare_finished", 1)]
+        time.sleep(0.2)
+        pressures = sim.latest().pressure_kpa
+        np.testing.assert_allclose(pressures[:4], 4.0, atol=0.5, err_msg="pad 0 keeps its baseline")
+        np.testing.assert_allclose(pressures[4:], 0.0, atol=0.5, err_msg="pad 1 was tared under the load")
+
+        with pytest.raises(ValueError, match="there is no pad 2"):
+            sim.tare(sample_sets=8, pad=2)
+        sim.tare(sample_sets=8)
+        time.sleep(0.2)
+        np.testing.assert_allclose(sim.latest().pressure_kpa, 0.0, atol=0.5)

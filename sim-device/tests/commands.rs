@@ -187,14 +187,20 @@ fn every_supported_rate_streams_clean_sample_sets_at_that_rate() {
 fn a_tare_replies_when_done_and_refuses_overlap_and_zero() {
     let mut host = Host::new();
     assert_eq!(
-        host.request(Command::Tare { sample_sets: 0 }),
+        host.request(Command::Tare {
+            sample_sets: 0,
+            pad: None
+        }),
         Err(ErrorCode::InvalidArgument)
     );
     let mut encoded = [0u8; 64];
     let length = wire::encode_frame(
         &Request {
             request_id: 500,
-            command: Command::Tare { sample_sets: 64 },
+            command: Command::Tare {
+                sample_sets: 64,
+                pad: None,
+            },
         },
         &mut encoded,
     )
@@ -202,7 +208,10 @@ fn a_tare_replies_when_done_and_refuses_overlap_and_zero() {
     host.send_bytes(&encoded[..length]);
     host.steps(2);
     assert_eq!(
-        host.request(Command::Tare { sample_sets: 8 }),
+        host.request(Command::Tare {
+            sample_sets: 8,
+            pad: None
+        }),
         Err(ErrorCode::Busy)
     );
     let mut reply = None;
@@ -229,7 +238,10 @@ fn a_tare_while_the_pad_is_pressed_is_refused_as_not_still() {
     let length = wire::encode_frame(
         &Request {
             request_id: 600,
-            command: Command::Tare { sample_sets: 32 },
+            command: Command::Tare {
+                sample_sets: 32,
+                pad: None,
+            },
         },
         &mut encoded,
     )
@@ -267,7 +279,10 @@ fn a_tare_while_the_pad_is_pressed_is_refused_as_not_still() {
     // Held at 3 kPa from 4 s: still, so it tares (a deliberate tare under a static load).
     host.steps(100);
     assert_eq!(
-        host.request(Command::Tare { sample_sets: 32 }),
+        host.request(Command::Tare {
+            sample_sets: 32,
+            pad: None
+        }),
         Ok(ReplyPayload::Ack)
     );
 }
@@ -425,7 +440,10 @@ fn a_calibrated_c0_is_carried_end_to_end_and_a_tare_far_from_it_is_flagged() {
         Ok(ReplyPayload::Ack)
     );
     assert_eq!(
-        host.request(Command::Tare { sample_sets: 8 }),
+        host.request(Command::Tare {
+            sample_sets: 8,
+            pad: None
+        }),
         Ok(ReplyPayload::Ack)
     );
     assert_ne!(latest_flags(&mut host, 1, 5) & FAR, 0);
@@ -461,7 +479,10 @@ fn a_calibrated_c0_is_carried_end_to_end_and_a_tare_far_from_it_is_flagged() {
         other => panic!("{other:?}"),
     }
     assert_eq!(
-        host.request(Command::Tare { sample_sets: 8 }),
+        host.request(Command::Tare {
+            sample_sets: 8,
+            pad: None
+        }),
         Ok(ReplyPayload::Ack)
     );
     assert_eq!(latest_flags(&mut host, 1, 5) & FAR, 0);
@@ -642,7 +663,10 @@ fn baselines_are_read_back_and_every_tare_is_announced() {
 
     // The demo scene is still before 3 s: a new tare succeeds and is announced.
     assert_eq!(
-        host.request(Command::Tare { sample_sets: 8 }),
+        host.request(Command::Tare {
+            sample_sets: 8,
+            pad: None
+        }),
         Ok(ReplyPayload::Ack)
     );
     let mut announced = false;
@@ -650,7 +674,10 @@ fn baselines_are_read_back_and_every_tare_is_announced() {
     let length = wire::encode_frame(
         &Request {
             request_id: 600,
-            command: Command::Tare { sample_sets: 4 },
+            command: Command::Tare {
+                sample_sets: 4,
+                pad: None,
+            },
         },
         &mut encoded,
     )

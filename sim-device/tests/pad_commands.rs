@@ -1,14 +1,16 @@
 //! The per-pad commands on a simulated device with several pads: PadInfo describes where each
-//! pad is, calibration and baseline commands address one pad, each pad's saved calibration
-//! survives a reboot, and a pad index the device does not have is refused.
+//! pad is, calibration, baseline and tare commands address one pad, each pad's saved
+//! calibration survives a reboot, and a pad index the device does not have is refused.
 
 // Test helpers may unwrap and panic: a failure is the test failing.
 #![allow(clippy::unwrap_used, clippy::panic)]
 
+use sensor_sim::{Keyframe, ScriptedScene};
 use sim_device::testing::Host;
+use sim_device::{SceneFile, SimulatedDeviceConfig};
 use wire::{
-    CalibrationSource, Command, ErrorCode, PadIndex, PadInfoFrame, ReplyPayload, TemperatureSensor,
-    UseCase,
+    CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, PadIndex,
+    PadInfoFrame, ReplyPayload, Request, TaxelBaselineWire, TemperatureSensor, UseCase,
 };
 
 fn pad(index: u8) -> PadIndex {
@@ -329,4 +331,201 @@ fn each_pad_has_its_own_geometry_reported_used_and_kept() {
     assert_eq!(pad_info(&mut host, 1).taxels, narrow);
     assert_eq!(pad_info(&mut host, 1).role, PadRole::GripperJaw);
     assert_eq!(pad_info(&mut host, palm).role, PadRole::Palm);
+}
+
+/// Every taxel's baseline of pad `index`.
+fn baselines(host: &mut Host, index: u8) -> Vec<TaxelBaselineWire> {
+    (0..4)
+        .map(|taxel_index| {
+            match host.request(Command::ReadBaseline {
+                pad: pad(index),
+                taxel_index,
+            }) {
+                Ok(ReplyPayload::Baseline(baseline)) => baseline,
+                other => panic!("pad {index} taxel {taxel_index}: {other:?}"),
+            }
+        })
+        .collect()
+}
+
+/// Sends `command` as request `request_id` and steps until its reply: the reply and every event
+/// the device sent meanwhile.
+fn request_with_events(
+    host: &mut Host,
+    request_id: u16,
+    command: Command,
+) -> (Result<ReplyPayload, ErrorCode>, Vec<DeviceEvent>) {
+    let mut encoded = [0u8; 64];
+    let length = wire::encode_frame(
+        &Request {
+            request_id,
+            command,
+        },
+        &mut encoded,
+    )
+    .unwrap();
+    host.send_bytes(&encoded[..length]);
+    let mut events = Vec::new();
+    for _ in 0..400 {
+        for frame in host.steps(1) {
+            match frame {
+                DeviceFrame::Event(EventFrame { event, .. }) => events.push(event),
+                DeviceFrame::Reply(reply) if reply.request_id == request_id => {
+                    return (reply.result, events);
+                }
+                _ => {}
+            }
+        }
+    }
+    panic!("no reply to request {request_id}");
+}
+
+/// Both pads unloaded for the tare at boot, then 5 kPa on every taxel from 1.2 s on, held still.
+fn held_press(_pad: usize) -> ScriptedScene {
+    let keyframe = |time_s, pressure_kpa| Keyframe {
+        time_s,
+        pressure_kpa: [pressure_kpa; 4],
+        temperature_c: 25.0,
+    };
+    ScriptedScene::new(vec![
+        keyframe(0.0, 0.0),
+        keyframe(1.0, 0.0),
+        keyframe(1.2, 5.0),
+        keyframe(10.0, 5.0),
+    ])
+    .unwrap()
+}
+
+/// The last sample of pad `index` that `host` decoded: its pressures, kPa.
+fn last_pressures_kpa(host: &Host, index: u8) -> [f32; 4] {
+    let sample = host
+        .samples
+        .iter()
+        .rev()
+        .find(|sample| sample.pad == pad(index))
+        .unwrap();
+    sample
+        .taxels
+        .map(|taxel| taxel.pressure_kpa.unwrap_or(f32::NAN))
+}
+
+/// Both pads pressed and held; a tare of pad 1 takes the held load as pad 1's zero and leaves
+/// pad 0 alone: its baselines, its pressure and its events.
+#[test]
+fn a_tare_of_one_pad_tares_that_pad_only() {
+    let mut host = Host::with_config(SimulatedDeviceConfig::new(
+        SceneFile::default_scene().unwrap(),
+        2,
+    ));
+    for index in 0..2 {
+        let scene = held_press(index);
+        host.device
+            .simulation()
+            .set_pad_scene(index, move |time_us: u64| {
+                scene.point_at_s(time_us as f64 / 1e6)
+            })
+            .unwrap();
+    }
+    host.run_until_s(2.0);
+    let (pad_0_before, pad_1_before) = (baselines(&mut host, 0), baselines(&mut host, 1));
+    assert!(pad_0_before
+        .iter()
+        .chain(&pad_1_before)
+        .all(|taxel| taxel.baseline.is_some()));
+    for index in 0..2 {
+        for pressure_kpa in last_pressures_kpa(&host, index) {
+            assert!(
+                (pressure_kpa - 5.0).abs() < 0.5,
+                "pad {index}: {pressure_kpa} kPa"
+            );
+        }
+    }
+
+    let (reply, events) = request_with_events(
+        &mut host,
+        700,
+        Command::Tare {
+            sample_sets: 16,
+            pad: Some(pad(1)),
+        },
+    );
+    assert_eq!(reply, Ok(ReplyPayload::Ack));
+    assert_eq!(
+        events,
+        [DeviceEvent::TareFinished {
+            pad: pad(1),
+            tared_mask: 0b1111
+        }]
+    );
+    host.steps(8);
+    assert_eq!(baselines(&mut host, 0), pad_0_before, "pad 0 was not tared");
+    let pad_1_after = baselines(&mut host, 1);
+    for (before, after) in pad_1_before.iter().zip(&pad_1_after) {
+        let (Some(before), Some(after)) = (before.baseline, after.baseline) else {
+            panic!("pad 1 lost a baseline: {before:?} {after:?}");
+        };
+        // The held load raised the capacitance pad 1 was tared at.
+        assert!(
+            after.offset_pf + after.fine_pf > before.offset_pf + before.fine_pf + 0.01,
+            "{before:?} -> {after:?}"
+        );
+    }
+    for pressure_kpa in last_pressures_kpa(&host, 0) {
+        assert!(
+            (pressure_kpa - 5.0).abs() < 0.5,
+            "pad 0: {pressure_kpa} kPa"
+        );
+    }
+    for pressure_kpa in last_pressures_kpa(&host, 1) {
+        assert!(pressure_kpa.abs() < 0.5, "pad 1: {pressure_kpa} kPa");
+    }
+
+    // Every pad, as before version 6: pad 0 is tared too.
+    let (reply, events) = request_with_events(
+        &mut host,
+        701,
+        Command::Tare {
+            sample_sets: 16,
+            pad: None,
+        },
+    );
+    assert_eq!(reply, Ok(ReplyPayload::Ack));
+    let mut tared: Vec<u8> = events
+        .iter()
+        .filter_map(|event| match event {
+            DeviceEvent::TareFinished { pad, .. } => Some(pad.get()),
+            _ => None,
+        })
+        .collect();
+    tared.sort_unstable();
+    assert_eq!(tared, [0, 1]);
+    assert_ne!(baselines(&mut host, 0), pad_0_before);
+}
+
+#[test]
+fn a_tare_of_a_pad_the_device_lacks_is_refused_and_tares_nothing() {
+    let mut host = Host::with_pads(2);
+    let before = [baselines(&mut host, 0), baselines(&mut host, 1)];
+    for index in [2, 7] {
+        let (reply, events) = request_with_events(
+            &mut host,
+            800 + u16::from(index),
+            Command::Tare {
+                sample_sets: 8,
+                pad: Some(pad(index)),
+            },
+        );
+        assert_eq!(reply, Err(ErrorCode::InvalidArgument));
+        assert!(events.is_empty(), "{events:?}");
+    }
+    host.steps(40);
+    assert_eq!([baselines(&mut host, 0), baselines(&mut host, 1)], before);
+    // Nothing is left pending: the next tare is not Busy.
+    assert_eq!(
+        host.request(Command::Tare {
+            sample_sets: 8,
+            pad: Some(pad(0)),
+        }),
+        Ok(ReplyPayload::Ack)
+    );
 }

@@ -245,7 +245,10 @@ fn a_tare_during_a_recording_is_followed_by_the_conversion() {
             let reply = worker
                 .request(
                     0,
-                    DeviceCommand::Tare { sample_sets: 8 },
+                    DeviceCommand::Tare {
+                        sample_sets: 8,
+                        pad: None,
+                    },
                     Duration::from_secs(5),
                 )
                 .unwrap();

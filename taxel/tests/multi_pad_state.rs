@@ -331,7 +331,14 @@ fn a_tare_during_a_recording_lands_in_each_pads_own_history() {
         if tare_reply.is_none() && recorder.sets_taken()[0] >= BEFORE_TARE {
             tare_reply = Some(
                 worker
-                    .send(0, WireCommand::Tare { sample_sets: 8 }, timeout)
+                    .send(
+                        0,
+                        WireCommand::Tare {
+                            sample_sets: 8,
+                            pad: None,
+                        },
+                        timeout,
+                    )
                     .unwrap(),
             );
         }

@@ -3,7 +3,8 @@
 //! "estimating", staleness on the host clock whatever the device clocks say, one pad of any
 //! device in detail), `taxel view --once PORT PORT` against two `taxel sim` processes, and the
 //! view's engine on two simulated devices: tare, and recordings from the record key read back
-//! with the recording schema's reader.
+//! with the recording schema's reader; on one device of two pads, the tare key with a pad shown
+//! in detail tares that pad only.
 // Helpers outside #[test] functions unwrap too: a failure there is a test failure.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -438,6 +439,63 @@ fn the_record_key_records_every_device_into_the_schema() {
     check_recording(&second_csv, false);
     first.stop();
     second.stop();
+}
+
+/// With a pad shown in the detailed view the tare key tares that pad only: the recording's state
+/// has new baselines for it and none for the device's other pad.
+#[test]
+fn the_tare_key_tares_only_the_pad_shown_in_detail() {
+    let config = sim_device::scene_config(None, Some(2), Some(1.0), 3).unwrap();
+    let simulator = sim_device::SimulatorThread::start(config, Some(60.0)).unwrap();
+    let directory = tempfile::tempdir().unwrap();
+    let port = simulator.path().to_string_lossy().into_owned();
+    let mut args = ViewArgs::for_ports(vec![port], false);
+    args.record_dir = directory.path().to_path_buf();
+    args.tare_sets = 8;
+    let mut live = LiveView::new(&args, None).unwrap();
+    live.tick();
+    tick_until(&mut live, Duration::from_secs(10), |live| {
+        live.view().every_device_has(10)
+    });
+    assert_eq!(live.view().pad_in_detail(), None);
+    live.press('1');
+    assert_eq!(live.view().pad_in_detail(), Some((0, 1)));
+    assert!(live.press('r'));
+    tick_for(&mut live, Duration::from_millis(300));
+    live.press('t');
+    assert!(
+        live.view().devices[0]
+            .state
+            .status
+            .starts_with("tare of pad 1 running"),
+        "{}",
+        live.view().devices[0].state.status
+    );
+    tick_for(&mut live, Duration::from_millis(1000));
+    live.press('r');
+    tick_until(&mut live, Duration::from_secs(5), |live| {
+        !live.is_recording()
+    });
+    let csv = new_recording(directory.path(), &[]);
+    let state =
+        RecordedDeviceState::read(Path::new(&format!("{}.dev0.device.json", csv.display())))
+            .unwrap();
+    assert_eq!(state.pads.len(), 2);
+    assert_eq!(
+        state.pads[0].baselines.len(),
+        1,
+        "pad 0 keeps the baselines of its tare at power-on: {:?}",
+        state.pads[0].baselines
+    );
+    assert!(
+        state.pads[1].baselines.len() >= 2,
+        "pad 1 was tared: {:?}",
+        state.pads[1].baselines
+    );
+    live.press('a');
+    assert_eq!(live.view().pad_in_detail(), None);
+    drop(live.finish());
+    simulator.stop();
 }
 
 /// A device that goes away is said so, ends a recording (saved with what it has), and is

@@ -16,8 +16,10 @@ pub const CALIBRATION_POINTS_MAX: usize = 16;
 pub const COMMAND_COUNT: u32 = 16;
 
 /// The discriminants of the commands whose arguments are typed values ([`SampleRate`], [`Tier`],
-/// [`PadIndex`]) that refuse numbers outside their range when they are decoded.
+/// [`PadIndex`], also inside an `Option`) that refuse numbers outside their range when they are
+/// decoded.
 const SET_RATE_DISCRIMINANT: u32 = 4;
+const TARE_DISCRIMINANT: u32 = 5;
 const SET_MODEL_TIER_DISCRIMINANT: u32 = 6;
 const READ_CALIBRATION_DISCRIMINANT: u32 = 8;
 const READ_BASELINE_DISCRIMINANT: u32 = 13;
@@ -192,11 +194,14 @@ pub enum Command {
         /// The rate.
         rate: SampleRate,
     },
-    /// Takes the unloaded reference of every taxel as the mean of this many sample sets
-    /// (at least 1). Replies Ack when done.
+    /// Takes the unloaded reference of every taxel of one pad, or of every pad, as the mean of
+    /// this many sample sets (at least 1). Replies Ack when every pad tared is done;
+    /// [`ErrorCode::InvalidArgument`] for a pad the device lacks.
     Tare {
         /// The number of sample sets to average.
         sample_sets: u16,
+        /// The pad to tare, the others left as they are; `None` tares every pad (version 6).
+        pad: Option<PadIndex>,
     },
     /// Selects a model tier; an id that is no tier is [`ErrorCode::InvalidArgument`], a tier
     /// the calibration in use cannot provide [`ErrorCode::NotSupported`]. Replies Ack.
@@ -280,7 +285,9 @@ impl Command {
     /// Checks the arguments the wire protocol constrains; `Err` is the error code to reply.
     pub fn check_arguments(&self) -> Result<(), ErrorCode> {
         match self {
-            Command::Tare { sample_sets } if *sample_sets == 0 => Err(ErrorCode::InvalidArgument),
+            Command::Tare { sample_sets, .. } if *sample_sets == 0 => {
+                Err(ErrorCode::InvalidArgument)
+            }
             Command::SetUseCase(use_case) if !use_case.is_valid() => {
                 Err(ErrorCode::InvalidArgument)
             }
@@ -338,6 +345,7 @@ impl Request {
                         discriminant,
                         Some(
                             SET_RATE_DISCRIMINANT
+                                | TARE_DISCRIMINANT
                                 | SET_MODEL_TIER_DISCRIMINANT
                                 | READ_CALIBRATION_DISCRIMINANT
                                 | READ_BASELINE_DISCRIMINANT

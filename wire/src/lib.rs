@@ -66,8 +66,8 @@ pub use postcard::Error as PostcardError;
 /// the device several pads: a sample frame per pad with its index, force, centre of pressure
 /// and contact; contact events; the pad count in the info frame. Version 4 added the device
 /// clock's rate to the info frame; version 5 each pad's role and geometry to `PadInfo` and the
-/// `SetPadGeometry` command.
-pub const PROTOCOL_VERSION: u8 = 5;
+/// `SetPadGeometry` command; version 6 the pad to tare (or every pad) to the `Tare` command.
+pub const PROTOCOL_VERSION: u8 = 6;
 
 /// The number of taxels on the pad: C11, C12, C21, C22 in this order (row, column).
 pub const TAXEL_COUNT: usize = 4;

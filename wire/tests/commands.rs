@@ -50,7 +50,10 @@ fn command_discriminants_are_the_documented_ones() {
         Command::SetRate {
             rate: SampleRate::Sps100,
         },
-        Command::Tare { sample_sets: 1 },
+        Command::Tare {
+            sample_sets: 1,
+            pad: None,
+        },
         Command::SetModelTier { tier: Tier::Linear },
         Command::SetUseCase(use_case()),
         Command::ReadCalibration {
@@ -202,8 +205,24 @@ fn only_100_200_and_400_samples_per_second_are_rates() {
 #[test]
 fn arguments_out_of_range_are_invalid() {
     let invalid = Err(ErrorCode::InvalidArgument);
-    assert_eq!(Command::Tare { sample_sets: 0 }.check_arguments(), invalid);
-    assert_eq!(Command::Tare { sample_sets: 1 }.check_arguments(), Ok(()));
+    for pad in [None, PadIndex::new(7)] {
+        assert_eq!(
+            Command::Tare {
+                sample_sets: 0,
+                pad
+            }
+            .check_arguments(),
+            invalid
+        );
+        assert_eq!(
+            Command::Tare {
+                sample_sets: 1,
+                pad
+            }
+            .check_arguments(),
+            Ok(())
+        );
+    }
     assert_eq!(
         Command::ReadCalibration {
             pad: PadIndex::default(),
@@ -320,6 +339,42 @@ fn a_tier_is_one_of_the_ids_and_any_other_is_an_invalid_argument() {
             Tier::from_id(id).map(|tier| Command::SetModelTier { tier }),
         );
     }
+}
+
+#[test]
+fn a_tare_names_its_pad_after_the_sample_sets_and_a_pad_above_7_is_an_invalid_argument() {
+    // Tare (command 5), 300 sample sets (varint AC 02), then the pad as a postcard Option.
+    let decode = |pad: &[u8]| {
+        let mut body = vec![5u8, 5, 0xAC, 0x02];
+        body.extend(pad);
+        let frame = raw_frame(PROTOCOL_VERSION, wire::kind::REQUEST, &body);
+        let mut decoder = RequestDecoder::new();
+        let results: Vec<_> = decoder.feed(&frame).collect();
+        results
+    };
+    let tare = |pad| {
+        Ok(Request {
+            request_id: 5,
+            command: Command::Tare {
+                sample_sets: 300,
+                pad,
+            },
+        })
+    };
+    assert_eq!(decode(&[0]), [tare(None)]);
+    assert_eq!(decode(&[1, 0]), [tare(PadIndex::new(0))]);
+    assert_eq!(decode(&[1, 7]), [tare(PadIndex::new(7))]);
+    let refused = |error| {
+        [Err(DecodeError::InvalidRequest {
+            request_id: 5,
+            error,
+        })]
+    };
+    assert_eq!(decode(&[1, 8]), refused(ErrorCode::InvalidArgument));
+    // Not an Option tag, or the pad missing: the body is malformed (a version-5 tare had no pad).
+    assert_eq!(decode(&[2, 0]), refused(ErrorCode::Malformed));
+    assert_eq!(decode(&[1]), refused(ErrorCode::Malformed));
+    assert_eq!(decode(&[]), refused(ErrorCode::Malformed));
 }
 
 #[test]

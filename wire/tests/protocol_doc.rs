@@ -48,6 +48,16 @@ fn examples() -> Vec<(&'static str, Vec<u8>)> {
                 result: Err(ErrorCode::InvalidArgument),
             })),
         ),
+        (
+            "request-tare-pad",
+            encode(&Request {
+                request_id: 3,
+                command: Command::Tare {
+                    sample_sets: 64,
+                    pad: Some(pad(1)),
+                },
+            }),
+        ),
         ("sample", encode(&DeviceFrame::Sample(example_sample()))),
         (
             "request-write-calibration",

@@ -19,11 +19,14 @@ service_msgs/msg/ServiceEventInfo's `char[16]` as rosidl sees it (`uint8[16]`: r
 Jazzy store has it as char, which gives another hash). Trigger's hash is also checked against
 the literal of ROS 2 Jazzy's generated std_srvs (share/std_srvs/srv/Trigger.json).
 
-The run: two simulated devices playing bridge/tests/python/at_rest.toml (started by the caller,
-bridge-cli/tests/python_clients.rs: device 1's simulator stops after --unplugged-after seconds,
-as if unplugged), bridged with --allow-commands. Calls: a tare (succeeds), a valid use case (the
-device names its tier), an invalid one (the device refuses), a malformed request, a per-pad tare
-(not served: the device tares every pad at once), and a tare of the unplugged device (answered
+The run: two simulated devices of two pads playing bridge/tests/python/held.toml (both pads
+pressed and held still from 1.3 s on; started by the caller, bridge-cli/tests/python_clients.rs:
+device 1's simulator stops after --unplugged-after seconds, as if unplugged), bridged with
+--allow-commands. Calls: a tare of device 0's pad 1 (succeeds, and the pads' published wrenches
+show that pad 1's force went to zero while pad 0 still carries the held load), a tare of the
+device (succeeds, and pad 0's force goes to zero too), a valid use case (the device names its
+tier), an invalid one (the device refuses), a malformed request, a tare of pad 2 (not served:
+the devices have two pads), and a tare of the unplugged device and of one of its pads (answered
 success=false within a bounded time). Then a bridge without --allow-commands, for Humble: no
 service token, no answer, and the key expressions and tokens carry `TypeHashNotSupported`.
 
@@ -154,7 +157,7 @@ def wait_for(predicate, seconds):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--bridge", required=True)
-    parser.add_argument("--scene", required=True, help="the simulated devices' scene (at_rest.toml)")
+    parser.add_argument("--scene", required=True, help="the simulated devices' scene (held.toml)")
     parser.add_argument("--srv", required=True, help="ros2-messages/srv/SetUseCase.srv")
     parser.add_argument("--ports", nargs=2, required=True, help="device 0's and device 1's terminals")
     parser.add_argument("--unplugged-after", type=float, required=True,
@@ -180,21 +183,42 @@ def main():
     services = {(device, word): (f"0/taxel/device{device}/{word}/{dds}/{type_hash}")
                 for device in range(2)
                 for word, dds, type_hash in (("tare", "std_srvs::srv::dds_::Trigger_", trigger_hash),
+                                             ("pad0/tare", "std_srvs::srv::dds_::Trigger_", trigger_hash),
+                                             ("pad1/tare", "std_srvs::srv::dds_::Trigger_", trigger_hash),
                                              ("set_use_case", "taxel_msgs::srv::dds_::SetUseCase_", use_case_hash))}
+
+    # Each pad's force (N, pressing positive), as published on its wrench topic, with when it came.
+    forces = {0: [], 1: []}
+
+    def on_wrench(pad):
+        def on_sample(sample):
+            message = store.deserialize_cdr(sample.payload.to_bytes(), "geometry_msgs/msg/WrenchStamped")
+            with lock:
+                forces[pad].append((time.monotonic(), -message.wrench.force.z))
+        return on_sample
+
+    wrench_subscribers = [session.declare_subscriber(f"0/taxel/device0/pad{pad}/wrench/**", on_wrench(pad))
+                          for pad in (0, 1)]
+
+    def mean_force_n(pad, since):
+        with lock:
+            recent = [force for arrived, force in forces[pad] if arrived >= since]
+        return sum(recent) / len(recent) if recent else float("nan")
 
     def service_tokens():
         with lock:
             return [token for token in tokens if token.split("/")[5:6] == ["SS"]]
 
-    wait_for(lambda: len(service_tokens()) >= 4, 10)
+    wait_for(lambda: len(service_tokens()) >= 8, 10)
     found = service_tokens()
     for (device, word), key in services.items():
         name, dds, type_hash = key.split("/", 1)[1].rsplit("/", 2)
         wanted = f"/SS/%/%/taxel_bridge/{'%' + name.replace('/', '%')}/{dds}/{type_hash}/::,10:,:,:,,"
         checks.check(any(token.endswith(wanted) for token in found),
                      f"a service server token for /{name} ({dds}, {type_hash})")
-    checks.check(len(found) == 4, f"four service tokens, none per pad ({len(found)})")
-    # Device 0 finishes its power-on tare before it is asked for one.
+    checks.check(len(found) == 8, f"eight service tokens, two per device and one per pad ({len(found)})")
+    # Device 0 finishes its power-on tare, and its pads are pressed and held, before it is asked
+    # for a tare.
     wait_for(lambda: False, max(0.0, 3.0 - (time.monotonic() - started)))
 
     def decode(replies, response_type):
@@ -203,12 +227,31 @@ def main():
         key, payload, attachment = replies[0]
         return key, store.deserialize_cdr(payload, response_type), attachment
 
+    held = [mean_force_n(pad, time.monotonic() - 0.5) for pad in (0, 1)]
+    checks.check(all(abs(force - 0.4) < 0.05 for force in held),
+                 f"both pads carry the held 0.4 N before any tare ({held[0]:.3f} N, {held[1]:.3f} N)")
     trigger = store.serialize_cdr(store.types["std_srvs/srv/Trigger_Request"](), "std_srvs/srv/Trigger_Request")
+    replies, seconds, _ = client.call(services[(0, "pad1/tare")], trigger)
+    key, response, _ = decode(replies, "std_srvs/srv/Trigger_Response")
+    checks.check(response is not None and response.success and response.message == "tared pad 1 over 16 sample sets",
+                 f"device 0's pad 1 tared in {seconds:.2f} s ({response})")
+    checks.check(key == services[(0, "pad1/tare")], f"the pad's reply is on its service's key expression ({key})")
+    since = time.monotonic() + 0.2
+    wait_for(lambda: False, 0.7)
+    after = [mean_force_n(pad, since) for pad in (0, 1)]
+    checks.check(abs(after[1]) < 0.05 and abs(after[0] - 0.4) < 0.05,
+                 f"only pad 1 was tared: pad 1 reads the held load as zero, pad 0 still reads it ({after[0]:.3f} N, {after[1]:.3f} N)")
+
     replies, seconds, sequence = client.call(services[(0, "tare")], trigger)
     key, response, attachment = decode(replies, "std_srvs/srv/Trigger_Response")
     checks.check(response is not None and response.success and response.message == "tared over 16 sample sets",
                  f"device 0 tared in {seconds:.2f} s ({response})")
     checks.check(key == services[(0, "tare")], f"the reply is on the service's key expression ({key})")
+    since = time.monotonic() + 0.2
+    wait_for(lambda: False, 0.7)
+    after = [mean_force_n(pad, since) for pad in (0, 1)]
+    checks.check(all(abs(force) < 0.05 for force in after),
+                 f"the device's tare tared every pad ({after[0]:.3f} N, {after[1]:.3f} N)")
     if attachment:
         reply_sequence, reply_ns, length = struct.unpack_from("<qqB", attachment)
         checks.check(len(attachment) == 33 and reply_sequence == sequence and length == 16
@@ -234,8 +277,10 @@ def main():
     _, response, _ = decode(replies, "taxel_msgs/srv/SetUseCase_Response")
     checks.check(response is not None and not response.success and "not a taxel_msgs/srv/SetUseCase request" in response.message,
                  f"a malformed request is answered, not sent ({response})")
-    replies, seconds, _ = client.call("0/taxel/device0/pad0/tare/**", trigger, timeout=1.5)
-    checks.check(not replies, f"no per-pad tare is served ({len(replies)} replies in {seconds:.1f} s)")
+    replies, seconds, _ = client.call("0/taxel/device0/pad2/tare/**", trigger, timeout=1.5)
+    checks.check(not replies, f"no tare of a pad the device lacks is served ({len(replies)} replies in {seconds:.1f} s)")
+    for subscriber in wrench_subscribers:
+        subscriber.undeclare()
 
     # Device 1 is gone: its call is answered, and soon.
     wait_for(lambda: False, max(0.0, args.unplugged_after + 2.0 - (time.monotonic() - started)))
@@ -245,13 +290,20 @@ def main():
                  and ("not connected" in response.message or "went away" in response.message),
                  f"the unplugged device 1's tare is refused ({response})")
     checks.check(seconds < CALL_BOUND_S, f"within {CALL_BOUND_S} s ({seconds:.2f} s)")
+    replies, seconds, _ = client.call(services[(1, "pad0/tare")], trigger)
+    _, response, _ = decode(replies, "std_srvs/srv/Trigger_Response")
+    checks.check(response is not None and not response.success
+                 and ("not connected" in response.message or "went away" in response.message)
+                 and seconds < CALL_BOUND_S,
+                 f"the unplugged device 1's pad 0 tare is refused, in {seconds:.2f} s ({response})")
 
     _, stderr = bridge.communicate(timeout=60)
     print(stderr, end="")
     checks.check(bridge.returncode == 0, f"the bridge exited 0 ({bridge.returncode})")
     checks.check("commands accepted from ROS 2 (--allow-commands)" in stderr,
                  "the start-up line says commands are accepted")
-    checks.check("device 0: tare from ROS 2 done" in stderr, "the bridge says what ROS 2 asked of the device")
+    checks.check("device 0: tare from ROS 2 done" in stderr and "device 0: pad 1 tare from ROS 2 done" in stderr,
+                 "the bridge says what ROS 2 asked of the device and of its pad")
     token_subscriber.undeclare()
     session.close()
 

@@ -186,6 +186,14 @@ impl DevicesView {
         }
     }
 
+    /// The device and pad the detailed view shows, when it shows one pad: what the tare key
+    /// tares then (else every pad of every device).
+    pub fn pad_in_detail(&self) -> Option<(usize, u8)> {
+        let device = self.shown_device()?;
+        let pad = self.devices.get(device)?.state.detail_pad?;
+        Some((device, pad))
+    }
+
     /// Says `words` where the screen shows them: the status of the device shown alone, else
     /// the view's status line.
     pub fn say(&mut self, words: impl Into<String>) {

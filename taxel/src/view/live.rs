@@ -26,7 +26,7 @@ use taxel_host::device_state::RecordedDeviceState;
 use taxel_host::host_clock::{HostClock, UnixClock};
 use taxel_host::stream_accounting::StreamAccounting;
 use taxel_host::worker::{ArrivedEvent, EndReason, EventQueue, Overflow, Worker, WorkerEvent};
-use wire::{Command, ErrorCode, ReplyPayload};
+use wire::{Command, ErrorCode, PadIndex, ReplyPayload};
 
 use super::devices::DevicesView;
 use super::record::{Stopping, ViewRecording};
@@ -489,22 +489,39 @@ impl LiveView {
         Duration::from_secs(2) + Duration::from_millis(50) * u32::from(self.tare_sets)
     }
 
+    /// Tares the pad shown in the detailed view, or every pad of every connected device.
     fn tare(&mut self) {
         let sample_sets = self.tare_sets;
-        for (slot, shown) in self.slots.iter_mut().zip(&mut self.view.devices) {
+        let only = self.view.pad_in_detail();
+        let pad = only.and_then(|(_, pad)| PadIndex::new(pad));
+        for (device, (slot, shown)) in self
+            .slots
+            .iter_mut()
+            .zip(&mut self.view.devices)
+            .enumerate()
+        {
+            if only.is_some_and(|(shown_device, _)| shown_device != device) {
+                continue;
+            }
             let Some(connection) = &slot.connection else {
                 shown.state.status = "tare needs a connected device".to_owned();
                 continue;
             };
             let sent = connection.worker.run(0, move |session| {
-                session.send(Command::Tare { sample_sets })
+                session.send(Command::Tare { sample_sets, pad })
             });
             match sent {
                 Ok(receiver) => {
                     slot.tare = Some(Tare::Sending(receiver));
-                    shown.state.status = format!(
-                        "tare running over {sample_sets} sample sets: keep the pad unloaded"
-                    );
+                    shown.state.status = match pad {
+                        Some(pad) => format!(
+                            "tare of pad {} running over {sample_sets} sample sets: keep it unloaded",
+                            pad.get()
+                        ),
+                        None => format!(
+                            "tare running over {sample_sets} sample sets: keep the pad unloaded"
+                        ),
+                    };
                 }
                 Err(error) => shown.state.status = format!("tare not sent: {error}"),
             }

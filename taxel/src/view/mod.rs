@@ -12,7 +12,7 @@
 //! Several devices share the screen ([`DevicesView`]): a section of tiles and a clock line per
 //! device, `d` choosing the device whose pad the number keys show in detail.
 //!
-//! Keys t (tare), p (pause), r (record every device), m (marker), q (quit). Unplugging is
+//! Keys t (tare: the pad shown in detail, else every pad), p (pause), r (record every device), m (marker), q (quit). Unplugging is
 //! survived: a device that went away is looked for again (`live`).
 //!
 //! [`LiveView`] is the engine without a terminal; [`ViewState`] holds what is shown of one
@@ -66,7 +66,8 @@ lost on the link (sequence gaps the device's counters do not explain) and droppe
 (its counters since the connection). Frames waiting in the port from before the connection are \
 discarded. A view that falls behind skips its oldest sets rather than show old ones, and says \
 how many.\n\n\
-Keys: t = tare (keep the pad unloaded; every device), p = pause (freeze the display), r = \
+Keys: t = tare (keep the pad unloaded; every pad of every device, or only the pad shown in \
+detail), p = pause (freeze the display), r = \
 start/stop recording every device to a file (taxel-YYYYMMDD-HHMMSS.csv in --record-dir, in the \
 schema `taxel record` writes, with each device's state in NAME.csv.dev<n>.device.json; no raw \
 byte log, which must be set up before a stream starts: use `taxel record` for one), m = drop a \

@@ -378,7 +378,8 @@ pub fn command() -> impl Strategy<Value = Command> {
         Just(Command::StartStreaming),
         Just(Command::StopStreaming),
         sample_rate().prop_map(|rate| Command::SetRate { rate }),
-        any::<u16>().prop_map(|sample_sets| Command::Tare { sample_sets }),
+        (any::<u16>(), proptest::option::of(pad_index()))
+            .prop_map(|(sample_sets, pad)| Command::Tare { sample_sets, pad }),
         tier().prop_map(|tier| Command::SetModelTier { tier }),
         use_case().prop_map(Command::SetUseCase),
         (pad_index(), any::<u8>())
