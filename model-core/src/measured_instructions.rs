@@ -12,8 +12,8 @@ use crate::inverse::Tier;
 /// further than half the smallest gap between neighbouring tiers.
 pub const MEASURED_INSTRUCTIONS: [(Tier, u32); 7] = [
     (Tier::Linear, 115),
-    (Tier::PiecewiseLinear, 167),
-    (Tier::MonotoneCubic, 203),
+    (Tier::PiecewiseLinear, 168),
+    (Tier::MonotoneCubic, 204),
     (Tier::Saturating, 175),
     (Tier::SaturatingMicromath, 167),
     (Tier::Table, 163),
