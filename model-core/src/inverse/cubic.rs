@@ -341,6 +341,23 @@ impl CubicKnots {
         {
             index += 1;
         }
+        self.cell_of(points, index, relative_change)
+    }
+
+    /// [`CubicKnots::lookup`] once the reading's interval is known.
+    #[inline(always)]
+    fn cell_of<'a>(
+        &'a self,
+        points: &'a [CurvePoint],
+        index: usize,
+        relative_change: f32,
+    ) -> Option<(
+        &'a CurvePoint,
+        &'a CurvePoint,
+        &'a IntervalData,
+        &'a SeedCell,
+        f32,
+    )> {
         let (Some(low), Some(high), Some(data)) = (
             points.get(index),
             points.get(index + 1),
@@ -432,10 +449,21 @@ impl CubicKnots {
     /// compiler turns into vector instructions (the same IEEE operations per lane). A value whose
     /// first step is not accepted goes through [`CubicKnots::pressure_kpa`] itself.
     pub(crate) fn pressures_kpa(&self, curve: &CalibrationCurve, values: &mut [f32]) {
+        let points = curve.points();
+        // The inner points' dC/C0 (every point but the first and the last), then +inf: the
+        // branchless search below counts those at or below a reading.
+        let mut inner_starts = [f32::INFINITY; MAX_CURVE_POINTS];
+        let last_index = points.len().saturating_sub(2);
+        for (start, point) in inner_starts
+            .iter_mut()
+            .zip(points.get(1..=last_index).unwrap_or(&[]))
+        {
+            *start = point.relative_change;
+        }
         let mut lanes = values.chunks_exact_mut(BATCH_LANES);
         for lane_values in &mut lanes {
             if let Ok(lane_values) = <&mut [f32; BATCH_LANES]>::try_from(lane_values) {
-                self.lanes_pressure_kpa(curve, lane_values);
+                self.lanes_pressure_kpa(curve, &inner_starts, last_index, lane_values);
             }
         }
         for value in lanes.into_remainder() {
@@ -445,11 +473,33 @@ impl CubicKnots {
 
     /// [`CubicKnots::pressures_kpa`] of one group of lanes.
     #[inline(always)]
-    fn lanes_pressure_kpa(&self, curve: &CalibrationCurve, values: &mut [f32; BATCH_LANES]) {
+    fn lanes_pressure_kpa(
+        &self,
+        curve: &CalibrationCurve,
+        inner_starts: &[f32; MAX_CURVE_POINTS],
+        last_index: usize,
+        values: &mut [f32; BATCH_LANES],
+    ) {
+        const _: () = assert!(MAX_CURVE_POINTS == 16, "the search halves 16 starts");
         let points = curve.points();
         let mut lanes = Lanes::default();
         for (lane, value) in values.iter().enumerate() {
-            if let Some((low, high, data, cell, u)) = self.lookup(points, *value) {
+            // For strictly increasing points the count of inner points at or below a value is
+            // the interval the scan of `lookup` stops at (NaN counts none, as the scan moves
+            // past none; the padding counts only for +inf, which the scan puts in the last
+            // interval): found by halving, without a branch a random reading would mispredict.
+            let mut count = 0;
+            for step in [8, 4, 2, 1] {
+                if inner_starts
+                    .get(count + step - 1)
+                    .is_some_and(|start| *value >= *start)
+                {
+                    count += step;
+                }
+            }
+            if let Some((low, high, data, cell, u)) =
+                self.cell_of(points, count.min(last_index), *value)
+            {
                 lanes.set(lane, low, high, data, cell, u);
             }
         }
