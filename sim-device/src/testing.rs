@@ -11,8 +11,8 @@
 
 use crate::{MemoryPort, SceneFile, SimulatedDevice, SimulatedDeviceConfig};
 use wire::{
-    Command, DeviceFrame, DeviceFrameDecoder, ErrorCode, InfoFrame, ReplyPayload, Request,
-    SampleFrame,
+    Command, DeviceEvent, DeviceFrame, DeviceFrameDecoder, ErrorCode, EventFrame, InfoFrame,
+    ReplyPayload, Request, SampleFrame,
 };
 
 /// A host on the simulated device's port: requests through the real encoder, every frame
@@ -113,11 +113,23 @@ impl Host {
         self.link.to_device.extend(bytes);
     }
 
-    /// Sends a command and waits up to 200 cycles for its reply.
+    /// Sends a command and waits up to 400 cycles for its reply.
     ///
     /// # Panics
     /// If no reply comes.
     pub fn request(&mut self, command: Command) -> Result<ReplyPayload, ErrorCode> {
+        self.request_with_events(command).0
+    }
+
+    /// Sends a command and steps up to 400 cycles (a tare of 64 sets and its wait) until its
+    /// reply: the reply and every event the device sent meanwhile.
+    ///
+    /// # Panics
+    /// If no reply comes.
+    pub fn request_with_events(
+        &mut self,
+        command: Command,
+    ) -> (Result<ReplyPayload, ErrorCode>, Vec<DeviceEvent>) {
         let request_id = self.next_request_id;
         self.next_request_id += 1;
         let mut encoded = [0u8; 256];
@@ -130,7 +142,19 @@ impl Host {
         )
         .unwrap();
         self.send_bytes(&encoded[..length]);
-        self.reply_to(request_id)
+        let mut events = Vec::new();
+        for _ in 0..400 {
+            for frame in self.steps(1) {
+                match frame {
+                    DeviceFrame::Event(EventFrame { event, .. }) => events.push(event),
+                    DeviceFrame::Reply(reply) if reply.request_id == request_id => {
+                        return (reply.result, events);
+                    }
+                    _ => {}
+                }
+            }
+        }
+        panic!("no reply to request {request_id}");
     }
 
     /// Steps up to 200 cycles until the reply to `request_id` arrives.

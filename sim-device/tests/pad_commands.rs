@@ -9,8 +9,8 @@ use sensor_sim::{Keyframe, ScriptedScene};
 use sim_device::testing::Host;
 use sim_device::{SceneFile, SimulatedDeviceConfig};
 use wire::{
-    CalibrationSource, Command, DeviceEvent, DeviceFrame, ErrorCode, EventFrame, PadIndex,
-    PadInfoFrame, ReplyPayload, Request, TaxelBaselineWire, TemperatureSensor, UseCase,
+    CalibrationSource, Command, DeviceEvent, ErrorCode, PadIndex, PadInfoFrame, ReplyPayload,
+    TaxelBaselineWire, TemperatureSensor, UseCase,
 };
 
 fn pad(index: u8) -> PadIndex {
@@ -348,38 +348,6 @@ fn baselines(host: &mut Host, index: u8) -> Vec<TaxelBaselineWire> {
         .collect()
 }
 
-/// Sends `command` as request `request_id` and steps until its reply: the reply and every event
-/// the device sent meanwhile.
-fn request_with_events(
-    host: &mut Host,
-    request_id: u16,
-    command: Command,
-) -> (Result<ReplyPayload, ErrorCode>, Vec<DeviceEvent>) {
-    let mut encoded = [0u8; 64];
-    let length = wire::encode_frame(
-        &Request {
-            request_id,
-            command,
-        },
-        &mut encoded,
-    )
-    .unwrap();
-    host.send_bytes(&encoded[..length]);
-    let mut events = Vec::new();
-    for _ in 0..400 {
-        for frame in host.steps(1) {
-            match frame {
-                DeviceFrame::Event(EventFrame { event, .. }) => events.push(event),
-                DeviceFrame::Reply(reply) if reply.request_id == request_id => {
-                    return (reply.result, events);
-                }
-                _ => {}
-            }
-        }
-    }
-    panic!("no reply to request {request_id}");
-}
-
 /// Both pads unloaded for the tare at boot, then 5 kPa on every taxel from 1.2 s on, held still.
 fn held_press(_pad: usize) -> ScriptedScene {
     let keyframe = |time_s, pressure_kpa| Keyframe {
@@ -441,14 +409,10 @@ fn a_tare_of_one_pad_tares_that_pad_only() {
         }
     }
 
-    let (reply, events) = request_with_events(
-        &mut host,
-        700,
-        Command::Tare {
-            sample_sets: 16,
-            pad: Some(pad(1)),
-        },
-    );
+    let (reply, events) = host.request_with_events(Command::Tare {
+        sample_sets: 16,
+        pad: Some(pad(1)),
+    });
     assert_eq!(reply, Ok(ReplyPayload::Ack));
     assert_eq!(
         events,
@@ -481,14 +445,10 @@ fn a_tare_of_one_pad_tares_that_pad_only() {
     }
 
     // Every pad, as before version 6: pad 0 is tared too.
-    let (reply, events) = request_with_events(
-        &mut host,
-        701,
-        Command::Tare {
-            sample_sets: 16,
-            pad: None,
-        },
-    );
+    let (reply, events) = host.request_with_events(Command::Tare {
+        sample_sets: 16,
+        pad: None,
+    });
     assert_eq!(reply, Ok(ReplyPayload::Ack));
     let mut tared: Vec<u8> = events
         .iter()
@@ -507,14 +467,10 @@ fn a_tare_of_a_pad_the_device_lacks_is_refused_and_tares_nothing() {
     let mut host = Host::with_pads(2);
     let before = [baselines(&mut host, 0), baselines(&mut host, 1)];
     for index in [2, 7] {
-        let (reply, events) = request_with_events(
-            &mut host,
-            800 + u16::from(index),
-            Command::Tare {
-                sample_sets: 8,
-                pad: Some(pad(index)),
-            },
-        );
+        let (reply, events) = host.request_with_events(Command::Tare {
+            sample_sets: 8,
+            pad: Some(pad(index)),
+        });
         assert_eq!(reply, Err(ErrorCode::InvalidArgument));
         assert!(events.is_empty(), "{events:?}");
     }

@@ -58,7 +58,7 @@
 //! large, and it is a property of the calibration, not of the method: see
 //! [`crate::conditioning`].
 
-use super::{clamp_pressure, interval_index, InverseCurve};
+use super::{clamp_pressure, interval_index, interval_index_from, InverseCurve};
 use crate::bounds::clamp_f32;
 use crate::calibration::{CalibrationCurve, CurvePoint, MAX_CURVE_POINTS};
 use crate::monotone_cubic::{tangents, CubicSegment, MonotoneCubic};
@@ -153,6 +153,17 @@ impl SeedCell {
         let [c0, c1, c2, c3] = self.unit_seed;
         c0 + u * (c1 + u * (c2 + u * c3))
     }
+}
+
+/// Where a reading falls: its interval's points and data, its seed cell and its position in that
+/// cell.
+#[derive(Clone, Copy)]
+struct Lookup<'a> {
+    low: &'a CurvePoint,
+    high: &'a CurvePoint,
+    data: &'a IntervalData,
+    cell: &'a SeedCell,
+    u: f32,
 }
 
 /// One interval's cubic in the unit coordinate, with what turns its root into a pressure.
@@ -283,16 +294,24 @@ impl CubicKnots {
         }
     }
 
+    /// Interval `index`'s end points and data (`None` past the last interval).
+    #[inline(always)]
+    fn parts<'a>(
+        &'a self,
+        points: &'a [CurvePoint],
+        index: usize,
+    ) -> Option<(&'a CurvePoint, &'a CurvePoint, &'a IntervalData)> {
+        Some((
+            points.get(index)?,
+            points.get(index + 1)?,
+            self.intervals.get(index)?,
+        ))
+    }
+
     /// Interval `index`'s cubic (`None` past the last interval).
     #[inline(always)]
     fn interval(&self, points: &[CurvePoint], index: usize) -> Option<UnitInterval> {
-        let (Some(low), Some(high), Some(data)) = (
-            points.get(index),
-            points.get(index + 1),
-            self.intervals.get(index),
-        ) else {
-            return None;
-        };
+        let (low, high, data) = self.parts(points, index)?;
         let [c1, c2, c3] = data.higher_coefficients;
         Some(UnitInterval {
             cubic: CubicSegment {
@@ -314,33 +333,16 @@ impl CubicKnots {
 
     /// A reading's interval (its points and data), seed cell and position in that cell.
     #[inline(always)]
-    fn lookup<'a>(
-        &'a self,
-        points: &'a [CurvePoint],
-        relative_change: f32,
-    ) -> Option<(
-        &'a CurvePoint,
-        &'a CurvePoint,
-        &'a IntervalData,
-        &'a SeedCell,
-        f32,
-    )> {
-        // `interval_index`'s scan, from the hint's interval (a saturating conversion: NaN and
-        // negative readings start at the first interval, those past the top at the last hint).
+    fn lookup<'a>(&'a self, points: &'a [CurvePoint], relative_change: f32) -> Option<Lookup<'a>> {
+        // The scan from the hint's interval (a saturating conversion: NaN and negative readings
+        // start at the first interval, those past the top at the last hint).
         let hint = (relative_change * self.hints_per_relative_change) as usize;
-        let mut index = usize::from(
-            self.interval_hints
-                .get(hint.min(HINT_CELLS - 1))
-                .copied()
-                .unwrap_or(0),
-        );
-        while index + 2 < points.len()
-            && points
-                .get(index + 1)
-                .is_some_and(|next| relative_change >= next.relative_change)
-        {
-            index += 1;
-        }
+        let start = self
+            .interval_hints
+            .get(hint.min(HINT_CELLS - 1))
+            .copied()
+            .unwrap_or(0);
+        let index = interval_index_from(points, relative_change, usize::from(start));
         self.cell_of(points, index, relative_change)
     }
 
@@ -351,27 +353,21 @@ impl CubicKnots {
         points: &'a [CurvePoint],
         index: usize,
         relative_change: f32,
-    ) -> Option<(
-        &'a CurvePoint,
-        &'a CurvePoint,
-        &'a IntervalData,
-        &'a SeedCell,
-        f32,
-    )> {
-        let (Some(low), Some(high), Some(data)) = (
-            points.get(index),
-            points.get(index + 1),
-            self.intervals.get(index),
-        ) else {
-            return None;
-        };
+    ) -> Option<Lookup<'a>> {
+        let (low, high, data) = self.parts(points, index)?;
         let position = (relative_change - low.relative_change) * data.cells_per_relative_change;
         // Saturating again: NaN and negative positions are the first cell, those past the
         // interval's end the last (the seed is then clamped into the interval).
         let local =
             (position as usize).min(usize::from(data.last_cell.saturating_sub(data.first_cell)));
         let cell = self.seed_cells.get(usize::from(data.first_cell) + local)?;
-        Some((low, high, data, cell, position - local as f32))
+        Some(Lookup {
+            low,
+            high,
+            data,
+            cell,
+            u: position - local as f32,
+        })
     }
 
     /// [`CubicKnots::pressure_kpa`] with the number of Newton steps taken outside the bracketed
@@ -379,7 +375,14 @@ impl CubicKnots {
     #[inline(always)]
     fn solve(&self, curve: &CalibrationCurve, relative_change: f32) -> (f32, usize) {
         let points = curve.points();
-        let Some((low, high, data, cell, u)) = self.lookup(points, relative_change) else {
+        let Some(Lookup {
+            low,
+            high,
+            data,
+            cell,
+            u,
+        }) = self.lookup(points, relative_change)
+        else {
             return (0.0, 0);
         };
         let index = usize::from(data.index);
@@ -497,10 +500,8 @@ impl CubicKnots {
                     count += step;
                 }
             }
-            if let Some((low, high, data, cell, u)) =
-                self.cell_of(points, count.min(last_index), *value)
-            {
-                lanes.set(lane, low, high, data, cell, u);
+            if let Some(lookup) = self.cell_of(points, count.min(last_index), *value) {
+                lanes.set(lane, &lookup);
             }
         }
         let mut accepted = [false; BATCH_LANES];
@@ -575,11 +576,13 @@ impl Lanes {
     fn set(
         &mut self,
         lane: usize,
-        low: &CurvePoint,
-        high: &CurvePoint,
-        data: &IntervalData,
-        cell: &SeedCell,
-        u: f32,
+        &Lookup {
+            low,
+            high,
+            data,
+            cell,
+            u,
+        }: &Lookup<'_>,
     ) {
         let [c1, c2, c3] = data.higher_coefficients;
         let cubic = [low.relative_change, c1, c2, c3];

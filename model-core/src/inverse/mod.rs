@@ -231,9 +231,20 @@ impl TaxelInverses {
 /// first point or NaN gives 0, at or above the last point the last interval).
 #[inline(always)]
 pub(crate) fn interval_index(points: &[CurvePoint], relative_change: f32) -> usize {
+    interval_index_from(points, relative_change, 0)
+}
+
+/// [`interval_index`] scanning from interval `start`, which must not be past the answer (a
+/// hint: the monotone cubic tier's).
+#[inline(always)]
+pub(crate) fn interval_index_from(
+    points: &[CurvePoint],
+    relative_change: f32,
+    start: usize,
+) -> usize {
     // A forward scan: at most 15 steps, and on short curves fewer than a binary search's
     // bookkeeping costs.
-    let mut index = 0;
+    let mut index = start;
     while index + 2 < points.len()
         && points
             .get(index + 1)
