@@ -13,7 +13,7 @@ use taxel_host::device_link::open_serial;
 use taxel_host::device_state::RecordedDeviceState;
 use taxel_host::host_clock::UnixClock;
 use taxel_host::stamping::MAX_WAIT_US;
-use wire::Command;
+use wire::{Command, PadIndex};
 
 use crate::buffering::{buffers_by_device, Buffer};
 use crate::connect::start_many_interruptibly;
@@ -298,13 +298,39 @@ impl Devices {
         self.control.is_buffering(py)
     }
 
-    /// Tares every pad of every device (or of device ``device`` only) on the mean of its next
-    /// ``sample_sets`` sets (keep the pads unloaded); returns when every device said it is done.
-    #[pyo3(signature = (sample_sets=64, device=None))]
-    fn tare(&self, py: Python<'_>, sample_sets: u16, device: Option<usize>) -> PyResult<()> {
+    /// Tares every pad of every device (or of device ``device`` only, or only its pad ``pad``)
+    /// on the mean of its next ``sample_sets`` sets (keep the pads unloaded; the other pads keep
+    /// their references); returns when every device said it is done.
+    #[pyo3(signature = (sample_sets=64, device=None, pad=None))]
+    fn tare(
+        &self,
+        py: Python<'_>,
+        sample_sets: u16,
+        device: Option<usize>,
+        pad: Option<u8>,
+    ) -> PyResult<()> {
         if sample_sets == 0 {
             return Err(PyValueError::new_err("sample_sets must be at least 1"));
         }
+        let pad = match (pad, device) {
+            (None, _) => None,
+            (Some(pad), None) => {
+                return Err(PyValueError::new_err(format!(
+                    "pad {pad} of which device? give device= too"
+                )))
+            }
+            (Some(pad), Some(device)) => {
+                let pads = self.pads.get(device).copied().unwrap_or(0);
+                match PadIndex::new(pad).filter(|_| usize::from(pad) < pads) {
+                    Some(index) => Some(index),
+                    None => {
+                        return Err(PyValueError::new_err(format!(
+                            "device {device} reads {pads} pads: there is no pad {pad}"
+                        )))
+                    }
+                }
+            }
+        };
         let devices: Vec<usize> = match device {
             Some(device) if device < self.pads.len() => vec![device],
             Some(device) => {
@@ -321,10 +347,7 @@ impl Devices {
             let payload = self.control.request(
                 py,
                 device,
-                Command::Tare {
-                    sample_sets,
-                    pad: None,
-                },
+                Command::Tare { sample_sets, pad },
                 &format!("Tare (device {device})"),
                 self.control.timeout + tare_duration(sample_sets, rate_sps),
                 &|| self.ended_error(device),

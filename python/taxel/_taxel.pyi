@@ -380,8 +380,8 @@ class Devices:
     @property
     def buffering(self) -> bool:
         """Whether sets are being collected in the background."""
-    def tare(self, sample_sets: int = 64, device: Optional[int] = None) -> None:
-        """Tares every pad of every device (or of ``device``)."""
+    def tare(self, sample_sets: int = 64, device: Optional[int] = None, pad: Optional[int] = None) -> None:
+        """Tares every pad of every device (or of ``device``, or only its pad ``pad``)."""
     @property
     def stats(self) -> List[Dict[str, int]]:
         """Each device's accounting."""

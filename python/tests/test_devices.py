@@ -72,8 +72,13 @@ def test_a_tare_of_every_device_and_of_one():
         time.sleep(0.4)  # the tare at boot (16 sets) is over
         devices.tare(sample_sets=8)
         devices.tare(sample_sets=8, device=1)
+        devices.tare(sample_sets=8, device=0, pad=1)
         with pytest.raises(ValueError, match="there is no device 2"):
             devices.tare(device=2)
+        with pytest.raises(ValueError, match="there is no pad 2"):
+            devices.tare(device=0, pad=2)
+        with pytest.raises(ValueError, match="give device="):
+            devices.tare(pad=0)
         # A tare's reply and its TareFinished events travel separately: take events until every
         # one expected has come (or 5 s).
         events = []
@@ -81,12 +86,12 @@ def test_a_tare_of_every_device_and_of_one():
         while time.monotonic() < deadline:
             events += devices.events()
             finished = [(e.device, e.pad) for e in events if e.kind == "tare_finished"]
-            if finished.count((1, 0)) >= 3 and finished.count((0, 1)) >= 2:
+            if finished.count((1, 0)) >= 3 and finished.count((0, 1)) >= 3:
                 break
             time.sleep(0.05)
     finished = [(event.device, event.pad) for event in events if event.kind == "tare_finished"]
-    # At boot, then the tare of every device, then device 1's.
-    assert finished.count((0, 0)) == 2 and finished.count((0, 1)) == 2, finished
+    # At boot, then the tare of every device, then device 1's, then device 0's pad 1 alone.
+    assert finished.count((0, 0)) == 2 and finished.count((0, 1)) == 3, finished
     assert finished.count((1, 0)) == 3, finished
 
 
