@@ -127,15 +127,15 @@ pub struct PadForce {
 /// (a `below_baseline` taxel reads 0 kPa and counts as 0), but an included `over_range` taxel
 /// sets [`PadForceFlags::LOWER_BOUND`]. Otherwise as [`pad_force_from_pressures`].
 pub fn pad_force(outputs: &[TaxelOutput; TAXEL_COUNT], geometry: &PadGeometry) -> PadForce {
-    let pressures_kpa = outputs.each_ref().map(TaxelOutput::pressure_kpa);
-    let mut force = pad_force_from_pressures(&pressures_kpa, geometry);
-    let over_range_included = outputs.iter().enumerate().any(|(index, output)| {
-        output.flags().contains(TaxelFlags::OVER_RANGE) && !force.flags.is_excluded(index)
-    });
-    if over_range_included {
-        force.flags |= PadForceFlags::LOWER_BOUND;
-    }
-    force
+    force_of(
+        outputs.iter().map(|output| {
+            (
+                output.pressure_kpa(),
+                output.flags().contains(TaxelFlags::OVER_RANGE),
+            )
+        }),
+        geometry,
+    )
 }
 
 /// Force and centre of pressure from pressures in pad order, kPa (`None` = the taxel did not
@@ -157,23 +157,38 @@ pub fn pad_force_from_pressures(
     pressures_kpa: &[Option<f32>; TAXEL_COUNT],
     geometry: &PadGeometry,
 ) -> PadForce {
-    let mut flags = PadForceFlags::empty();
-    let mut included = 0usize;
+    force_of(
+        pressures_kpa
+            .iter()
+            .map(|pressure_kpa| (*pressure_kpa, false)),
+        geometry,
+    )
+}
+
+/// [`pad_force_from_pressures`] of the taxels' (pressure, over range) in pad order, with
+/// [`PadForceFlags::LOWER_BOUND`] when a taxel over its range is included. Written as selects rather than branches (an excluded taxel adds a
+/// force of +0.0, which leaves every sum as it was), so that a host's batch of sets runs it
+/// without mispredictions.
+#[inline(always)]
+fn force_of(taxels: impl Iterator<Item = (Option<f32>, bool)>, geometry: &PadGeometry) -> PadForce {
+    let mut excluded_bits = 0u8;
+    let mut negative = false;
+    let mut lower_bound = false;
     // kPa x mm² = mN, and mN x mm for the moments: scaled to N once at the end.
     let mut force_mn = 0.0f32;
     let mut moment_x_mn_mm = 0.0f32;
     let mut moment_y_mn_mm = 0.0f32;
-    let mut loaded_box: Option<BoundingBox> = None;
-    for (index, (pressure_kpa, taxel)) in pressures_kpa.iter().zip(geometry.taxels()).enumerate() {
-        let plausible = pressure_kpa
-            .filter(|pressure_kpa| (-MAX_PRESSURE_KPA..=MAX_PRESSURE_KPA).contains(pressure_kpa));
-        let Some(pressure_kpa) = plausible else {
-            flags |= PadForceFlags::excluded_taxel(index);
-            continue;
+    // Empty until a taxel carries load (then min <= max).
+    let mut loaded_box = BoundingBox::EMPTY;
+    for (index, ((pressure_kpa, over_range), taxel)) in taxels.zip(geometry.taxels()).enumerate() {
+        let (reads, pressure_kpa) = match pressure_kpa {
+            Some(pressure_kpa) if pressure_kpa.abs() <= MAX_PRESSURE_KPA => (true, pressure_kpa),
+            _ => (false, 0.0),
         };
-        included += 1;
+        excluded_bits |= u8::from(!reads) << index;
+        lower_bound |= reads & over_range;
+        negative |= pressure_kpa < 0.0;
         let pressure_kpa = if pressure_kpa < 0.0 {
-            flags |= PadForceFlags::NEGATIVE_CLAMPED;
             0.0
         } else {
             pressure_kpa
@@ -182,40 +197,46 @@ pub fn pad_force_from_pressures(
         force_mn += taxel_force_mn;
         moment_x_mn_mm += taxel_force_mn * taxel.x_mm;
         moment_y_mn_mm += taxel_force_mn * taxel.y_mm;
+        let including = loaded_box.including(taxel.x_mm, taxel.y_mm);
         if taxel_force_mn > 0.0 {
-            loaded_box = Some(match loaded_box {
-                Some(bounding_box) => bounding_box.including(taxel.x_mm, taxel.y_mm),
-                None => BoundingBox::at(taxel.x_mm, taxel.y_mm),
-            });
+            loaded_box = including;
         }
     }
-    if included == 0 {
-        return PadForce {
-            force_n: None,
-            centre_of_pressure_mm: None,
-            flags: flags | PadForceFlags::NO_READING,
-        };
+    let mut flags = PadForceFlags::from_bits_truncate(excluded_bits);
+    if negative {
+        flags |= PadForceFlags::NEGATIVE_CLAMPED;
     }
-    if included < TAXEL_COUNT {
-        flags |= PadForceFlags::PARTIAL;
+    if lower_bound {
+        flags |= PadForceFlags::LOWER_BOUND;
+    }
+    match excluded_bits {
+        0 => {}
+        0b1111 => {
+            return PadForce {
+                force_n: None,
+                centre_of_pressure_mm: None,
+                flags: flags | PadForceFlags::NO_READING,
+            }
+        }
+        _ => flags |= PadForceFlags::PARTIAL,
     }
     let force_n = force_mn * NEWTONS_PER_KPA_MM2;
     // `force_n >= COP_MIN_FORCE_N` implies at least one loaded taxel (a box) and a sum far from 0.
-    let centre_of_pressure_mm = match loaded_box {
-        Some(bounding_box) if force_n >= COP_MIN_FORCE_N => Some((
-            clamp_f32(
-                moment_x_mn_mm / force_mn,
-                bounding_box.min_x_mm,
-                bounding_box.max_x_mm,
-            ),
-            clamp_f32(
-                moment_y_mn_mm / force_mn,
-                bounding_box.min_y_mm,
-                bounding_box.max_y_mm,
-            ),
-        )),
-        _ => None,
-    };
+    let centre_of_pressure_mm =
+        (force_n >= COP_MIN_FORCE_N && loaded_box.holds_a_centre()).then(|| {
+            (
+                clamp_f32(
+                    moment_x_mn_mm / force_mn,
+                    loaded_box.min_x_mm,
+                    loaded_box.max_x_mm,
+                ),
+                clamp_f32(
+                    moment_y_mn_mm / force_mn,
+                    loaded_box.min_y_mm,
+                    loaded_box.max_y_mm,
+                ),
+            )
+        });
     PadForce {
         force_n: Some(force_n),
         centre_of_pressure_mm,
@@ -233,13 +254,17 @@ struct BoundingBox {
 }
 
 impl BoundingBox {
-    fn at(x_mm: f32, y_mm: f32) -> Self {
-        Self {
-            min_x_mm: x_mm,
-            max_x_mm: x_mm,
-            min_y_mm: y_mm,
-            max_y_mm: y_mm,
-        }
+    /// No centre yet: every centre is inside the range it gives after `including`.
+    const EMPTY: Self = Self {
+        min_x_mm: f32::INFINITY,
+        max_x_mm: f32::NEG_INFINITY,
+        min_y_mm: f32::INFINITY,
+        max_y_mm: f32::NEG_INFINITY,
+    };
+
+    /// Whether a centre was included (the centres are validated finite).
+    fn holds_a_centre(&self) -> bool {
+        self.min_x_mm <= self.max_x_mm
     }
 
     // Compares rather than `f32::min`/`max`, which cost a libm call each on the M4F (see

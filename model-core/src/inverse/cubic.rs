@@ -166,6 +166,39 @@ struct Lookup<'a> {
     u: f32,
 }
 
+impl Lookup<'_> {
+    /// One Newton step from the cell's seed: the pressure when the cell's bound accepts the
+    /// step, else the step's unit coordinate for the rest of the search. The scalar path and the
+    /// host's batch both take it, so they agree bit for bit.
+    #[inline(always)]
+    fn first_step(&self, relative_change: f32) -> Result<f32, f32> {
+        // Not clamped: for a reading of the interval the seed lies between the cell's end roots
+        // (a monotone cubic, up to rounding far inside the cell's reach); for any other the
+        // clamps below decide the result.
+        let t = self.cell.seed(self.u);
+        let [c1, c2, c3] = self.data.higher_coefficients;
+        let cubic = CubicSegment {
+            x_start: 0.0,
+            width: 1.0,
+            coefficients: [self.low.relative_change, c1, c2, c3],
+        };
+        let step = (cubic.value_at(t) - relative_change) / cubic.slope_at(t);
+        let next = clamp_f32(t - step, 0.0, 1.0);
+        // The step started from the seed, within the cell's reach: the cell's bound holds.
+        if self.cell.bound_kpa * step * step <= ACCEPTED_ERROR_KPA {
+            let (start_kpa, end_kpa) = (self.low.pressure_kpa, self.high.pressure_kpa);
+            // With `next` in `0 ..= 1` the pressure is at least the start (both non-negative);
+            // only rounding can take it past the interval's end, and so past the top.
+            Ok(end_clamped(
+                start_kpa + next * (end_kpa - start_kpa),
+                end_kpa,
+            ))
+        } else {
+            Err(next)
+        }
+    }
+}
+
 /// One interval's cubic in the unit coordinate, with what turns its root into a pressure.
 #[derive(Clone, Copy)]
 struct UnitInterval {
@@ -374,38 +407,15 @@ impl CubicKnots {
     /// stage (one more than [`FAST_NEWTON_STEPS`]: the bracketed stage ran).
     #[inline(always)]
     fn solve(&self, curve: &CalibrationCurve, relative_change: f32) -> (f32, usize) {
-        let points = curve.points();
-        let Some(Lookup {
-            low,
-            high,
-            data,
-            cell,
-            u,
-        }) = self.lookup(points, relative_change)
-        else {
+        let Some(lookup) = self.lookup(curve.points(), relative_change) else {
             return (0.0, 0);
         };
-        let index = usize::from(data.index);
-        // Not clamped: for a reading of the interval the seed lies between the cell's end roots
-        // (a monotone cubic, up to rounding far inside the cell's reach); for any other the
-        // clamps below decide the result.
-        let t = cell.seed(u);
-        let [c1, c2, c3] = data.higher_coefficients;
-        let cubic = CubicSegment {
-            x_start: 0.0,
-            width: 1.0,
-            coefficients: [low.relative_change, c1, c2, c3],
-        };
-        let step = (cubic.value_at(t) - relative_change) / cubic.slope_at(t);
-        let next = clamp_f32(t - step, 0.0, 1.0);
-        // The step started from the seed, within the cell's reach: the cell's bound holds.
-        if cell.bound_kpa * step * step <= ACCEPTED_ERROR_KPA {
-            // With `next` in `0 ..= 1` the pressure is at least the start (both non-negative);
-            // only rounding can take it past the interval's end, and so past the top.
-            let pressure_kpa = low.pressure_kpa + next * (high.pressure_kpa - low.pressure_kpa);
-            return (end_clamped(pressure_kpa, high.pressure_kpa), 1);
+        match lookup.first_step(relative_change) {
+            Ok(pressure_kpa) => (pressure_kpa, 1),
+            Err(next) => {
+                self.solve_further(curve, usize::from(lookup.data.index), relative_change, next)
+            }
         }
-        self.solve_further(curve, index, relative_change, next)
     }
 
     /// The rest of the search when the first step from the seed was not accepted: at most
@@ -447,10 +457,11 @@ impl CubicKnots {
 
     /// Pressures for many relative changes, in place: bit for bit what
     /// [`CubicKnots::pressure_kpa`] gives for each (tested), arranged for a host converting a
-    /// recording: [`BATCH_LANES`] values at a time, their lookups done one by one and their
-    /// arithmetic (seed, Newton step, test, pressure) step by step across the lanes, which a
-    /// compiler turns into vector instructions (the same IEEE operations per lane). A value whose
-    /// first step is not accepted goes through [`CubicKnots::pressure_kpa`] itself.
+    /// recording: the interval found by a branchless search (a random reading would mispredict
+    /// the scan's branches), then the same first step as the scalar path, each value straight
+    /// after its lookup (gathering the lookups into per-lane columns first, for vector
+    /// arithmetic, cost more in stalled loads than the vectors saved). A value whose first step
+    /// is not accepted goes through [`CubicKnots::pressure_kpa`] itself.
     pub(crate) fn pressures_kpa(&self, curve: &CalibrationCurve, values: &mut [f32]) {
         let points = curve.points();
         // The inner points' dC/C0 (every point but the first and the last), then +inf: the
@@ -463,57 +474,43 @@ impl CubicKnots {
         {
             *start = point.relative_change;
         }
-        let mut lanes = values.chunks_exact_mut(BATCH_LANES);
-        for lane_values in &mut lanes {
-            if let Ok(lane_values) = <&mut [f32; BATCH_LANES]>::try_from(lane_values) {
-                self.lanes_pressure_kpa(curve, &inner_starts, last_index, lane_values);
-            }
-        }
-        for value in lanes.into_remainder() {
-            *value = self.pressure_kpa(curve, *value);
-        }
-    }
-
-    /// [`CubicKnots::pressures_kpa`] of one group of lanes.
-    #[inline(always)]
-    fn lanes_pressure_kpa(
-        &self,
-        curve: &CalibrationCurve,
-        inner_starts: &[f32; MAX_CURVE_POINTS],
-        last_index: usize,
-        values: &mut [f32; BATCH_LANES],
-    ) {
-        const _: () = assert!(MAX_CURVE_POINTS == 16, "the search halves 16 starts");
         let points = curve.points();
-        let mut lanes = Lanes::default();
-        for (lane, value) in values.iter().enumerate() {
-            // For strictly increasing points the count of inner points at or below a value is
-            // the interval the scan of `lookup` stops at (NaN counts none, as the scan moves
-            // past none; the padding counts only for +inf, which the scan puts in the last
-            // interval): found by halving, without a branch a random reading would mispredict.
-            let mut count = 0;
-            for step in [8, 4, 2, 1] {
-                if inner_starts
-                    .get(count + step - 1)
-                    .is_some_and(|start| *value >= *start)
-                {
-                    count += step;
+        // For strictly increasing points the count of inner points at or below a value is the
+        // interval the scan of `lookup` stops at (NaN counts none, as the scan moves past none;
+        // the padding counts only for +inf, which the scan puts in the last interval). Counted
+        // over all sixteen at once (vector compares): no branch for a random reading to
+        // mispredict, and no chain of dependent loads.
+        let interval_of = |value: f32| {
+            inner_starts
+                .iter()
+                .map(|start| usize::from(value >= *start))
+                .sum::<usize>()
+                .min(last_index)
+        };
+        // Four values at a time, stage by stage: each value's lookup, seed, step and test are
+        // one long chain of dependent operations, which the core overlaps only when the chains
+        // of several values are next to each other in the program.
+        let mut groups = values.chunks_exact_mut(BATCH_GROUP);
+        for group in &mut groups {
+            let Ok(group) = <&mut [f32; BATCH_GROUP]>::try_from(group) else {
+                continue;
+            };
+            let lookups = group.map(|value| self.cell_of(points, interval_of(value), value));
+            let mut steps = [Err(0.0); BATCH_GROUP];
+            for ((step, lookup), value) in steps.iter_mut().zip(&lookups).zip(group.iter()) {
+                if let Some(lookup) = lookup {
+                    *step = lookup.first_step(*value);
                 }
             }
-            if let Some(lookup) = self.cell_of(points, count.min(last_index), *value) {
-                lanes.set(lane, &lookup);
+            for (value, step) in group.iter_mut().zip(steps) {
+                *value = match step {
+                    Ok(pressure_kpa) => pressure_kpa,
+                    Err(_) => self.pressure_kpa(curve, *value),
+                };
             }
         }
-        let mut accepted = [false; BATCH_LANES];
-        let mut pressures_kpa = [0.0f32; BATCH_LANES];
-        lanes.first_step(values, &mut pressures_kpa, &mut accepted);
-        for ((value, pressure_kpa), accepted) in values.iter_mut().zip(pressures_kpa).zip(accepted)
-        {
-            *value = if accepted {
-                pressure_kpa
-            } else {
-                self.pressure_kpa(curve, *value)
-            };
+        for value in groups.into_remainder() {
+            *value = self.pressure_kpa(curve, *value);
         }
     }
 
@@ -542,133 +539,8 @@ impl CubicKnots {
     }
 }
 
-/// Values converted together by [`CubicKnots::pressures_kpa`].
-const BATCH_LANES: usize = 8;
-
-/// Per lane, what the first Newton step from the seed needs, field by field so that each step is
-/// one loop over plain arrays. A lane without a lookup keeps zeros and an infinite bound (never
-/// accepted: it goes the scalar way).
-struct Lanes {
-    seed: [[f32; BATCH_LANES]; 4],
-    u: [f32; BATCH_LANES],
-    cubic: [[f32; BATCH_LANES]; 4],
-    bound_kpa: [f32; BATCH_LANES],
-    start_kpa: [f32; BATCH_LANES],
-    end_kpa: [f32; BATCH_LANES],
-}
-
-impl Default for Lanes {
-    fn default() -> Self {
-        Self {
-            seed: [[0.0; BATCH_LANES]; 4],
-            u: [0.0; BATCH_LANES],
-            cubic: [[0.0; BATCH_LANES]; 4],
-            bound_kpa: [f32::INFINITY; BATCH_LANES],
-            start_kpa: [0.0; BATCH_LANES],
-            end_kpa: [0.0; BATCH_LANES],
-        }
-    }
-}
-
-impl Lanes {
-    /// Lane `lane` takes a reading's lookup.
-    #[inline(always)]
-    fn set(
-        &mut self,
-        lane: usize,
-        &Lookup {
-            low,
-            high,
-            data,
-            cell,
-            u,
-        }: &Lookup<'_>,
-    ) {
-        let [c1, c2, c3] = data.higher_coefficients;
-        let cubic = [low.relative_change, c1, c2, c3];
-        for (column, value) in self.seed.iter_mut().zip(cell.unit_seed) {
-            if let Some(slot) = column.get_mut(lane) {
-                *slot = value;
-            }
-        }
-        for (column, value) in self.cubic.iter_mut().zip(cubic) {
-            if let Some(slot) = column.get_mut(lane) {
-                *slot = value;
-            }
-        }
-        for (column, value) in [
-            (&mut self.u, u),
-            (&mut self.bound_kpa, cell.bound_kpa),
-            (&mut self.start_kpa, low.pressure_kpa),
-            (&mut self.end_kpa, high.pressure_kpa),
-        ] {
-            if let Some(slot) = column.get_mut(lane) {
-                *slot = value;
-            }
-        }
-    }
-
-    /// The scalar fast path's first step in every lane: the pressure and whether it is
-    /// accepted, by the same operations as [`CubicKnots::pressure_kpa`].
-    #[inline(always)]
-    fn first_step(
-        &self,
-        values: &[f32; BATCH_LANES],
-        pressures_kpa: &mut [f32; BATCH_LANES],
-        accepted: &mut [bool; BATCH_LANES],
-    ) {
-        let [s0, s1, s2, s3] = &self.seed;
-        let [c0, c1, c2, c3] = &self.cubic;
-        for lane in 0..BATCH_LANES {
-            let (
-                Some(value),
-                Some(pressure_kpa),
-                Some(accepted),
-                Some(u),
-                Some(bound),
-                Some(start),
-                Some(end),
-            ) = (
-                values.get(lane),
-                pressures_kpa.get_mut(lane),
-                accepted.get_mut(lane),
-                self.u.get(lane),
-                self.bound_kpa.get(lane),
-                self.start_kpa.get(lane),
-                self.end_kpa.get(lane),
-            )
-            else {
-                continue;
-            };
-            let (Some(s0), Some(s1), Some(s2), Some(s3), Some(c0), Some(c1), Some(c2), Some(c3)) = (
-                s0.get(lane),
-                s1.get(lane),
-                s2.get(lane),
-                s3.get(lane),
-                c0.get(lane),
-                c1.get(lane),
-                c2.get(lane),
-                c3.get(lane),
-            ) else {
-                continue;
-            };
-            let seed = SeedCell {
-                unit_seed: [*s0, *s1, *s2, *s3],
-                bound_kpa: *bound,
-            };
-            let cubic = CubicSegment {
-                x_start: 0.0,
-                width: 1.0,
-                coefficients: [*c0, *c1, *c2, *c3],
-            };
-            let t = seed.seed(*u);
-            let step = (cubic.value_at(t) - value) / cubic.slope_at(t);
-            let next = clamp_f32(t - step, 0.0, 1.0);
-            *accepted = *bound * step * step <= ACCEPTED_ERROR_KPA;
-            *pressure_kpa = end_clamped(*start + next * (*end - *start), *end);
-        }
-    }
-}
+/// Values [`CubicKnots::pressures_kpa`] takes together.
+const BATCH_GROUP: usize = 4;
 
 /// `pressure_kpa`, or `end_kpa` where rounding took it past (module doc, stage 1).
 #[inline(always)]
