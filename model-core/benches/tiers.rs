@@ -7,7 +7,8 @@
 //! (`black_box` once per pass, not per call: per-call `black_box` of the reading and the result
 //! adds store-forwarding stalls on x86 that tripled the time). Criterion's time per iteration
 //! divided by the grid's size (its `Elements` throughput) is the time per conversion.
-//! `cargo xtask report` reads the results from criterion's JSON files.
+//! `cargo xtask report` reads the results from criterion's JSON files. The research tiers are
+//! timed only with `--features research-tiers`, which the report passes.
 //!
 //! Groups `convert` and `inverse` measure the thread's CPU time, so time slices the scheduler
 //! gives to other processes (a shared build machine) are not counted; `convert-wall` measures
@@ -164,7 +165,12 @@ fn inverse_group<M: Measurement>(criterion: &mut Criterion<M>, grid: &Grid) {
     let mut inverse = criterion.benchmark_group("inverse");
     inverse.throughput(Throughput::Elements(grid.relative_changes.len() as u64));
     let mut outputs = vec![0.0f32; grid.relative_changes.len()];
-    for tier in Tier::ALL {
+    // Only the tiers this build has (`--features research-tiers` for all of them): another would
+    // time the default tier's fallback under its name.
+    for tier in Tier::ALL
+        .into_iter()
+        .filter(|tier| grid.inverses.supports(*tier))
+    {
         inverse.bench_function(tier.name(), |bencher| {
             bencher.iter(|| {
                 let inverses = black_box(&grid.inverses);

@@ -6,7 +6,9 @@
 //! and in the host tools. With the feature `batch`, a host converting a recording can call
 //! `PadModel::process_all` instead of [`PadModel::process`] set by set: the same outputs bit for
 //! bit, with the tier's inverses of many sets computed together, which a superscalar core runs
-//! faster.
+//! faster. The device builds only the inversion tiers on the Pareto front of cost against error
+//! (linear, table, monotone-cubic); the feature `research-tiers` adds the others for host tools
+//! and reports (see [`inverse`]).
 //!
 //! ```
 //! use model_core::{Calibration, PadModel, SampleInput, TaxelReading};

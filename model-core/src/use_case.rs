@@ -17,6 +17,11 @@
 //!
 //! Cost is the instruction count per taxel conversion measured on a Cortex-M4F under QEMU
 //! (`cargo xtask m4-test`, which fails when a build drifts from these figures).
+//!
+//! Selection chooses only among the tiers this build has ([`Tier::is_built`]): on the device
+//! those on the Pareto front of cost against error (linear, table, monotone-cubic; see
+//! [`crate::inverse`]); the research tiers, off the front, only with the feature
+//! `research-tiers`, where they are never cheaper and within budget when `table` is not.
 
 use heapless::Vec;
 
@@ -284,7 +289,8 @@ pub fn evaluate_tier(
 }
 
 /// The cheapest tier (fewest measured instructions) that fits the use case on every one of these
-/// taxels; a tier's error is that of its worst taxel.
+/// taxels; a tier's error is that of its worst taxel. Only tiers this build has are candidates
+/// (a research tier without the feature `research-tiers` is never chosen).
 pub fn select_tier_for_taxels(
     taxels: &[TaxelEvidence<'_>],
     law: &TemperatureLaw,
@@ -306,7 +312,7 @@ pub fn select_tier_for_taxels(
     }
     let mut cheapest_fit: Option<TierChoice> = None;
     let mut most_accurate: Option<TierChoice> = None;
-    for tier in Tier::ALL {
+    for tier in Tier::ALL.into_iter().filter(|tier| tier.is_built()) {
         if !taxels.iter().all(|taxel| taxel.inverses.supports(tier)) {
             continue;
         }
@@ -431,23 +437,63 @@ mod tests {
             curve: &curve,
             sensor_pf: NOMINAL_SENSOR_PF,
         };
-        // Piecewise linear without the 30 kPa point misses it by 2.02 kPa (validation's test
-        // computes such a fold by hand); scaled by 2^-2 for straight lines.
-        let linear_pieces = model_form_error_kpa(&taxel, Tier::PiecewiseLinear, 50.0);
-        assert!(
-            (linear_pieces - 2.019 / 4.0).abs() < 0.01,
-            "{linear_pieces}"
-        );
-        // Up to 10 kPa only the 10 kPa fold counts.
-        let light = model_form_error_kpa(&taxel, Tier::PiecewiseLinear, 10.0);
-        assert!((light - 1.2407 / 4.0).abs() < 0.01, "{light}");
+        // Piecewise linear (a research tier) without the 30 kPa point misses it by 2.02 kPa
+        // (validation's test computes such a fold by hand); scaled by 2^-2 for straight lines.
+        #[cfg(feature = "research-tiers")]
+        {
+            let linear_pieces = model_form_error_kpa(&taxel, Tier::PiecewiseLinear, 50.0);
+            assert!(
+                (linear_pieces - 2.019 / 4.0).abs() < 0.01,
+                "{linear_pieces}"
+            );
+            // Up to 10 kPa only the 10 kPa fold counts.
+            let light = model_form_error_kpa(&taxel, Tier::PiecewiseLinear, 10.0);
+            assert!((light - 1.2407 / 4.0).abs() < 0.01, "{light}");
+        }
         // The table and the polynomial carry the cubic's form error.
         let cubic = model_form_error_kpa(&taxel, Tier::MonotoneCubic, 50.0);
         assert_eq!(model_form_error_kpa(&taxel, Tier::Table, 50.0), cubic);
+        #[cfg(feature = "research-tiers")]
         assert_eq!(model_form_error_kpa(&taxel, Tier::Polynomial, 50.0), cubic);
         // The linear tier's form error is its miss at the points: at 20 kPa by hand, the secant
         // 50/0.2563 kPa per unit gives 28.78 kPa for 0.1475, 8.78 kPa off (the worst point).
         let linear = model_form_error_kpa(&taxel, Tier::Linear, 50.0);
         assert!((linear - 8.775).abs() < 0.01, "{linear}");
+    }
+
+    /// With or without the research tiers, selection offers only tiers this build has; without
+    /// them (the device) it picks from the Pareto front, and with them it picks the same tier,
+    /// since `table` is cheaper and more accurate than every research tier.
+    #[test]
+    fn selection_picks_only_built_tiers_and_the_same_with_or_without_research() {
+        let curve = CalibrationCurve::article_default();
+        let inverses = TaxelInverses::new(&curve);
+        let law = TemperatureLaw::article_default();
+        let evidence = [TaxelEvidence {
+            inverses: &inverses,
+            curve: &curve,
+            sensor_pf: NOMINAL_SENSOR_PF,
+        }];
+        let mut chosen = 0;
+        for pressure_max_kpa in [5.0, 10.0, 20.0, 35.0, 50.0] {
+            for error_budget_kpa in [0.02, 0.05, 0.1, 0.2, 0.5, 0.7, 1.0, 2.0, 5.0, 20.0] {
+                let use_case = UseCase {
+                    pressure_max_kpa,
+                    error_budget_kpa,
+                    ..UseCase::GRIPPER
+                };
+                let Ok(choice) = select_tier_for_taxels(&evidence, &law, &use_case) else {
+                    continue;
+                };
+                chosen += 1;
+                assert!(choice.tier.is_built(), "{use_case:?}: {:?}", choice.tier);
+                assert!(
+                    Tier::ON_DEVICE.contains(&choice.tier),
+                    "{use_case:?}: {:?} is off the front",
+                    choice.tier
+                );
+            }
+        }
+        assert!(chosen > 0);
     }
 }

@@ -8,7 +8,8 @@ use crate::inverse::{ActiveInverse, Tier};
 
 /// Per interior point (index 1 ..= n - 2, in order), the tier's predicted pressure minus the
 /// applied one when the curve is rebuilt without that point, kPa; `None` where the reduced curve
-/// is invalid or cannot provide the tier.
+/// is invalid or cannot provide the tier, and everywhere for a tier this build does not have
+/// ([`Tier::is_built`]).
 pub fn leave_one_out_errors_kpa(
     points: &[CurvePoint],
     tier: Tier,
@@ -51,6 +52,7 @@ mod tests {
     use super::*;
     use crate::calibration::ARTICLE_TABLE_1;
 
+    #[cfg(feature = "research-tiers")]
     #[test]
     fn piecewise_linear_on_table_1_matches_a_hand_computation() {
         let errors = leave_one_out_errors_kpa(&ARTICLE_TABLE_1, Tier::PiecewiseLinear);
@@ -65,16 +67,33 @@ mod tests {
     fn the_most_points_a_curve_holds_do_not_overflow() {
         let points: [CurvePoint; MAX_CURVE_POINTS] =
             core::array::from_fn(|index| CurvePoint::new(index as f32, index as f32 * 0.01));
-        let errors = leave_one_out_errors_kpa(&points, Tier::PiecewiseLinear);
-        assert_eq!(errors.len(), MAX_CURVE_POINTS - 2);
-        for error in errors {
-            assert!(error.unwrap_or(f32::NAN).abs() < 1e-4);
+        // Points on a line, which each of these tiers reproduces.
+        for tier in [Tier::PiecewiseLinear, Tier::MonotoneCubic, Tier::Table]
+            .into_iter()
+            .filter(|tier| tier.is_built())
+        {
+            let errors = leave_one_out_errors_kpa(&points, tier);
+            assert_eq!(errors.len(), MAX_CURVE_POINTS - 2);
+            for error in errors {
+                assert!(
+                    error.unwrap_or(f32::NAN).abs() < 1e-4,
+                    "{tier:?}: {error:?}"
+                );
+            }
         }
         // More points than a curve holds: no panic, the reduced curves simply do not fit.
         let too_many: [CurvePoint; MAX_CURVE_POINTS + 4] =
             core::array::from_fn(|index| CurvePoint::new(index as f32, index as f32 * 0.01));
         let errors = leave_one_out_errors_kpa(&too_many, Tier::MonotoneCubic);
         assert!(errors.len() <= MAX_CURVE_POINTS);
+    }
+
+    #[cfg(not(feature = "research-tiers"))]
+    #[test]
+    fn a_tier_this_build_does_not_have_gives_no_prediction() {
+        let errors = leave_one_out_errors_kpa(&ARTICLE_TABLE_1, Tier::PiecewiseLinear);
+        assert_eq!(errors.len(), 4);
+        assert!(errors.iter().all(Option::is_none));
     }
 
     #[test]

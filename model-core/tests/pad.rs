@@ -6,7 +6,8 @@ use model_core::baseline::BaselineTracking;
 use model_core::reading::{SATURATED_HIGH_CODE, SATURATED_LOW_CODE};
 use model_core::{
     Baseline, BaselineError, Calibration, CalibrationSpec, FaultThresholds, PadModel, SampleInput,
-    SplitCapacitance, TareStatus, TaxelFlags, TaxelReading, TemperatureLaw, Tier,
+    SplitCapacitance, TareStatus, TaxelFlags, TaxelReading, TemperatureLaw, Tier, TierUnavailable,
+    UseCase,
 };
 use proptest::prelude::*;
 
@@ -387,13 +388,41 @@ fn acquisition_flags_turn_a_reading_into_a_fault() {
 
 #[test]
 fn every_tier_gives_the_reference_pressure_at_the_points_through_the_whole_pad() {
-    for tier in Tier::ALL {
+    for tier in Tier::ALL.into_iter().filter(|tier| tier.is_built()) {
         let mut pad = tared_pad(SENSOR_PF, 25.0);
         pad.set_tier(tier).unwrap();
         let output = one_taxel(&mut pad, SENSOR_PF * 1.1475, Some(25.0));
         let pressure = output.pressure_kpa().unwrap();
         let tolerance = if tier == Tier::Linear { 12.0 } else { 1.5 };
         assert!((pressure - 20.0).abs() < tolerance, "{tier:?}: {pressure}");
+    }
+}
+
+/// A tier this build does not have (a research tier on the device) is refused with the usual
+/// "tier unavailable" and changes nothing; use-case selection never picks one.
+#[test]
+fn a_tier_this_build_lacks_is_refused_and_never_selected() {
+    let mut pad = tared_pad(SENSOR_PF, 25.0);
+    pad.set_tier(Tier::Table).unwrap();
+    for tier in Tier::ALL.into_iter().filter(|tier| !tier.is_built()) {
+        assert!(tier.is_research(), "{tier:?}");
+        assert_eq!(pad.set_tier(tier), Err(TierUnavailable(tier)));
+        assert_eq!(pad.tier(), Tier::Table);
+        assert_eq!(
+            pad.taxel(0).map(|taxel| taxel.inverse().tier()),
+            Some(Tier::Table)
+        );
+    }
+    #[cfg(not(feature = "research-tiers"))]
+    assert_eq!(
+        Tier::ALL.into_iter().filter(|tier| tier.is_built()).count(),
+        Tier::ON_DEVICE.len()
+    );
+    for use_case in [UseCase::LIGHT_TOUCH, UseCase::GRIPPER, UseCase::GLOVE] {
+        if let Ok(choice) = pad.apply_use_case(&use_case) {
+            assert!(choice.tier.is_built(), "{use_case:?}: {:?}", choice.tier);
+            assert_eq!(pad.tier(), choice.tier);
+        }
     }
 }
 

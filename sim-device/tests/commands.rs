@@ -290,12 +290,35 @@ fn a_tare_while_the_pad_is_pressed_is_refused_as_not_still() {
 #[test]
 fn tiers_and_use_cases_are_chosen_or_refused() {
     let mut host = Host::new();
-    let polynomial = model_core::Tier::Polynomial;
+    let table = model_core::Tier::Table;
     assert_eq!(
-        host.request(Command::SetModelTier { tier: polynomial }),
+        host.request(Command::SetModelTier { tier: table }),
         Ok(ReplyPayload::Ack)
     );
-    assert_eq!(host.info().model_tier, polynomial);
+    assert_eq!(host.info().model_tier, table);
+    // A research tier is built only with model-core's feature `research-tiers`, which the
+    // firmware leaves off (and `cargo test -p taxel-sim-device` too); a workspace-wide test run
+    // turns it on for the host crates. Without it the device refuses the tier and keeps its own.
+    let polynomial = model_core::Tier::Polynomial;
+    if polynomial.is_built() {
+        assert_eq!(
+            host.request(Command::SetModelTier { tier: polynomial }),
+            Ok(ReplyPayload::Ack)
+        );
+        assert_eq!(host.info().model_tier, polynomial);
+    } else {
+        for research in model_core::Tier::ALL
+            .into_iter()
+            .filter(|tier| tier.is_research())
+        {
+            assert_eq!(
+                host.request(Command::SetModelTier { tier: research }),
+                Err(ErrorCode::NotSupported),
+                "{research:?}"
+            );
+            assert_eq!(host.info().model_tier, table);
+        }
+    }
     // SetModelTier is command 6; 99 is no tier.
     assert_eq!(
         host.request_with_varint(6, 99),
@@ -311,6 +334,7 @@ fn tiers_and_use_cases_are_chosen_or_refused() {
         Ok(ReplyPayload::ModelTier(tier)) => tier,
         other => panic!("{other:?}"),
     };
+    assert!(chosen.is_built(), "{chosen:?}");
     assert_eq!(host.info().model_tier, chosen);
     let too_hot = UseCase {
         temperature_max_c: 80.0,

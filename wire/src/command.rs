@@ -204,7 +204,8 @@ pub enum Command {
         pad: Option<PadIndex>,
     },
     /// Selects a model tier; an id that is no tier is [`ErrorCode::InvalidArgument`], a tier
-    /// the calibration in use cannot provide [`ErrorCode::NotSupported`]. Replies Ack.
+    /// the calibration in use cannot provide or the device does not build (a research tier:
+    /// `model_core::Tier::is_built`) [`ErrorCode::NotSupported`]. Replies Ack.
     SetModelTier {
         /// The tier.
         tier: Tier,

@@ -33,13 +33,15 @@ impl HostTime {
     }
 }
 
-/// Runs `cargo bench -p model-core --bench tiers` with its results under `criterion_home`.
+/// Runs `cargo bench -p model-core --bench tiers --features research-tiers` (every tier, the
+/// research ones included) with its results under `criterion_home`.
 pub fn run_benches(root: &Path, criterion_home: &Path) -> Result<()> {
     m4::run_checked(
         m4::cargo()
             .current_dir(root)
             .env("CRITERION_HOME", criterion_home)
-            .args(["bench", "-p", "model-core", "--bench", "tiers"]),
+            .args(["bench", "-p", "model-core", "--bench", "tiers"])
+            .args(["--features", "research-tiers"]),
     )
 }
 

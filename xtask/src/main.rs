@@ -375,7 +375,9 @@ fn report() -> Result<()> {
         eprintln!("warning: no simulator figures: {error}");
     }
 
-    println!("running criterion (cargo bench -p model-core --bench tiers)");
+    println!(
+        "running criterion (cargo bench -p model-core --bench tiers --features research-tiers)"
+    );
     let mut machine = machine;
     machine.load_average = load_average();
     let criterion_home = m4::target_directory(&root, "Cargo.toml")?.join("criterion");

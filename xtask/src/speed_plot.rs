@@ -1,5 +1,6 @@
 //! The speed-vs-error picture (docs/speed-vs-error.svg): labelled points on a linear x axis and
-//! a log10 y axis, with dashed reference lines and thin links between points, drawn with
+//! a log10 y axis, with dashed reference lines, thin links between points and a solid line
+//! through a chosen run of points (the Pareto front), drawn with
 //! plotters as the host tool draws its plots (and with its embedded font, which plotters needs
 //! to lay out any text).
 
@@ -61,6 +62,9 @@ pub struct Plot {
     pub guides: Vec<Guide>,
     /// Lines between points, drawn under the markers.
     pub links: Vec<Link>,
+    /// A solid dark line through these (x, y) in order (the Pareto front), drawn under the
+    /// markers; fewer than two draw nothing.
+    pub front: Vec<(f64, f64)>,
 }
 
 const WIDTH_PX: u32 = 820;
@@ -77,6 +81,7 @@ const GRID: RGBColor = RGBColor(0xdd, 0xdd, 0xdd);
 const GUIDE: RGBColor = RGBColor(0x88, 0x88, 0x88);
 const GUIDE_LABEL: RGBColor = RGBColor(0x55, 0x55, 0x55);
 const NOTE: RGBColor = RGBColor(0x33, 0x33, 0x33);
+const FRONT: RGBColor = RGBColor(0x22, 0x22, 0x22);
 
 /// An axis-aligned rectangle in pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -369,6 +374,20 @@ fn draw<DB: DrawingBackend>(
             link.colour.mix(0.6).stroke_width(2),
         ))?;
     }
+    let front: Vec<(i32, i32)> = plot.front.iter().map(|point| pixel(*point)).collect();
+    for pair in front.windows(2) {
+        let &[start, end] = pair else {
+            continue;
+        };
+        taken.push(PixelBox::spanning(start, end, 2));
+        root.draw(&PathElement::new(
+            [
+                towards(start, end, MARKER_RADIUS_PX),
+                towards(end, start, MARKER_RADIUS_PX),
+            ],
+            FRONT.stroke_width(1),
+        ))?;
+    }
     let markers: Vec<(i32, i32)> = plot
         .points
         .iter()
@@ -464,6 +483,7 @@ mod tests {
                 to: (160.0, 0.0146),
                 colour: BLUE,
             }],
+            front: vec![(119.0, 0.0146), (160.0, 1e-9)],
         }
     }
 
@@ -489,6 +509,8 @@ mod tests {
             );
         }
         assert!(!svg.contains("NaN") && !svg.contains("inf"));
+        // The front's line, once, in its own colour.
+        assert_eq!(svg.matches("stroke=\"#222222\"").count(), 1);
     }
 
     #[test]

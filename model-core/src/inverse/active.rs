@@ -1,12 +1,15 @@
 //! The one tier a taxel model keeps: only what that tier needs beyond the calibration's points,
 //! so that a pad's model stays small (eight pads share the device's static RAM). Another
-//! tier is built again from the calibration when it is chosen.
+//! tier is built again from the calibration when it is chosen. Without the feature
+//! `research-tiers` only the device's tiers can be held (see [`super`]).
 
 use super::cubic::CubicKnots;
+#[cfg(feature = "research-tiers")]
 use super::piecewise_linear::LineSlopes;
+use super::{InverseCurve, LinearInverse, TableInverse, Tier};
+#[cfg(feature = "research-tiers")]
 use super::{
-    InverseCurve, Libm, LinearInverse, Micromath, MonotoneCubicInverse, PolynomialInverse,
-    SaturatingFit, SaturatingInverse, TableInverse, Tier,
+    Libm, Micromath, MonotoneCubicInverse, PolynomialInverse, SaturatingFit, SaturatingInverse,
 };
 use crate::calibration::CalibrationCurve;
 
@@ -21,11 +24,15 @@ pub struct ActiveInverse(Active);
 #[derive(Debug, Clone, PartialEq)]
 enum Active {
     Linear(LinearInverse),
-    PiecewiseLinear(LineSlopes),
     MonotoneCubic(CubicKnots),
-    Saturating(SaturatingInverse<Libm>),
-    SaturatingMicromath(SaturatingInverse<Micromath>),
     Table(TableInverse),
+    #[cfg(feature = "research-tiers")]
+    PiecewiseLinear(LineSlopes),
+    #[cfg(feature = "research-tiers")]
+    Saturating(SaturatingInverse<Libm>),
+    #[cfg(feature = "research-tiers")]
+    SaturatingMicromath(SaturatingInverse<Micromath>),
+    #[cfg(feature = "research-tiers")]
     Polynomial(PolynomialInverse),
 }
 
@@ -36,26 +43,32 @@ impl ActiveInverse {
     }
 
     /// A tier for a curve, building only what it needs; `None` when the curve does not support
-    /// it (see [`super::TaxelInverses::supports`]).
+    /// it (see [`super::TaxelInverses::supports`]) or this build does not have it (a research
+    /// tier without the feature `research-tiers`: [`Tier::is_built`]).
     pub fn new(curve: &CalibrationCurve, tier: Tier) -> Option<Self> {
-        let top_pressure_kpa = curve.top().pressure_kpa;
         let active = match tier {
             Tier::Linear => Active::Linear(LinearInverse::new(curve)),
-            Tier::PiecewiseLinear => Active::PiecewiseLinear(LineSlopes::new(curve)),
             Tier::MonotoneCubic => return Some(Self::default_tier(curve)),
+            Tier::Table => Active::Table(table(curve, &CubicKnots::new(curve))),
+            #[cfg(feature = "research-tiers")]
+            Tier::PiecewiseLinear => Active::PiecewiseLinear(LineSlopes::new(curve)),
+            #[cfg(feature = "research-tiers")]
             Tier::Saturating => Active::Saturating(SaturatingInverse::new(
                 &SaturatingFit::new(curve)?,
-                top_pressure_kpa,
+                curve.top().pressure_kpa,
             )),
+            #[cfg(feature = "research-tiers")]
             Tier::SaturatingMicromath => Active::SaturatingMicromath(SaturatingInverse::new(
                 &SaturatingFit::new(curve)?,
-                top_pressure_kpa,
+                curve.top().pressure_kpa,
             )),
-            Tier::Table => Active::Table(table(curve, &CubicKnots::new(curve))),
+            #[cfg(feature = "research-tiers")]
             Tier::Polynomial => Active::Polynomial(PolynomialInverse::new(
                 &MonotoneCubicInverse::new(curve),
                 curve,
             )?),
+            #[cfg(not(feature = "research-tiers"))]
+            _ => return None,
         };
         Some(Self(active))
     }
@@ -66,6 +79,7 @@ impl ActiveInverse {
     }
 
     /// See [`ActiveInverse::from_linear`].
+    #[cfg(feature = "research-tiers")]
     pub(super) fn from_piecewise_linear(slopes: LineSlopes) -> Self {
         Self(Active::PiecewiseLinear(slopes))
     }
@@ -76,6 +90,7 @@ impl ActiveInverse {
     }
 
     /// See [`ActiveInverse::from_linear`].
+    #[cfg(feature = "research-tiers")]
     pub(super) fn from_saturating(fit: &SaturatingFit, top_pressure_kpa: f32) -> Self {
         Self(Active::Saturating(SaturatingInverse::new(
             fit,
@@ -84,6 +99,7 @@ impl ActiveInverse {
     }
 
     /// See [`ActiveInverse::from_linear`].
+    #[cfg(feature = "research-tiers")]
     pub(super) fn from_saturating_micromath(fit: &SaturatingFit, top_pressure_kpa: f32) -> Self {
         Self(Active::SaturatingMicromath(SaturatingInverse::new(
             fit,
@@ -97,6 +113,7 @@ impl ActiveInverse {
     }
 
     /// See [`ActiveInverse::from_linear`].
+    #[cfg(feature = "research-tiers")]
     pub(super) fn from_polynomial(polynomial: PolynomialInverse) -> Self {
         Self(Active::Polynomial(polynomial))
     }
@@ -105,11 +122,15 @@ impl ActiveInverse {
     pub fn tier(&self) -> Tier {
         match &self.0 {
             Active::Linear(_) => Tier::Linear,
-            Active::PiecewiseLinear(_) => Tier::PiecewiseLinear,
             Active::MonotoneCubic(_) => Tier::MonotoneCubic,
-            Active::Saturating(_) => Tier::Saturating,
-            Active::SaturatingMicromath(_) => Tier::SaturatingMicromath,
             Active::Table(_) => Tier::Table,
+            #[cfg(feature = "research-tiers")]
+            Active::PiecewiseLinear(_) => Tier::PiecewiseLinear,
+            #[cfg(feature = "research-tiers")]
+            Active::Saturating(_) => Tier::Saturating,
+            #[cfg(feature = "research-tiers")]
+            Active::SaturatingMicromath(_) => Tier::SaturatingMicromath,
+            #[cfg(feature = "research-tiers")]
             Active::Polynomial(_) => Tier::Polynomial,
         }
     }
@@ -120,11 +141,15 @@ impl ActiveInverse {
     pub fn pressure_kpa(&self, curve: &CalibrationCurve, relative_change: f32) -> f32 {
         match &self.0 {
             Active::Linear(inverse) => inverse.pressure_kpa(relative_change),
-            Active::PiecewiseLinear(slopes) => slopes.pressure_kpa(curve, relative_change),
             Active::MonotoneCubic(knots) => knots.pressure_kpa(curve, relative_change),
-            Active::Saturating(inverse) => inverse.pressure_kpa(relative_change),
-            Active::SaturatingMicromath(inverse) => inverse.pressure_kpa(relative_change),
             Active::Table(table) => table.pressure_kpa(relative_change),
+            #[cfg(feature = "research-tiers")]
+            Active::PiecewiseLinear(slopes) => slopes.pressure_kpa(curve, relative_change),
+            #[cfg(feature = "research-tiers")]
+            Active::Saturating(inverse) => inverse.pressure_kpa(relative_change),
+            #[cfg(feature = "research-tiers")]
+            Active::SaturatingMicromath(inverse) => inverse.pressure_kpa(relative_change),
+            #[cfg(feature = "research-tiers")]
             Active::Polynomial(polynomial) => polynomial.pressure_kpa(relative_change),
         }
     }
@@ -140,15 +165,19 @@ impl ActiveInverse {
         }
         match &self.0 {
             Active::Linear(inverse) => each(values, |value| inverse.pressure_kpa(value)),
+            Active::MonotoneCubic(knots) => knots.pressures_kpa(curve, values),
+            Active::Table(table) => each(values, |value| table.pressure_kpa(value)),
+            #[cfg(feature = "research-tiers")]
             Active::PiecewiseLinear(slopes) => {
                 each(values, |value| slopes.pressure_kpa(curve, value))
             }
-            Active::MonotoneCubic(knots) => knots.pressures_kpa(curve, values),
+            #[cfg(feature = "research-tiers")]
             Active::Saturating(inverse) => each(values, |value| inverse.pressure_kpa(value)),
+            #[cfg(feature = "research-tiers")]
             Active::SaturatingMicromath(inverse) => {
                 each(values, |value| inverse.pressure_kpa(value))
             }
-            Active::Table(table) => each(values, |value| table.pressure_kpa(value)),
+            #[cfg(feature = "research-tiers")]
             Active::Polynomial(polynomial) => each(values, |value| polynomial.pressure_kpa(value)),
         }
     }
@@ -201,6 +230,55 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    #[test]
+    fn a_tier_is_held_exactly_when_this_build_has_it() {
+        let curve = CalibrationCurve::article_default();
+        let inverses = TaxelInverses::new(&curve);
+        for tier in Tier::ALL {
+            assert_eq!(
+                tier.is_built(),
+                !tier.is_research() || cfg!(feature = "research-tiers")
+            );
+            assert_eq!(
+                tier.is_research(),
+                !Tier::ON_DEVICE.contains(&tier),
+                "{tier:?}"
+            );
+            // The article's curve supports every tier a build has.
+            assert_eq!(ActiveInverse::new(&curve, tier).is_some(), tier.is_built());
+            assert_eq!(inverses.active(tier).is_some(), tier.is_built());
+            assert_eq!(inverses.supports(tier), tier.is_built());
+        }
+    }
+
+    /// The device's build: every research tier refused, and asking for one anyway gives the
+    /// default tier's pressure rather than a panic or an invented number.
+    #[cfg(not(feature = "research-tiers"))]
+    #[test]
+    fn without_the_feature_the_research_tiers_are_refused() {
+        let curve = CalibrationCurve::article_default();
+        let inverses = TaxelInverses::new(&curve);
+        for tier in [
+            Tier::PiecewiseLinear,
+            Tier::Saturating,
+            Tier::SaturatingMicromath,
+            Tier::Polynomial,
+        ] {
+            assert!(!tier.is_built() && tier.is_research());
+            assert_eq!(ActiveInverse::new(&curve, tier), None);
+            assert_eq!(inverses.active(tier), None);
+            assert!(!inverses.supports(tier));
+            // The protocol and recordings still name it.
+            assert_eq!(Tier::from_id(tier as u8), Some(tier));
+            assert_eq!(Tier::from_name(tier.name()), Some(tier));
+            let relative_change = 0.1;
+            assert_eq!(
+                inverses.pressure_kpa(tier, relative_change),
+                inverses.pressure_kpa(Tier::MonotoneCubic, relative_change)
+            );
         }
     }
 

@@ -7,12 +7,39 @@
 //!
 //! A taxel model keeps one tier, as an [`ActiveInverse`]; [`TaxelInverses`] builds every tier
 //! at once for tier selection, references and host tools.
+//!
+//! # The tiers the device keeps
+//!
+//! The device builds only the tiers on the Pareto front of cost against error in the shipped
+//! build (docs/PERFORMANCE.md: M4 instructions per temperature-corrected inversion, and the
+//! largest distance from the default model over the grid):
+//!
+//! | tier | instructions | from the default model | |
+//! |---|---|---|---|
+//! | `linear` | 34.0 | 9.09 kPa | the cheapest |
+//! | `table` | 88.6 | 0.015 kPa | |
+//! | `monotone-cubic` | 142.3 | 3e-5 kPa | the default, the reference curve |
+//! | `piecewise-linear` | 98.7 | 0.494 kPa | research |
+//! | `saturating` | 107.8 | 0.644 kPa | research |
+//! | `saturating-micromath` | 98.8 | 0.646 kPa | research (a choice of logarithm) |
+//! | `polynomial` | 107.0 | 0.050 kPa | research |
+//!
+//! `table` is both cheaper and more accurate than every research tier, so none of them can be
+//! what a use case needs. They are built only with the feature `research-tiers` (host tools,
+//! the M4 benchmark, the reports). Without it [`Tier`] still names all seven (the wire
+//! protocol and recordings carry their ids), but a research tier is refused:
+//! [`ActiveInverse::new`] and [`TaxelInverses::active`] give `None`,
+//! [`TaxelInverses::supports`] is false, and use-case selection never offers one (see
+//! [`Tier::is_built`]).
 
 mod active;
 mod cubic;
 mod linear;
+#[cfg(feature = "research-tiers")]
 mod piecewise_linear;
+#[cfg(feature = "research-tiers")]
 mod polynomial;
+#[cfg(feature = "research-tiers")]
 mod saturating;
 mod table;
 
@@ -21,8 +48,11 @@ pub use cubic::{
     MonotoneCubicInverse, ACCEPTED_ERROR_KPA, FAST_NEWTON_STEPS, MAX_BRACKETED_ITERATIONS,
 };
 pub use linear::LinearInverse;
+#[cfg(feature = "research-tiers")]
 pub use piecewise_linear::PiecewiseLinearInverse;
+#[cfg(feature = "research-tiers")]
 pub use polynomial::{PolynomialInverse, POLYNOMIAL_DEGREE};
+#[cfg(feature = "research-tiers")]
 pub use saturating::{Libm, LnBackend, Micromath, SaturatingFit, SaturatingInverse};
 pub use table::{TableInverse, TABLE_INTERVALS};
 
@@ -35,8 +65,9 @@ pub trait InverseCurve {
     fn pressure_kpa(&self, relative_change: f32) -> f32;
 }
 
-/// The available inversion tiers, cheapest-first is not implied: see [`Tier::ALL`] and the
-/// performance report for measured cost and error.
+/// The inversion tiers, cheapest-first is not implied: see [`Tier::ALL`] and the performance
+/// report for measured cost and error. Every build names all of them (wire ids, recordings); the
+/// research tiers are built only with the feature `research-tiers` ([`Tier::is_built`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -44,20 +75,22 @@ pub trait InverseCurve {
 pub enum Tier {
     /// One sensitivity: the secant from the origin to the top calibration point.
     Linear = 0,
-    /// Straight lines between the calibration points.
+    /// Straight lines between the calibration points (research tier).
     PiecewiseLinear = 1,
     /// Exact inverse of the monotone (Fritsch–Carlson) cubic through the calibration points:
     /// the reference curve of the model.
     #[default]
     MonotoneCubic = 2,
-    /// Fitted dC/C0 = A (1 - exp(-P / B)), inverted in closed form with libm's logf.
+    /// Fitted dC/C0 = A (1 - exp(-P / B)), inverted in closed form with libm's logf (research
+    /// tier).
     Saturating = 3,
-    /// The same fitted model, inverted with micromath's fast ln.
+    /// The same fitted model, inverted with micromath's fast ln (research tier: a choice of
+    /// logarithm, not another model).
     SaturatingMicromath = 4,
     /// A dense table of the monotone cubic's inverse with linear interpolation.
     Table = 5,
     /// A least-squares polynomial of the monotone cubic's inverse, by Horner's rule: built for
-    /// speed.
+    /// speed (research tier).
     Polynomial = 6,
 }
 
@@ -72,6 +105,26 @@ impl Tier {
         Tier::Table,
         Tier::Polynomial,
     ];
+
+    /// The tiers the device builds, in id order: the Pareto front of M4 cost against distance
+    /// from the default model in the shipped build, `linear` as the cheapest (module docs).
+    pub const ON_DEVICE: [Tier; 3] = [Tier::Linear, Tier::MonotoneCubic, Tier::Table];
+
+    /// Whether the tier is a research tier, off the Pareto front: built only with the feature
+    /// `research-tiers`, never on the device.
+    pub const fn is_research(self) -> bool {
+        matches!(
+            self,
+            Tier::PiecewiseLinear | Tier::Saturating | Tier::SaturatingMicromath | Tier::Polynomial
+        )
+    }
+
+    /// Whether this build of model-core has the tier: a device tier always, a research tier
+    /// with the feature `research-tiers`. A tier that is not built is refused wherever one is
+    /// built (`None`, or the caller's "tier unavailable").
+    pub const fn is_built(self) -> bool {
+        !self.is_research() || cfg!(feature = "research-tiers")
+    }
 
     /// Stable name used on the command line and in files.
     pub const fn name(self) -> &'static str {
@@ -104,90 +157,119 @@ impl Tier {
     }
 }
 
-/// All tiers of one taxel, built at once from its curve (tier selection, references, host
-/// tools); a taxel model keeps only the active one.
+/// All tiers of one taxel that this build has, built at once from its curve (tier selection,
+/// references, host tools); a taxel model keeps only the active one.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TaxelInverses {
     linear: LinearInverse,
-    piecewise_linear: PiecewiseLinearInverse,
     monotone_cubic: MonotoneCubicInverse,
     table: TableInverse,
+    #[cfg(feature = "research-tiers")]
+    piecewise_linear: PiecewiseLinearInverse,
+    #[cfg(feature = "research-tiers")]
     saturating: Option<SaturatingFit>,
+    #[cfg(feature = "research-tiers")]
     polynomial: Option<PolynomialInverse>,
+    #[cfg(feature = "research-tiers")]
     top_pressure_kpa: f32,
 }
 
 impl TaxelInverses {
-    /// Builds every tier for a curve.
+    /// Builds every tier of this build for a curve.
     pub fn new(curve: &CalibrationCurve) -> Self {
         let monotone_cubic = MonotoneCubicInverse::new(curve);
         Self {
             linear: LinearInverse::new(curve),
+            #[cfg(feature = "research-tiers")]
             piecewise_linear: PiecewiseLinearInverse::new(curve),
+            #[cfg(feature = "research-tiers")]
             polynomial: PolynomialInverse::new(&monotone_cubic, curve),
+            #[cfg(feature = "research-tiers")]
             saturating: SaturatingFit::new(curve),
+            #[cfg(feature = "research-tiers")]
+            top_pressure_kpa: curve.top().pressure_kpa,
             table: active::table(curve, monotone_cubic.knots()),
             monotone_cubic,
-            top_pressure_kpa: curve.top().pressure_kpa,
         }
     }
 
-    /// Whether a tier can be used for this curve (the saturating fit needs a concave curve, the
-    /// polynomial a monotone fit).
+    /// Whether a tier can be used for this curve: false for a tier this build does not have
+    /// ([`Tier::is_built`]); the saturating fit needs a concave curve, the polynomial a
+    /// monotone fit.
     pub fn supports(&self, tier: Tier) -> bool {
         match tier {
+            Tier::Linear | Tier::MonotoneCubic | Tier::Table => true,
+            #[cfg(feature = "research-tiers")]
+            Tier::PiecewiseLinear => true,
+            #[cfg(feature = "research-tiers")]
             Tier::Saturating | Tier::SaturatingMicromath => self.saturating.is_some(),
+            #[cfg(feature = "research-tiers")]
             Tier::Polynomial => self.polynomial.is_some(),
-            _ => true,
+            #[cfg(not(feature = "research-tiers"))]
+            _ => false,
         }
     }
 
     /// The tier as a taxel model keeps it (a copy of what was built here), or `None` when the
-    /// curve does not support it.
+    /// curve does not support it or this build does not have it.
     pub fn active(&self, tier: Tier) -> Option<ActiveInverse> {
         Some(match tier {
             Tier::Linear => ActiveInverse::from_linear(self.linear),
-            Tier::PiecewiseLinear => {
-                ActiveInverse::from_piecewise_linear(self.piecewise_linear.slopes().clone())
-            }
             Tier::MonotoneCubic => {
                 ActiveInverse::from_monotone_cubic(self.monotone_cubic.knots().clone())
             }
+            Tier::Table => ActiveInverse::from_table(self.table.clone()),
+            #[cfg(feature = "research-tiers")]
+            Tier::PiecewiseLinear => {
+                ActiveInverse::from_piecewise_linear(self.piecewise_linear.slopes().clone())
+            }
+            #[cfg(feature = "research-tiers")]
             Tier::Saturating => {
                 ActiveInverse::from_saturating(self.saturating.as_ref()?, self.top_pressure_kpa)
             }
+            #[cfg(feature = "research-tiers")]
             Tier::SaturatingMicromath => ActiveInverse::from_saturating_micromath(
                 self.saturating.as_ref()?,
                 self.top_pressure_kpa,
             ),
-            Tier::Table => ActiveInverse::from_table(self.table.clone()),
+            #[cfg(feature = "research-tiers")]
             Tier::Polynomial => ActiveInverse::from_polynomial(self.polynomial.clone()?),
+            #[cfg(not(feature = "research-tiers"))]
+            _ => return None,
         })
     }
 
-    /// Pressure for a relative change through the given tier. A tier the curve does not support
-    /// falls back to the monotone cubic (callers check [`TaxelInverses::supports`] first).
+    /// Pressure for a relative change through the given tier. A tier the curve does not support,
+    /// or this build does not have, falls back to the monotone cubic (callers check
+    /// [`TaxelInverses::supports`] first).
     #[inline]
     pub fn pressure_kpa(&self, tier: Tier, relative_change: f32) -> f32 {
         match tier {
             Tier::Linear => self.linear.pressure_kpa(relative_change),
-            Tier::PiecewiseLinear => self.piecewise_linear.pressure_kpa(relative_change),
             Tier::Table => self.table.pressure_kpa(relative_change),
+            #[cfg(feature = "research-tiers")]
+            Tier::PiecewiseLinear => self.piecewise_linear.pressure_kpa(relative_change),
+            #[cfg(feature = "research-tiers")]
             Tier::Polynomial => match &self.polynomial {
                 Some(polynomial) => polynomial.pressure_kpa(relative_change),
                 None => self.monotone_cubic.pressure_kpa(relative_change),
             },
+            #[cfg(feature = "research-tiers")]
             Tier::Saturating => match &self.saturating {
                 Some(fit) => SaturatingInverse::<Libm>::new(fit, self.top_pressure_kpa)
                     .pressure_kpa(relative_change),
                 None => self.monotone_cubic.pressure_kpa(relative_change),
             },
+            #[cfg(feature = "research-tiers")]
             Tier::SaturatingMicromath => match &self.saturating {
                 Some(fit) => SaturatingInverse::<Micromath>::new(fit, self.top_pressure_kpa)
                     .pressure_kpa(relative_change),
                 None => self.monotone_cubic.pressure_kpa(relative_change),
             },
+            #[cfg(feature = "research-tiers")]
             Tier::MonotoneCubic => self.monotone_cubic.pressure_kpa(relative_change),
+            #[cfg(not(feature = "research-tiers"))]
+            _ => self.monotone_cubic.pressure_kpa(relative_change),
         }
     }
 
@@ -196,7 +278,8 @@ impl TaxelInverses {
         self.monotone_cubic.forward().value_at(pressure_kpa)
     }
 
-    /// The saturating fit, if the curve allows one.
+    /// The saturating fit, if the curve allows one (research tier).
+    #[cfg(feature = "research-tiers")]
     pub fn saturating_fit(&self) -> Option<&SaturatingFit> {
         self.saturating.as_ref()
     }
@@ -206,7 +289,8 @@ impl TaxelInverses {
         &self.linear
     }
 
-    /// The piecewise-linear tier.
+    /// The piecewise-linear tier (research tier).
+    #[cfg(feature = "research-tiers")]
     pub fn piecewise_linear(&self) -> &PiecewiseLinearInverse {
         &self.piecewise_linear
     }
@@ -221,7 +305,8 @@ impl TaxelInverses {
         &self.table
     }
 
-    /// The polynomial tier, if the fit is monotone.
+    /// The polynomial tier, if the fit is monotone (research tier).
+    #[cfg(feature = "research-tiers")]
     pub fn polynomial(&self) -> Option<&PolynomialInverse> {
         self.polynomial.as_ref()
     }

@@ -8,6 +8,7 @@ use model_core::conditioning::{CONVERTER_NOISE_PF, NOMINAL_SENSOR_PF};
 use model_core::inverse::POLYNOMIAL_DEGREE;
 use model_core::use_case::MEASURED_INSTRUCTIONS;
 use model_core::{SelectionError, TaxelFlags, Tier, TierChoice};
+use plotters::style::RGBColor;
 
 use crate::bench_output::BenchRun;
 use crate::firmware::{Footprint, FLASH_BUDGET_BYTES, STATIC_RAM_BUDGET_BYTES};
@@ -207,12 +208,103 @@ fn fastest_close(data: &ReportData, run: &BenchRun, measure: Measure) -> Option<
         .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
+/// The colour of a research tier in the speed-vs-error picture: a light grey, apart from the
+/// tier colours (the linear tier's own is a darker grey).
+const RESEARCH_COLOUR: RGBColor = RGBColor(0xaa, 0xaa, 0xaa);
+
+/// The Pareto front of cost against error in the shipped build: the tiers no other tier beats
+/// on both the temperature-corrected inversion's instruction count and the largest distance
+/// from the default model, cheapest first, as (tier, instructions, distance in kPa).
+fn pareto_front(data: &ReportData) -> Vec<(Tier, f64, f64)> {
+    let measured: Vec<(Tier, f64, f64)> = figures(data)
+        .iter()
+        .filter_map(|figure| {
+            let count = Measure::CorrectedInversion.count(&data.shipped, figure.tier)?;
+            Some((figure.tier, count, figure.max_from_default_kpa?))
+        })
+        .collect();
+    front_of(&measured)
+}
+
+/// The points of `measured` (tier, cost, error) that no other point beats on both, cheapest
+/// first.
+fn front_of(measured: &[(Tier, f64, f64)]) -> Vec<(Tier, f64, f64)> {
+    let mut front: Vec<(Tier, f64, f64)> = measured
+        .iter()
+        .copied()
+        .filter(|&(_, count, distance)| {
+            !measured.iter().any(|&(_, other_count, other_distance)| {
+                other_count <= count
+                    && other_distance <= distance
+                    && (other_count < count || other_distance < distance)
+            })
+        })
+        .collect();
+    front.sort_by(|a, b| a.1.total_cmp(&b.1));
+    front
+}
+
+/// Tier names joined for prose: "`a`, `b` and `c`".
+fn tier_names(tiers: impl IntoIterator<Item = Tier>) -> String {
+    let names: Vec<String> = tiers
+        .into_iter()
+        .map(|tier| format!("`{}`", tier.name()))
+        .collect();
+    match names.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+        Some((last, _)) => last.clone(),
+        None => "none".to_string(),
+    }
+}
+
+/// Which tiers the device builds and which are research-only, against the measured front.
+fn device_tiers(out: &mut String, data: &ReportData) {
+    let front = pareto_front(data);
+    let research = Tier::ALL.into_iter().filter(|tier| tier.is_research());
+    let _ = writeln!(
+        out,
+        "**On the device:** {} (model-core without its feature `research-tiers`: the firmware \
+         builds these inverses only). **Research only:** {}, built for the host tools, the \
+         reports and this benchmark (`research-tiers`); the device refuses them (`SetModelTier` \
+         answers NotSupported) and use-case selection never offers them. The device keeps the \
+         Pareto front of cost against error of the shipped build (the black line), with \
+         `linear` as the cheapest; measured here, the front is {}.",
+        tier_names(Tier::ON_DEVICE),
+        tier_names(research),
+        tier_names(front.iter().map(|(tier, _, _)| *tier)),
+    );
+    let off_device: Vec<Tier> = front
+        .iter()
+        .map(|(tier, _, _)| *tier)
+        .filter(|tier| !Tier::ON_DEVICE.contains(tier))
+        .collect();
+    if !off_device.is_empty() {
+        let _ = writeln!(
+            out,
+            "\n**The measured front includes research tiers** ({}): the device's choice of tiers \
+             (`Tier::ON_DEVICE`) should be reconsidered.",
+            tier_names(off_device)
+        );
+    }
+    let _ = writeln!(out);
+}
+
 /// The speed-vs-error picture.
 pub fn plot(data: &ReportData) -> Plot {
     let mut points = Vec::new();
     let mut links = Vec::new();
     for figure in figures(data) {
-        let colour = taxel_plot_style::tier_colour(figure.tier);
+        let research = figure.tier.is_research();
+        let colour = if research {
+            RESEARCH_COLOUR
+        } else {
+            taxel_plot_style::tier_colour(figure.tier)
+        };
+        let label = if research {
+            format!("{} (research)", figure.tier.name())
+        } else {
+            figure.tier.name().to_string()
+        };
         let Some(y) = figure.max_from_default_kpa else {
             continue;
         };
@@ -220,7 +312,7 @@ pub fn plot(data: &ReportData) -> Plot {
         let full = Measure::FullStep.count(&data.shipped, figure.tier);
         if let Some(x) = corrected {
             points.push(Point {
-                label: Some(figure.tier.name().to_string()),
+                label: Some(label.clone()),
                 x,
                 y,
                 filled: true,
@@ -229,7 +321,7 @@ pub fn plot(data: &ReportData) -> Plot {
         }
         if let Some(x) = full {
             points.push(Point {
-                label: corrected.is_none().then(|| figure.tier.name().to_string()),
+                label: corrected.is_none().then_some(label),
                 x,
                 y,
                 filled: false,
@@ -257,6 +349,8 @@ pub fn plot(data: &ReportData) -> Plot {
             "hollow: full model step TaxelModel::convert (+ fault classification, tier dispatch, output record).".to_string(),
             "y: largest deviation from the f64 default model (monotone cubic) over the grid, numerical error included;".to_string(),
             "for monotone-cubic itself that is its numerical error. Dashed: the targets.".to_string(),
+            "Black line: the Pareto front of the filled points. Grey, \"(research)\": research tiers, not on the device".to_string(),
+            "(built only with model-core's feature research-tiers, for host tools and this benchmark).".to_string(),
         ],
         points,
         guides: vec![
@@ -278,6 +372,10 @@ pub fn plot(data: &ReportData) -> Plot {
             ),
         ],
         links,
+        front: pareto_front(data)
+            .into_iter()
+            .map(|(_, count, distance)| (count, distance))
+            .collect(),
     }
 }
 
@@ -373,6 +471,7 @@ pub fn markdown(data: &ReportData) -> String {
          point is its numerical error. The opt-level {} counts are in the cost table.\n",
         data.shipped.opt_level, data.opt3.opt_level
     );
+    device_tiers(out, data);
 
     hard_cases(out, &data.shipped);
     use_cases(out, data);
@@ -382,4 +481,45 @@ pub fn markdown(data: &ReportData) -> String {
     simulator(out, data);
     measured_elsewhere(out);
     text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_front_of_the_shipped_figures_is_the_device_tiers() {
+        // The shipped build's figures the device's choice was made on (docs/PERFORMANCE.md):
+        // instructions per temperature-corrected inversion, largest distance from the default.
+        let measured = [
+            (Tier::Linear, 34.0, 9.09),
+            (Tier::PiecewiseLinear, 98.7, 0.494),
+            (Tier::MonotoneCubic, 142.3, 3e-5),
+            (Tier::Saturating, 107.8, 0.644),
+            (Tier::SaturatingMicromath, 98.8, 0.646),
+            (Tier::Table, 88.6, 0.015),
+            (Tier::Polynomial, 107.0, 0.050),
+        ];
+        let front: Vec<Tier> = front_of(&measured)
+            .into_iter()
+            .map(|(tier, _, _)| tier)
+            .collect();
+        assert_eq!(front, [Tier::Linear, Tier::Table, Tier::MonotoneCubic]);
+        let mut on_device = Tier::ON_DEVICE.to_vec();
+        on_device.sort_by_key(|tier| front.iter().position(|front_tier| front_tier == tier));
+        assert_eq!(front, on_device);
+        // A tie on one axis is not a win; equal points both stay.
+        let tied = [(Tier::Linear, 10.0, 1.0), (Tier::Table, 10.0, 1.0)];
+        assert_eq!(front_of(&tied).len(), 2);
+    }
+
+    #[test]
+    fn tier_names_read_as_prose() {
+        assert_eq!(tier_names([]), "none");
+        assert_eq!(tier_names([Tier::Table]), "`table`");
+        assert_eq!(
+            tier_names(Tier::ON_DEVICE),
+            "`linear`, `monotone-cubic` and `table`"
+        );
+    }
 }
