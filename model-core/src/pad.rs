@@ -2,7 +2,9 @@
 //! the chosen tier. One call per converter cycle turns four readings into four pressures.
 
 use crate::baseline::{Baseline, BaselineError, BaselineRecord, BaselineTracking, TareAccumulator};
-use crate::calibration::{Calibration, FaultThresholds, TaxelCalibration, TAXEL_COUNT};
+use crate::calibration::{
+    Calibration, FaultThresholds, TaxelCalibration, TemperatureLaw, TAXEL_COUNT,
+};
 use crate::conditioning::NOMINAL_SENSOR_PF;
 use crate::flags::TaxelFlags;
 use crate::inverse::{ActiveInverse, TaxelInverses, Tier};
@@ -126,15 +128,20 @@ impl TaxelState {
                 |relative_change| in_range(model, relative_change),
             )
             .with_flags(flags | conditions.temperature_flags | self.baseline_flags);
+        // Only a running tare takes capacitances, only enabled tracking moves baselines: the
+        // usual set (neither) skips both.
         let unusable_for_tare = TaxelFlags::FAULTS.difference(TaxelFlags::NOT_TARED);
         let tare = match value {
             ReadingValue::Capacitance(capacitance)
-                if !output.flags().intersects(unusable_for_tare) =>
+                if conditions.taring && !output.flags().intersects(unusable_for_tare) =>
             {
                 Some(capacitance)
             }
             _ => None,
         };
+        if !tracking.enabled {
+            return (output, tare);
+        }
         let tracking_hit_limit = match (output.relative_change(), self.baseline.as_mut()) {
             (Some(relative_change), Some(baseline)) if !output.flags().is_fault() => {
                 tracking.update(baseline, relative_change)
@@ -155,6 +162,8 @@ struct Conditions {
     inverse_permittivity_ratio: f32,
     thresholds: FaultThresholds,
     temperature_flags: TaxelFlags,
+    /// A tare is averaging: taxels hand it their capacitances.
+    taring: bool,
 }
 
 /// The tare: never asked for, averaging, or finished.
@@ -174,7 +183,53 @@ pub struct PadModel {
     tier: Tier,
     tracking: BaselineTracking,
     temperature: TemperatureTracker,
+    permittivity: Permittivity,
     tare: Tare,
+}
+
+/// The permittivity ratio of the last temperature used, and its reciprocal: the temperature
+/// rarely changes between sets, and the law's interpolation and the division cost about 35 M4
+/// instructions a set.
+#[derive(Debug, Clone, Copy)]
+struct Permittivity {
+    /// The temperature the ratios are for, °C (NaN: none yet).
+    temperature_c: f32,
+    /// eps(T) / eps(25 °C).
+    ratio: f32,
+    /// eps(25 °C) / eps(T).
+    inverse_ratio: f32,
+}
+
+// A cache, not state: two models convert alike whatever they cached (and NaN, "nothing yet",
+// equals nothing).
+impl PartialEq for Permittivity {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl Permittivity {
+    /// Nothing computed yet (a model with a new calibration starts here: its law may differ).
+    const NONE: Self = Self {
+        temperature_c: f32::NAN,
+        ratio: 1.0,
+        inverse_ratio: 1.0,
+    };
+
+    /// The ratio and its reciprocal at `temperature_c` under `law`, the same bits as computing
+    /// them afresh.
+    #[inline(always)]
+    fn at(&mut self, temperature_c: f32, law: &TemperatureLaw) -> (f32, f32) {
+        if temperature_c != self.temperature_c {
+            let ratio = law.permittivity_ratio(temperature_c);
+            *self = Self {
+                temperature_c,
+                ratio,
+                inverse_ratio: 1.0 / ratio,
+            };
+        }
+        (self.ratio, self.inverse_ratio)
+    }
 }
 
 // A device reads up to eight pads, each with its own model, in the firmware's static RAM
@@ -182,11 +237,12 @@ pub struct PadModel {
 // target its parts are the calibration (668 bytes), four taxel states of 774 (the default
 // tier's model, the largest at 716 with its per-interval cubics, interval hints and seed table
 // — the table tier's needs 204 — with its baseline, flag and last tare result), the tare of 176
-// and the temperature state. The seed table is what makes the default tier's inverse one
+// and the temperature state, with the last permittivity (12 bytes for about 9 M4 instructions a
+// taxel). The seed table is what makes the default tier's inverse one
 // Newton step (about 70 fewer M4 instructions a taxel, docs/PERFORMANCE.md) for 2,072 bytes a
 // pad (16.2 KiB for eight); growing the model further should be a decision, not an accident.
 #[cfg(target_pointer_width = "32")]
-const _: () = assert!(core::mem::size_of::<PadModel>() <= 3_984);
+const _: () = assert!(core::mem::size_of::<PadModel>() <= 3_996);
 
 /// A tier the calibration cannot provide.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -207,6 +263,7 @@ impl PadModel {
             tier: Tier::default(),
             tracking: BaselineTracking::default(),
             temperature: TemperatureTracker::default(),
+            permittivity: Permittivity::NONE,
             tare: Tare::Never,
         }
     }
@@ -477,16 +534,25 @@ impl PadModel {
             .iter()
             .find_map(|taxel| taxel.baseline.as_ref())
             .map(Baseline::temperature_c);
-        let temperature = self.temperature.resolve_at(
+        let law = self.calibration.temperature_law();
+        let (temperature_c, temperature_flags) = self.temperature.temperature_at(
             sample.temperature_c,
             tare_temperature_c,
-            self.calibration.temperature_law(),
+            law,
             sample.time_us,
         );
+        let (permittivity_ratio, inverse_permittivity_ratio) =
+            self.permittivity.at(temperature_c, law);
+        let temperature = TemperatureUsed {
+            temperature_c,
+            permittivity_ratio,
+            flags: temperature_flags,
+        };
         let conditions = Conditions {
-            inverse_permittivity_ratio: 1.0 / temperature.permittivity_ratio,
+            inverse_permittivity_ratio,
             thresholds: *self.calibration.thresholds(),
             temperature_flags: temperature.flags,
+            taring: matches!(self.tare, Tare::Running(_)),
         };
         let tracking = self.tracking;
         let mut taxels = self.taxels.iter_mut().zip(self.calibration.taxels());

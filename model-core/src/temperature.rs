@@ -143,8 +143,25 @@ impl TemperatureTracker {
         law: &TemperatureLaw,
         time_us: Option<u64>,
     ) -> TemperatureUsed {
+        let (temperature_c, flags) = self.temperature_at(measured_c, fallback_c, law, time_us);
+        TemperatureUsed {
+            temperature_c,
+            permittivity_ratio: law.permittivity_ratio(temperature_c),
+            flags,
+        }
+    }
+
+    /// [`TemperatureTracker::resolve_at`] without the permittivity: the temperature used and
+    /// its flags (a pad model keeps the permittivity of the last temperature).
+    pub(crate) fn temperature_at(
+        &mut self,
+        measured_c: Option<f32>,
+        fallback_c: Option<f32>,
+        law: &TemperatureLaw,
+        time_us: Option<u64>,
+    ) -> (f32, TaxelFlags) {
         let (minimum_c, maximum_c) = (law.characterised_min_c(), law.characterised_max_c());
-        let (temperature_c, flags) = match measured_c {
+        match measured_c {
             Some(value) if value.is_finite() => {
                 let clamped = clamp_f32(value, minimum_c, maximum_c);
                 let range_flags = if clamped != value {
@@ -169,11 +186,6 @@ impl TemperatureTracker {
                 let substitute = clamp_f32(substitute, minimum_c, maximum_c);
                 (substitute, TaxelFlags::TEMPERATURE_MISSING)
             }
-        };
-        TemperatureUsed {
-            temperature_c,
-            permittivity_ratio: law.permittivity_ratio(temperature_c),
-            flags,
         }
     }
 
