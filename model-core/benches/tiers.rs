@@ -10,9 +10,13 @@
 //! `cargo xtask report` reads the results from criterion's JSON files. The research tiers are
 //! timed only with `--features research-tiers`, which the report passes.
 //!
-//! Groups `convert` and `inverse` measure the thread's CPU time, so time slices the scheduler
-//! gives to other processes (a shared build machine) are not counted; `convert-wall` measures
-//! the conversion again in wall-clock time as a cross-check.
+//! Group `batch` times the host's batch path, `PadModel::process_all`, over the same grid as
+//! sample sets of four taxels (each at another pressure, in a scrambled order), per taxel
+//! conversion; `batch-inverse` its inverse alone (`ActiveInverse::pressures_kpa`).
+//!
+//! Groups `convert`, `inverse`, `batch` and `batch-inverse` measure the thread's CPU time, so
+//! time slices the scheduler gives to other processes (a shared build machine) are not counted;
+//! `convert-wall` measures the conversion again in wall-clock time as a cross-check.
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -33,6 +37,11 @@ const SENSOR_PF: f32 = 4.5;
 const CAPDAC: u8 = 3;
 
 struct Grid {
+    /// The tared pad every taxel's figures come from.
+    pad: PadModel,
+    /// The grid as sample sets: per temperature, its pressures in a scrambled order, each set's
+    /// four taxels at four different pressures.
+    sets: Vec<SampleInput>,
     calibration: TaxelCalibration,
     inverses: TaxelInverses,
     baseline: Baseline,
@@ -69,6 +78,7 @@ fn grid() -> Option<Grid> {
     let thresholds = *pad.calibration().thresholds();
     let mut inputs = Vec::new();
     let mut relative_changes = Vec::new();
+    let mut sets = Vec::new();
     for temperature_step in 0..=10 {
         let temperature_c = 5.0 + 5.0 * temperature_step as f32;
         let used = TemperatureTracker::default().resolve(Some(temperature_c), None, &law);
@@ -89,8 +99,21 @@ fn grid() -> Option<Grid> {
             );
             relative_changes.push(output.relative_change().unwrap_or(0.0));
         }
+        // 37 is coprime with the 101 pressures: each taxel visits every pressure once per
+        // temperature, in an order no predictor follows.
+        let reading_at = |step: usize| {
+            let pressure_kpa = 0.5 * ((step * 37) % 101) as f32;
+            let relative_change = inverses.relative_change_at(pressure_kpa);
+            raw(PARASITIC_PF + SENSOR_PF * (1.0 + relative_change) * used.permittivity_ratio)
+        };
+        for step in 0..=100 {
+            let readings = [0, 25, 50, 75].map(|offset| reading_at(step + offset));
+            sets.push(SampleInput::new(readings, Some(temperature_c)));
+        }
     }
     Some(Grid {
+        pad,
+        sets,
         calibration: taxel_calibration,
         inverses,
         baseline,
@@ -187,6 +210,53 @@ fn inverse_group<M: Measurement>(criterion: &mut Criterion<M>, grid: &Grid) {
     inverse.finish();
 }
 
+/// `PadModel::process_all`, the host's batch path, over the grid's sample sets: time per taxel
+/// conversion (the whole model of a set, a quarter each), with the batch inverse alone beside it.
+fn batch_group<M: Measurement>(criterion: &mut Criterion<M>, grid: &Grid) {
+    let mut batch = criterion.benchmark_group("batch");
+    batch.throughput(Throughput::Elements(4 * grid.sets.len() as u64));
+    for tier in Tier::ALL {
+        let mut pad = grid.pad.clone();
+        if pad.set_tier(tier).is_err() {
+            continue;
+        }
+        batch.bench_function(tier.name(), |bencher| {
+            bencher.iter_batched_ref(
+                || pad.clone(),
+                |pad| {
+                    let mut sum_kpa = 0.0f32;
+                    black_box(pad).process_all(grid.sets.iter().copied(), |_, output| {
+                        sum_kpa += output.taxels[0].pressure_kpa().unwrap_or(0.0);
+                    });
+                    black_box(sum_kpa);
+                },
+                criterion::BatchSize::SmallInput,
+            )
+        });
+    }
+    batch.finish();
+    let mut batch_inverse = criterion.benchmark_group("batch-inverse");
+    batch_inverse.throughput(Throughput::Elements(grid.relative_changes.len() as u64));
+    let mut values = grid.relative_changes.clone();
+    for tier in Tier::ALL {
+        let Some(model) = TaxelModel::with_tier(&grid.calibration, tier) else {
+            continue;
+        };
+        batch_inverse.bench_function(tier.name(), |bencher| {
+            bencher.iter(|| {
+                values.copy_from_slice(&grid.relative_changes);
+                for chunk in values.chunks_mut(model_core::BATCH_SAMPLE_SETS) {
+                    black_box(&model)
+                        .inverse()
+                        .pressures_kpa(grid.calibration.curve(), chunk);
+                }
+                black_box(&mut values);
+            })
+        });
+    }
+    batch_inverse.finish();
+}
+
 fn grid_or_exit() -> Grid {
     grid().unwrap_or_else(|| {
         eprintln!("the default calibration or its tare was refused");
@@ -198,6 +268,7 @@ fn cpu_time(criterion: &mut Criterion<ThreadCpuTime>) {
     let grid = grid_or_exit();
     convert_group(criterion, "convert", &grid);
     inverse_group(criterion, &grid);
+    batch_group(criterion, &grid);
 }
 
 fn wall_time(criterion: &mut Criterion) {

@@ -385,7 +385,14 @@ fn report() -> Result<()> {
     let mut host_convert = Vec::new();
     let mut host_convert_wall = Vec::new();
     let mut host_inverse = Vec::new();
+    let mut host_batch = Vec::new();
+    let mut host_batch_inverse = Vec::new();
     for tier in Tier::ALL {
+        host_batch.push((tier, host::read_bench(&criterion_home, "batch", tier)?));
+        host_batch_inverse.push((
+            tier,
+            host::read_bench(&criterion_home, "batch-inverse", tier)?,
+        ));
         host_convert.push((tier, host::read_bench(&criterion_home, "convert", tier)?));
         host_convert_wall.push((
             tier,
@@ -402,6 +409,8 @@ fn report() -> Result<()> {
         host_convert,
         host_convert_wall,
         host_inverse,
+        host_batch,
+        host_batch_inverse,
         leave_one_out: Tier::ALL
             .into_iter()
             .map(|tier| (tier, host::leave_one_out(tier)))

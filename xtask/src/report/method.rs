@@ -152,13 +152,13 @@ pub(super) fn host_table(out: &mut String, data: &ReportData) {
     let _ = writeln!(out, "## Time per conversion on the host\n");
     let _ = writeln!(
         out,
-        "| tier | `convert`, ns of CPU time (95 % CI) | M conversions/s | ns, wall clock | inverse alone (`TaxelInverses::pressure_kpa`), ns |\n|---|---|---|---|---|"
+        "| tier | `convert`, ns of CPU time (95 % CI) | M conversions/s | ns, wall clock | inverse alone (`TaxelInverses::pressure_kpa`), ns | batch (`PadModel::process_all`), ns per taxel (M/s) | its inverse alone (`ActiveInverse::pressures_kpa`), ns |\n|---|---|---|---|---|---|---|"
     );
     for figure in figures(data) {
         let wall = lookup(&data.host_convert_wall, figure.tier);
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} |",
             figure.tier.name(),
             optional(figure.host, |host| format!(
                 "{:.2} ({:.2}–{:.2})",
@@ -173,6 +173,15 @@ pub(super) fn host_table(out: &mut String, data: &ReportData) {
                 "{:.2}",
                 host.nanoseconds
             )),
+            optional(lookup(&data.host_batch, figure.tier), |host| format!(
+                "{:.2} ({:.0})",
+                host.nanoseconds,
+                host.per_second() / 1e6
+            )),
+            optional(
+                lookup(&data.host_batch_inverse, figure.tier),
+                |host| format!("{:.2}", host.nanoseconds)
+            ),
         );
     }
     let _ = writeln!(

@@ -81,6 +81,12 @@ pub struct ReportData {
     pub host_convert_wall: Vec<(Tier, HostTime)>,
     /// Host thread CPU time per `TaxelInverses::pressure_kpa`, per tier.
     pub host_inverse: Vec<(Tier, HostTime)>,
+    /// Host thread CPU time per taxel conversion of `PadModel::process_all` (the batch path),
+    /// per tier.
+    pub host_batch: Vec<(Tier, HostTime)>,
+    /// Host thread CPU time per value of `ActiveInverse::pressures_kpa` (the batch path's
+    /// inverse), per tier.
+    pub host_batch_inverse: Vec<(Tier, HostTime)>,
     /// Leave-one-out (max, rms, per point) per tier (None: the reduced curves do not support it).
     pub leave_one_out: Vec<(Tier, Option<LeaveOneOut>)>,
     /// rms pressure noise per tier at [`NOISE_PRESSURES_KPA`].
