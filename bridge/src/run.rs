@@ -414,24 +414,41 @@ fn bridge_ports(
     }
     // Every device's last set and its end are in the queue once the worker has finished.
     drop(worker.finish());
-    result?;
-    for arrived in queue.drain() {
-        let messages = relay.take(arrived);
+    let published = (|| {
+        result?;
+        for arrived in queue.drain() {
+            let messages = relay.take(arrived);
+            publication.send(messages, &relay)?;
+        }
+        let messages = relay.finish();
         publication.send(messages, &relay)?;
-    }
-    let messages = relay.finish();
-    publication.send(messages, &relay)?;
-    publication.health(&relay, &queue)?;
-    // Flushes and closes the timing log, which can then take its name.
-    let counts = publication.finish()?;
+        publication.health(&relay, &queue)?;
+        // Flushes and closes the timing log, which can then take its name.
+        publication.finish()
+    })();
     drop(foxglove);
+    // The MCAP file keeps what was published, also when the run failed: a recording is
+    // never lost to a later error.
+    let recorded = match ros {
+        Some(ros) => ros.finish().and_then(|file| match (file, mcap_file) {
+            (Some(file), Some(pending)) => pending.commit_file(file),
+            _ => Ok(()),
+        }),
+        None => Ok(()),
+    };
+    let counts = match (published, &config.mcap) {
+        (Ok(counts), _) => counts,
+        (Err(error), Some(path)) if recorded.is_ok() => {
+            return Err(error.context(format!(
+                "the bridge stopped; {} holds the messages published until then",
+                path.display()
+            )))
+        }
+        (Err(error), _) => return Err(error),
+    };
+    recorded?;
     if let Some(pending) = timing_pending {
         pending.commit()?;
-    }
-    if let Some(ros) = ros {
-        if let (Some(file), Some(pending)) = (ros.finish()?, mcap_file) {
-            pending.commit_file(file)?;
-        }
     }
     for (device, health) in relay.healths(queue.dropped_sets()).iter().enumerate() {
         noteln!(

@@ -146,6 +146,15 @@ fn document_crc_check_value_matches() {
 }
 
 #[test]
+fn document_states_the_longest_payload_of_this_version() {
+    let sentence = format!("payload of this version is {} bytes", wire::MAX_PAYLOAD_LEN);
+    assert!(
+        PROTOCOL.replace('\n', " ").contains(&sentence),
+        "docs/PROTOCOL.md section 2.1 should say: {sentence}"
+    );
+}
+
+#[test]
 fn document_kind_table_matches() {
     for (frame, kind) in [
         ("Info", wire::kind::INFO),
