@@ -13,9 +13,9 @@ use crate::inverse::Tier;
 pub const MEASURED_INSTRUCTIONS: [(Tier, u32); 7] = [
     (Tier::Linear, 115),
     (Tier::PiecewiseLinear, 168),
-    (Tier::MonotoneCubic, 204),
-    (Tier::Saturating, 175),
-    (Tier::SaturatingMicromath, 167),
+    (Tier::MonotoneCubic, 203),
+    (Tier::Saturating, 176),
+    (Tier::SaturatingMicromath, 166),
     (Tier::Table, 163),
     (Tier::Polynomial, 180),
 ];
