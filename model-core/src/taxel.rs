@@ -8,13 +8,28 @@ use crate::inverse::{ActiveInverse, Tier};
 use crate::reading::ReadingValue;
 
 /// The result for one taxel.
+// 16 bytes rather than 24 with two `Option<f32>`s: the device writes and copies four per set
+// (a value that is absent is held as 0.0, so the derived equality is the values').
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TaxelOutput {
     pressure_kpa: f32,
-    capacitance_pf: Option<f32>,
-    relative_change: Option<f32>,
+    capacitance_pf: f32,
+    relative_change: f32,
     flags: TaxelFlags,
+    present: Present,
+}
+
+/// Which of a [`TaxelOutput`]'s optional values it holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+enum Present {
+    /// Neither: the converter gave no capacitance.
+    Nothing,
+    /// The capacitance only (no dC/C0: a fault before it, or no baseline).
+    Capacitance,
+    /// The capacitance and dC/C0.
+    Both,
 }
 
 impl TaxelOutput {
@@ -28,9 +43,14 @@ impl TaxelOutput {
         };
         Self {
             pressure_kpa: 0.0,
-            capacitance_pf,
-            relative_change: None,
+            capacitance_pf: capacitance_pf.unwrap_or(0.0),
+            relative_change: 0.0,
             flags,
+            present: if capacitance_pf.is_some() {
+                Present::Capacitance
+            } else {
+                Present::Nothing
+            },
         }
     }
 
@@ -46,12 +66,12 @@ impl TaxelOutput {
 
     /// The measured capacitance, pF, when the converter gave one.
     pub fn capacitance_pf(&self) -> Option<f32> {
-        self.capacitance_pf
+        (self.present != Present::Nothing).then_some(self.capacitance_pf)
     }
 
     /// dC/C0 referenced to 25 °C, when it could be formed.
     pub fn relative_change(&self) -> Option<f32> {
-        self.relative_change
+        (self.present == Present::Both).then_some(self.relative_change)
     }
 
     /// Status flags.
@@ -183,9 +203,10 @@ impl TaxelModel {
         };
         TaxelOutput {
             pressure_kpa,
-            capacitance_pf: Some(total_pf),
-            relative_change: Some(relative_change),
+            capacitance_pf: total_pf,
+            relative_change,
             flags,
+            present: Present::Both,
         }
     }
 }

@@ -18,10 +18,10 @@
 //! Cost is the instruction count per taxel conversion measured on a Cortex-M4F under QEMU
 //! (`cargo xtask m4-test`, which fails when a build drifts from these figures).
 //!
-//! Selection chooses only among the tiers this build has ([`Tier::is_built`]): on the device
-//! those on the Pareto front of cost against error (linear, table, monotone-cubic; see
-//! [`crate::inverse`]); the research tiers, off the front, only with the feature
-//! `research-tiers`, where they are never cheaper and within budget when `table` is not.
+//! Selection chooses only among the tiers on the Pareto front of cost against error, the
+//! device's tiers ([`Tier::ON_DEVICE`]: linear, table, monotone-cubic; see [`crate::inverse`]),
+//! in every build: the research tiers (feature `research-tiers`) are chosen by name, never by a
+//! use case, so a host and a device select alike.
 
 use heapless::Vec;
 
@@ -312,7 +312,7 @@ pub fn select_tier_for_taxels(
     }
     let mut cheapest_fit: Option<TierChoice> = None;
     let mut most_accurate: Option<TierChoice> = None;
-    for tier in Tier::ALL.into_iter().filter(|tier| tier.is_built()) {
+    for tier in Tier::ON_DEVICE {
         if !taxels.iter().all(|taxel| taxel.inverses.supports(tier)) {
             continue;
         }

@@ -79,9 +79,11 @@ pub(super) fn use_cases(out: &mut String, data: &ReportData) {
     let _ = writeln!(out, "## Which tier each use case selects\n");
     let _ = writeln!(
         out,
-        "`model_core::select_tier_for_taxels` on the article's curve picks the cheapest tier \
-         (by `MEASURED_INSTRUCTIONS`) whose error over the use case's pressure and temperature \
-         range fits the budget. The error is the sum of four parts (model-core's `use_case` \
+        "`model_core::select_tier_for_taxels` on the article's curve picks, among the device's \
+         tiers (the Pareto front: linear, table, monotone-cubic), the cheapest (by \
+         `MEASURED_INSTRUCTIONS`) whose error over the use case's pressure and temperature range \
+         fits the budget; the research tiers are evaluated below for comparison, never selected. \
+         The error is the sum of four parts (model-core's `use_case` \
          module): numerical (the tier against the reference curve), model form (for the \
          interpolating forms, leave-one-out over the calibration points in the range, scaled to \
          the calibration's spacing by the form's order, the table and polynomial carrying the \
