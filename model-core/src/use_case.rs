@@ -358,40 +358,48 @@ mod tests {
         }
     }
 
-    #[test]
-    fn each_use_case_gets_the_cheapest_tier_that_fits_its_budget_or_says_why() {
+    /// `check` of one taxel of the article's curve as selection's evidence, and its law.
+    fn with_article_evidence(check: impl FnOnce(&[TaxelEvidence<'_>], &TemperatureLaw)) {
         let curve = CalibrationCurve::article_default();
         let inverses = TaxelInverses::new(&curve);
-        let law = TemperatureLaw::article_default();
         let evidence = [TaxelEvidence {
             inverses: &inverses,
             curve: &curve,
             sensor_pf: NOMINAL_SENSOR_PF,
         }];
-        for use_case in [UseCase::LIGHT_TOUCH, UseCase::GRIPPER, UseCase::GLOVE] {
-            match select_tier_for_taxels(&evidence, &law, &use_case) {
-                Ok(choice) => {
-                    assert!(choice.total_error_kpa() <= use_case.error_budget_kpa);
-                    for tier in Tier::ALL
-                        .into_iter()
-                        .filter(|tier| inverses.supports(*tier))
-                    {
-                        let other = evaluate_tier(&evidence[0], tier, &law, &use_case);
-                        if other.instructions < choice.instructions {
-                            assert!(
-                                other.total_error_kpa() > use_case.error_budget_kpa,
-                                "{use_case:?}: {tier:?} is cheaper than {:?} and fits",
-                                choice.tier
-                            );
+        check(&evidence, &TemperatureLaw::article_default());
+    }
+
+    #[test]
+    fn each_use_case_gets_the_cheapest_tier_that_fits_its_budget_or_says_why() {
+        with_article_evidence(|evidence, law| {
+            for use_case in [UseCase::LIGHT_TOUCH, UseCase::GRIPPER, UseCase::GLOVE] {
+                match select_tier_for_taxels(evidence, law, &use_case) {
+                    Ok(choice) => {
+                        assert!(choice.total_error_kpa() <= use_case.error_budget_kpa);
+                        for taxel in evidence {
+                            for tier in Tier::ON_DEVICE
+                                .into_iter()
+                                .filter(|tier| taxel.inverses.supports(*tier))
+                            {
+                                let other = evaluate_tier(taxel, tier, law, &use_case);
+                                if other.instructions < choice.instructions {
+                                    assert!(
+                                        other.total_error_kpa() > use_case.error_budget_kpa,
+                                        "{use_case:?}: {tier:?} is cheaper than {:?} and fits",
+                                        choice.tier
+                                    );
+                                }
+                            }
                         }
                     }
+                    Err(SelectionError::NoTierWithinBudget { best }) => {
+                        assert!(best.total_error_kpa() > use_case.error_budget_kpa);
+                    }
+                    Err(other) => panic!("{use_case:?}: {other:?}"),
                 }
-                Err(SelectionError::NoTierWithinBudget { best }) => {
-                    assert!(best.total_error_kpa() > use_case.error_budget_kpa);
-                }
-                Err(other) => panic!("{use_case:?}: {other:?}"),
             }
-        }
+        });
     }
 
     #[test]
@@ -461,39 +469,31 @@ mod tests {
         assert!((linear - 8.775).abs() < 0.01, "{linear}");
     }
 
-    /// With or without the research tiers, selection offers only tiers this build has; without
-    /// them (the device) it picks from the Pareto front, and with them it picks the same tier,
-    /// since `table` is cheaper and more accurate than every research tier.
+    /// With or without the research tiers, selection picks from the Pareto front (the device's
+    /// tiers), so a host with the research tiers selects as the device does.
     #[test]
-    fn selection_picks_only_built_tiers_and_the_same_with_or_without_research() {
-        let curve = CalibrationCurve::article_default();
-        let inverses = TaxelInverses::new(&curve);
-        let law = TemperatureLaw::article_default();
-        let evidence = [TaxelEvidence {
-            inverses: &inverses,
-            curve: &curve,
-            sensor_pf: NOMINAL_SENSOR_PF,
-        }];
-        let mut chosen = 0;
-        for pressure_max_kpa in [5.0, 10.0, 20.0, 35.0, 50.0] {
-            for error_budget_kpa in [0.02, 0.05, 0.1, 0.2, 0.5, 0.7, 1.0, 2.0, 5.0, 20.0] {
-                let use_case = UseCase {
-                    pressure_max_kpa,
-                    error_budget_kpa,
-                    ..UseCase::GRIPPER
-                };
-                let Ok(choice) = select_tier_for_taxels(&evidence, &law, &use_case) else {
-                    continue;
-                };
-                chosen += 1;
-                assert!(choice.tier.is_built(), "{use_case:?}: {:?}", choice.tier);
-                assert!(
-                    Tier::ON_DEVICE.contains(&choice.tier),
-                    "{use_case:?}: {:?} is off the front",
-                    choice.tier
-                );
+    fn selection_picks_from_the_front_with_or_without_research_tiers() {
+        with_article_evidence(|evidence, law| {
+            let mut chosen = 0;
+            for pressure_max_kpa in [5.0, 10.0, 20.0, 35.0, 50.0] {
+                for error_budget_kpa in [0.02, 0.05, 0.1, 0.2, 0.5, 0.7, 1.0, 2.0, 5.0, 20.0] {
+                    let use_case = UseCase {
+                        pressure_max_kpa,
+                        error_budget_kpa,
+                        ..UseCase::GRIPPER
+                    };
+                    let Ok(choice) = select_tier_for_taxels(evidence, law, &use_case) else {
+                        continue;
+                    };
+                    chosen += 1;
+                    assert!(
+                        Tier::ON_DEVICE.contains(&choice.tier),
+                        "{use_case:?}: {:?} is off the front",
+                        choice.tier
+                    );
+                }
             }
-        }
-        assert!(chosen > 0);
+            assert!(chosen > 0);
+        });
     }
 }
