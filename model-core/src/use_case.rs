@@ -289,8 +289,8 @@ pub fn evaluate_tier(
 }
 
 /// The cheapest tier (fewest measured instructions) that fits the use case on every one of these
-/// taxels; a tier's error is that of its worst taxel. Only tiers this build has are candidates
-/// (a research tier without the feature `research-tiers` is never chosen).
+/// taxels; a tier's error is that of its worst taxel. The candidates are the device's tiers
+/// ([`Tier::ON_DEVICE`]) in every build: a research tier is never chosen.
 pub fn select_tier_for_taxels(
     taxels: &[TaxelEvidence<'_>],
     law: &TemperatureLaw,

@@ -11,21 +11,13 @@
 //! # The tiers the device keeps
 //!
 //! The device builds only the tiers on the Pareto front of cost against error in the shipped
-//! build (docs/PERFORMANCE.md: M4 instructions per temperature-corrected inversion, and the
-//! largest distance from the default model over the grid):
-//!
-//! | tier | instructions | from the default model | |
-//! |---|---|---|---|
-//! | `linear` | 34.0 | 9.09 kPa | the cheapest |
-//! | `table` | 88.6 | 0.015 kPa | |
-//! | `monotone-cubic` | 142.3 | 3e-5 kPa | the default, the reference curve |
-//! | `piecewise-linear` | 98.7 | 0.494 kPa | research |
-//! | `saturating` | 107.8 | 0.644 kPa | research |
-//! | `saturating-micromath` | 98.8 | 0.646 kPa | research (a choice of logarithm) |
-//! | `polynomial` | 107.0 | 0.050 kPa | research |
-//!
-//! `table` is both cheaper and more accurate than every research tier, so none of them can be
-//! what a use case needs. They are built only with the feature `research-tiers` (host tools,
+//! build (M4 instructions per temperature-corrected inversion against the largest distance from
+//! the default model over the grid; `cargo xtask report` draws it in docs/speed-vs-error.svg
+//! and says there whether the measured front is still [`Tier::ON_DEVICE`]): `linear` (the
+//! cheapest), `table` and `monotone-cubic` (the default, the reference curve). `table` is both
+//! cheaper and more accurate than every other tier, so none of those can be what a use case
+//! needs: `piecewise-linear`, `saturating`, `saturating-micromath` (a choice of logarithm, not
+//! another model) and `polynomial` are research tiers. They are built only with the feature `research-tiers` (host tools,
 //! the M4 benchmark, the reports). Without it [`Tier`] still names all seven (the wire
 //! protocol and recordings carry their ids), but a research tier is refused:
 //! [`ActiveInverse::new`] and [`TaxelInverses::active`] give `None`,
@@ -110,19 +102,16 @@ impl Tier {
     /// from the default model in the shipped build, `linear` as the cheapest (module docs).
     pub const ON_DEVICE: [Tier; 3] = [Tier::Linear, Tier::MonotoneCubic, Tier::Table];
 
-    /// Whether the tier is a research tier, off the Pareto front: built only with the feature
-    /// `research-tiers`, never on the device.
-    pub const fn is_research(self) -> bool {
-        matches!(
-            self,
-            Tier::PiecewiseLinear | Tier::Saturating | Tier::SaturatingMicromath | Tier::Polynomial
-        )
+    /// Whether the tier is a research tier, off the Pareto front (not in
+    /// [`Tier::ON_DEVICE`]): built only with the feature `research-tiers`, never on the device.
+    pub fn is_research(self) -> bool {
+        !Self::ON_DEVICE.contains(&self)
     }
 
     /// Whether this build of model-core has the tier: a device tier always, a research tier
     /// with the feature `research-tiers`. A tier that is not built is refused wherever one is
     /// built (`None`, or the caller's "tier unavailable").
-    pub const fn is_built(self) -> bool {
+    pub fn is_built(self) -> bool {
         !self.is_research() || cfg!(feature = "research-tiers")
     }
 
