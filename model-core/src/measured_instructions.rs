@@ -11,11 +11,11 @@ use crate::inverse::Tier;
 /// from this one (counts within 2 instructions are tied), or when a count drifts
 /// further than half the smallest gap between neighbouring tiers.
 pub const MEASURED_INSTRUCTIONS: [(Tier, u32); 7] = [
-    (Tier::Linear, 116),
-    (Tier::PiecewiseLinear, 173),
-    (Tier::MonotoneCubic, 205),
-    (Tier::Saturating, 177),
-    (Tier::SaturatingMicromath, 167),
-    (Tier::Table, 168),
-    (Tier::Polynomial, 185),
+    (Tier::Linear, 115),
+    (Tier::PiecewiseLinear, 171),
+    (Tier::MonotoneCubic, 160),
+    (Tier::Saturating, 174),
+    (Tier::SaturatingMicromath, 166),
+    (Tier::Table, 167),
+    (Tier::Polynomial, 184),
 ];

@@ -234,15 +234,15 @@ impl Permittivity {
 
 // A device reads up to eight pads, each with its own model, in the firmware's static RAM
 // (budget 64 KiB on the Cortex-M4F), so the model keeps only the tier in use. On a 32-bit
-// target its parts are the calibration (668 bytes), four taxel states of 774 (the default
-// tier's model, the largest at 716 with its per-interval cubics, interval hints and seed table
+// target its parts are the calibration (668 bytes), four taxel states of 1,030 (the default
+// tier's model, the largest at 972 with its per-interval cubics and seed grid
 // — the table tier's needs 204 — with its baseline, flag and last tare result), the tare of 176
 // and the temperature state, with the last permittivity (12 bytes for about 9 M4 instructions a
-// taxel). The seed table is what makes the default tier's inverse one
-// Newton step (about 70 fewer M4 instructions a taxel, docs/PERFORMANCE.md) for 2,072 bytes a
-// pad (16.2 KiB for eight); growing the model further should be a decision, not an accident.
+// taxel). The seed grid is what makes the default tier's inverse one Newton step without a
+// search for the interval (`inverse/cubic.rs`) for 2,208 bytes a pad (17.3 KiB for eight);
+// growing the model further should be a decision, not an accident.
 #[cfg(target_pointer_width = "32")]
-const _: () = assert!(core::mem::size_of::<PadModel>() <= 3_996);
+const _: () = assert!(core::mem::size_of::<PadModel>() <= 5_020);
 
 /// A tier the calibration cannot provide.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

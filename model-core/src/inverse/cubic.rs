@@ -3,45 +3,58 @@
 //!
 //! # Storage
 //!
-//! Besides the calibration's own points the tier keeps, per interval, its cubic's coefficients
-//! (from the Fritsch–Carlson tangents, computed in f64, in f32 arithmetic), the error bound of
-//! stage 1 below and where its seed cells are; [`HINT_CELLS`] interval hints; and a seed table
-//! of [`SEED_CELLS`] cells: 716 bytes a taxel, all computed when the calibration or the tier is
-//! installed, so that a reading costs a lookup, three multiply-adds, one Newton step and one
-//! division (the firmware's RAM holds it for eight pads: the pad model's size is asserted in
+//! Per interval the tier keeps its cubic `f(s) = c0 + s (c1 + s (c2 + s c3))` in the local
+//! pressure `s = P - P_k` (kPa), with [`crate::monotone_cubic::MonotoneCubic`]'s f32
+//! coefficients (Fritsch–Carlson, computed in f64 and rounded; `c0` is the start point's
+//! dC/C0), its start pressure `P_k` and the error bound of stage 1 over the whole interval; a
+//! slot after the last interval holds the top pressure (the last interval's end) and `+inf` as
+//! its dC/C0, and padding slots follow, so that the fast path's slot indexes need no bounds
+//! check. A grid of [`SEED_CELLS`] cells over `0 ..= top` in dC/C0 keeps per cell a seed (the
+//! pressure as a cubic of the position in the cell), the interval holding the cell's start and
+//! the largest Newton step it accepts. That is 972 bytes a taxel, all computed when the
+//! calibration or the tier is installed, so that a reading costs a division to find its cell,
+//! one comparison for its interval, the seed, one Newton step with its division and one
+//! comparison (the firmware's RAM holds it for eight pads: the pad model's size is asserted in
 //! `pad.rs`).
 //!
 //! # Method
 //!
-//! On the interval `[P_k, P_k+1]` of the reading the cubic is written in the unit coordinate
-//! `t = (P - P_k) / w` (`w = P_k+1 - P_k`): with `d = dC/C0_k+1 - dC/C0_k` and the tangents
-//! scaled to the interval, `a = w m_k`, `b = w m_k+1`, `f(t) = dC/C0_k + t (a + t ((3 d - 2 a -
-//! b) + t (a + b - 2 d)))`, the same Hermite cubic as
-//! [`crate::monotone_cubic::MonotoneCubic`]'s (whose coefficients, in the local pressure, are
-//! rounded from f64: the two agree to f32 rounding). It is non-decreasing on `0 ..= 1`
-//! (Fritsch–Carlson). The root of `f(t) = y` is found in two stages.
+//! On `0 ..= w` (`w = P_k+1 - P_k`) the cubic is non-decreasing (Fritsch–Carlson, up to the
+//! rounding of its coefficients). The root of `f(s) = y` is found in two stages.
 //!
-//! 1. **Fast path: a seed from the table, at most [`FAST_NEWTON_STEPS`] Newton steps, a proven
-//!    error bound.** The reading's interval is found by a forward scan over the points' dC/C0
-//!    from a hint (equal cells of `0 ..= top`; the scan rarely moves). Each interval has its
-//!    own cells of the seed table, equal in dC/C0 (at least one each, the rest shared where a
-//!    cell spans the most kPa); a cell holds the inverse over it as a cubic in the interval's
-//!    unit coordinate (Hermite, through the roots and their slopes at the cell's ends, slopes
-//!    capped at three times the cell's secant so that the seed is monotone), and the seed
-//!    `t0` is that cubic at the reading. A Newton step `t1 = t0 - r / f'(t0)` (with
-//!    `r = f(t0) - y`) follows. With `m = min f'`, `M = max f'` and `K = max |f''|` over a part
-//!    of the interval holding `t0` and the root, Taylor's theorem gives
-//!    `|t1 - t*| <= K / (2 m) * (t0 - t*)^2` and the mean-value theorem
-//!    `|t0 - t*| <= |r / f'(t0)| * M / m`; so the pressure `P_k + w t1` is within
-//!    `B * step^2` of the root, `B = w K M^2 / (2 m^3)` (kPa). For the first step that part is
-//!    the cell's reach (its readings' roots and its seeds, with a margin for rounding), whose
-//!    bound each cell keeps; for later steps the whole interval, whose bound each interval
-//!    keeps (both computed once, in f64, from the f32 coefficients). A step is accepted when
-//!    `B * step^2 <= ACCEPTED_ERROR_KPA`, which holds in exact arithmetic whatever the seed;
-//!    when the first is not accepted, the second starts from `t1` (clamped into the interval)
-//!    under the interval's bound. The seed only decides how often the first step is enough:
-//!    for every reading of the article's curve, for at least 95 % of readings of ordinary
-//!    concave calibrations (tested).
+//! 1. **Fast path: a seed from the grid, at most [`FAST_NEWTON_STEPS`] Newton steps, a proven
+//!    error bound.** A reading `y` is at `p = y / (alpha - beta y)` cells of the grid, a warp
+//!    that spends cells where the inverse is steep (`beta` gives it the ratio of the inverse's
+//!    slopes at the top and at 0, within `1/16 ..= 16`; `alpha` puts the top a little inside
+//!    the last cell). Its cell is `p` truncated (saturating: NaN is in the first; positions of
+//!    -1 or less and past the grid are in none and take the rest of the search), `u` = `p` -
+//!    cell (exact). The seed is the cell's cubic in `u`, the inverse's interpolant at the
+//!    cell's four Chebyshev points. The interval is the cell's, or the next when `y` is at least
+//!    the next slot's dC/C0: no search. A Newton step `s1 = s0 - r / f'(s0)` (`s0` = seed -
+//!    `P_k`, not clamped; `r = f(s0) - y`) follows. With `m = min f'`, `M = max f'` and
+//!    `K = max |f''|` over a range holding `s0` and the root `s*`, Taylor's theorem gives
+//!    `|s1 - s*| <= K / (2 m) * (s0 - s*)^2` and the mean-value theorem
+//!    `|s0 - s*| <= |r / f'(s0)| * M / m`; so `P_k + s1` is within `B * step^2` of the root,
+//!    `B = K M^2 / (2 m^3)` (per kPa). For the first step the range is a side's reach (below
+//!    the cell's knot in its interval, at or above it in the next), in f64 from the f32
+//!    coefficients: the side's readings lie between those at the cell's ends widened by
+//!    [`CELL_MARGIN`] (far more than the rounding of `p`), cut at the knot; their seeds within
+//!    the seed cubic's bounds over the matching `u` (its ends where its derivative, a
+//!    quadratic, is not negative) widened by [`SEED_MARGIN`] for the f32 evaluation of the seed
+//!    and of `s0`; the reach is the hull of those and of the roots of the side's end readings
+//!    widened by [`ROOT_MARGIN`], past the interval's ends if need be (`f` is the same
+//!    polynomial there). It is checked: `f` at its ends must straddle the side's readings and
+//!    `m` must be positive, so that the root of every reading of the side is in it, unique. The
+//!    cell keeps `ACCEPTED_ERROR_KPA / B` for the larger of its sides' `B`, rounded down so
+//!    that the f32 test `step^2 <= limit` implies `B step^2 <= ACCEPTED_ERROR_KPA`, which holds
+//!    in exact arithmetic whatever the seed; `-inf` (never met) where a check fails or a second
+//!    knot is in the cell (past it the readings belong to a later interval). An accepted
+//!    pressure, near a root in `0 ..= top`, is clamped there. Otherwise the interval is found
+//!    by a scan from the cell's, and one more step, from the first step's result (or from the
+//!    seed where the interval differs and the seed is closer) clamped into the interval, is
+//!    judged by the interval's bound over `0 ..= w` (computed once, in f64). The seed only
+//!    decides how often the first step is enough: for every reading of the article's curve, for
+//!    at least 95 % of readings of ordinary concave calibrations (tested).
 //! 2. **Safeguarded Newton in a bracket.** Otherwise (a nearly flat spot makes `m` tiny or zero,
 //!    or the start was poor) the root is kept in a bracket `[low, high]` (`f(low) <= y <=
 //!    f(high)`, initially the whole interval) that every evaluation narrows, starting from the
@@ -50,7 +63,7 @@
 //!    So the bracket at least halves every two iterations: after `2 n` iterations it is at most
 //!    `2^-n` of the interval wide, and the loop stops when it is `2^-20` of it (or at f32
 //!    resolution), within [`MAX_BRACKETED_ITERATIONS`] iterations whatever the calibration. A
-//!    Newton step that meets the bound of stage 1 ends it earlier.
+//!    Newton step that meets the interval's bound ends it earlier.
 //!
 //! The result is the root of the f32 cubic to within the bound above, plus what the f32
 //! evaluation of `f` near the root cannot resolve: a few ulps of `y` times the local slope of the
@@ -61,19 +74,15 @@
 use super::{clamp_pressure, interval_index, interval_index_from, InverseCurve};
 use crate::bounds::clamp_f32;
 use crate::calibration::{CalibrationCurve, CurvePoint, MAX_CURVE_POINTS};
-use crate::monotone_cubic::{tangents, CubicSegment, MonotoneCubic};
+use crate::monotone_cubic::{CubicSegment, MonotoneCubic};
 
 /// Largest error (kPa, exact arithmetic) accepted from a Newton step of the fast path.
 pub const ACCEPTED_ERROR_KPA: f32 = 1.0e-5;
 
-/// Cells of the seed table (module doc, stage 1): enough that one Newton step from the seed
+/// Cells of the seed grid (module doc, stage 1): enough that one Newton step from the seed
 /// meets [`ACCEPTED_ERROR_KPA`] on ordinary calibrations, few enough for eight pads in the
-/// firmware's RAM (20 bytes a cell, per taxel).
-pub const SEED_CELLS: usize = 16;
-
-/// Cells of the interval hints: twice the most intervals, so that the scan from a hint rarely
-/// moves.
-const HINT_CELLS: usize = 32;
+/// firmware's RAM (24 bytes a cell, per taxel; 23 keep the tier under 1,000 bytes).
+pub const SEED_CELLS: usize = 23;
 
 /// Most Newton steps of the fast path before the bracketed stage takes over.
 pub const FAST_NEWTON_STEPS: usize = 2;
@@ -85,276 +94,327 @@ const BRACKET_RELATIVE_WIDTH: f32 = 1.0 / 1_048_576.0;
 /// 2 x 20 reach [`BRACKET_RELATIVE_WIDTH`]; two spare.
 pub const MAX_BRACKETED_ITERATIONS: usize = 42;
 
+/// Interval slots: every interval, the top point's, and padding, so that an interval index
+/// masked with [`INTERVAL_MASK`], plus one, is always a slot (no bounds check on the fast path).
+const INTERVAL_SLOTS: usize = MAX_CURVE_POINTS + 1;
+
+/// See [`INTERVAL_SLOTS`].
+const INTERVAL_MASK: usize = MAX_CURVE_POINTS - 1;
+
+const _: () = assert!(MAX_CURVE_POINTS.is_power_of_two() && SEED_CELLS > 0);
+
+/// A cell's reach past its ends, and past its knot, in cells: far more than the rounding of a
+/// reading's position (a few ulps of it).
+const CELL_MARGIN: f64 = 0.01;
+
+/// The roots' margin in a reach, as a fraction of the interval: they are solved to 2^-20 of it.
+const ROOT_MARGIN: f64 = 1.0e-4;
+
+/// The seed's margin in a reach, relative to the sum of its coefficients' magnitudes and the
+/// top pressure: the f32 evaluation of a cubic, and of `s0`, errs by a few ulps of those.
+const SEED_MARGIN: f64 = 1.0e-6;
+
+/// The Chebyshev points of `0 ..= 1` for a cubic, `(1 - cos((2 k + 1) pi / 8)) / 2`.
+const CHEBYSHEV_POINTS: [f64; 4] = [
+    0.038_060_233_744_356_62,
+    0.308_658_283_817_455_1,
+    0.691_341_716_182_544_9,
+    0.961_939_766_255_643_4,
+];
+
 /// What the monotone cubic tier keeps besides the curve's points.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) struct CubicKnots {
-    /// Per interval, its cubic's higher coefficients, error bound and seed cells.
-    intervals: [IntervalData; MAX_CURVE_POINTS - 1],
-    /// Hint cells per unit of dC/C0 (`HINT_CELLS / top`).
-    hints_per_relative_change: f32,
-    /// Per hint cell (equal cells of `0 ..= top` in dC/C0), the interval of its lowest dC/C0:
-    /// the scan for a reading's interval starts there.
-    interval_hints: [u8; HINT_CELLS],
-    /// The seed table, interval after interval.
-    seed_cells: [SeedCell; SEED_CELLS],
+    /// Per interval its cubic, start pressure and error bound; then the top point's slot.
+    intervals: [IntervalData; INTERVAL_SLOTS],
+    /// The grid's warp `[alpha, beta]`: a reading `y` is at `y / (alpha - beta y)` cells
+    /// (module doc).
+    warp: [f32; 2],
+    /// The top point's pressure.
+    top_kpa: f32,
+    /// The seed grid over `0 ..= top` in dC/C0.
+    cells: [SeedCell; SEED_CELLS],
 }
 
-/// What the tier keeps per interval.
+/// What the tier keeps per interval (module doc, storage).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct IntervalData {
-    /// `f(t)`'s coefficients of `t`, `t^2` and `t^3` (the constant is the start point's dC/C0),
-    /// from the Fritsch–Carlson tangents (computed in f64, rounded to f32) in f32 arithmetic.
-    higher_coefficients: [f32; 3],
-    /// `B = w max|f''| max(f')^2 / (2 min(f')^3)` in kPa (derivatives in the unit coordinate);
-    /// infinite where `f'` reaches 0.
+    /// `f(s)`'s coefficients in the local pressure `s` (kPa), constant (the start point's dC/C0)
+    /// first: [`MonotoneCubic`]'s.
+    coefficients: [f32; 4],
+    /// Pressure at the interval's start, kPa.
+    start_kpa: f32,
+    /// `B = max|f''| max(f')^2 / (2 min(f')^3)` over the interval (per kPa, derivatives in the
+    /// local pressure); infinite where `f'` reaches 0.
     error_bound_kpa: f32,
-    /// Seed cells per unit of dC/C0 (the interval's cell count over its rise).
-    cells_per_relative_change: f32,
-    /// The first seed cell's index in the table.
-    first_cell: u8,
-    /// The last seed cell's index in the table.
-    last_cell: u8,
-    /// The interval's own index.
-    index: u8,
 }
 
-impl IntervalData {
-    const EMPTY: Self = Self {
-        higher_coefficients: [0.0; 3],
-        error_bound_kpa: f32::INFINITY,
-        cells_per_relative_change: 0.0,
-        first_cell: 0,
-        last_cell: 0,
-        index: 0,
-    };
-}
-
-/// One cell of the seed table.
+/// One cell of the seed grid.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct SeedCell {
-    /// The seed `t = c0 + u (c1 + u (c2 + u c3))` in the interval's unit coordinate at position
-    /// `u` in the cell (`0 ..= 1`).
-    unit_seed: [f32; 4],
-    /// The fast path's error bound `B` of a first Newton step from the seed (module doc, stage
-    /// 1), over the part of the interval the cell's readings and seeds can reach; infinite where
-    /// the slope reaches 0.
-    bound_kpa: f32,
+    /// The seed pressure `c0 + u (c1 + u (c2 + u c3))` (kPa) at position `u` in the cell
+    /// (`0 ..= 1`).
+    seed: [f32; 4],
+    /// The largest accepted `step^2` (kPa^2) of the first Newton step: `ACCEPTED_ERROR_KPA / B`
+    /// over each side's reach (below the knot, at or above it), the smaller of the two, rounded
+    /// down; `-inf` where no step is accepted.
+    max_step_squared: f32,
+    /// The interval holding the cell's start less its margin: that of its readings below the
+    /// knot, which is the next interval's start.
+    interval: u8,
 }
 
 impl SeedCell {
     const EMPTY: Self = Self {
-        unit_seed: [0.0; 4],
-        bound_kpa: f32::INFINITY,
+        seed: [0.0; 4],
+        max_step_squared: f32::NEG_INFINITY,
+        interval: 0,
     };
 
     /// The seed at position `u` in the cell.
     #[inline(always)]
     fn seed(&self, u: f32) -> f32 {
-        let [c0, c1, c2, c3] = self.unit_seed;
+        let [c0, c1, c2, c3] = self.seed;
         c0 + u * (c1 + u * (c2 + u * c3))
     }
 }
 
-/// Where a reading falls: its interval's points and data, its seed cell and its position in that
-/// cell.
-#[derive(Clone, Copy)]
-struct Lookup<'a> {
-    low: &'a CurvePoint,
-    high: &'a CurvePoint,
-    data: &'a IntervalData,
-    cell: &'a SeedCell,
-    u: f32,
-}
+/// Why the first step gave no pressure, for the rest of the search: the reading's cell, the
+/// first step's interval and that step's result (kPa).
+type Miss = (usize, usize, f32);
 
-impl Lookup<'_> {
-    /// One Newton step from the cell's seed: the pressure when the cell's bound accepts the
-    /// step, else the step's unit coordinate for the rest of the search. The scalar path and the
-    /// host's batch both take it, so they agree bit for bit.
-    #[inline(always)]
-    fn first_step(&self, relative_change: f32) -> Result<f32, f32> {
-        // Not clamped: for a reading of the interval the seed lies between the cell's end roots
-        // (a monotone cubic, up to rounding far inside the cell's reach); for any other the
-        // clamps below decide the result.
-        let t = self.cell.seed(self.u);
-        let [c1, c2, c3] = self.data.higher_coefficients;
-        let cubic = CubicSegment {
-            x_start: 0.0,
-            width: 1.0,
-            coefficients: [self.low.relative_change, c1, c2, c3],
-        };
-        let step = (cubic.value_at(t) - relative_change) / cubic.slope_at(t);
-        let next = clamp_f32(t - step, 0.0, 1.0);
-        // The step started from the seed, within the cell's reach: the cell's bound holds.
-        if self.cell.bound_kpa * step * step <= ACCEPTED_ERROR_KPA {
-            let (start_kpa, end_kpa) = (self.low.pressure_kpa, self.high.pressure_kpa);
-            // With `next` in `0 ..= 1` the pressure is at least the start (both non-negative);
-            // only rounding can take it past the interval's end, and so past the top.
-            Ok(end_clamped(
-                start_kpa + next * (end_kpa - start_kpa),
-                end_kpa,
-            ))
-        } else {
-            Err(next)
-        }
-    }
-}
-
-/// One interval's cubic in the unit coordinate, with what turns its root into a pressure.
-#[derive(Clone, Copy)]
-struct UnitInterval {
-    /// `f(t)`, `t` in `0 ..= 1`.
-    cubic: CubicSegment,
-    /// Pressure at the interval's start, kPa.
-    start_kpa: f32,
-    /// Interval width, kPa.
-    width_kpa: f32,
-}
-
-impl UnitInterval {
-    /// The pressure at unit coordinate `t`, clamped to the curve.
-    #[inline(always)]
-    fn pressure_kpa(&self, t: f32, top_pressure_kpa: f32) -> f32 {
-        clamp_pressure(self.start_kpa + t * self.width_kpa, top_pressure_kpa)
-    }
-}
+/// [`Miss`] off the grid: no cell, no step.
+const OFF_GRID: Miss = (SEED_CELLS, INTERVAL_SLOTS, 0.0);
 
 impl CubicKnots {
-    /// Each interval's cubic and error bound, the interval hints and the seed table.
+    /// Each interval's cubic and error bound, and the seed grid.
     pub(crate) fn new(curve: &CalibrationCurve) -> Self {
-        let points = curve.points();
-        let tangents = tangents(&curve.pressures_kpa(), &curve.relative_changes())
-            .map(|tangent| tangent as f32);
-        let mut knots = Self {
-            intervals: [IntervalData::EMPTY; MAX_CURVE_POINTS - 1],
-            hints_per_relative_change: 0.0,
-            interval_hints: [0; HINT_CELLS],
-            seed_cells: [SeedCell::EMPTY; SEED_CELLS],
+        let top = curve.top();
+        // No reading is above the top slot's +inf: a reading of the last interval's cells,
+        // the top included, is below their knot.
+        let top_slot = IntervalData {
+            coefficients: [f32::INFINITY, 0.0, 0.0, 0.0],
+            start_kpa: top.pressure_kpa,
+            error_bound_kpa: f32::INFINITY,
         };
-        for (index, data) in knots.intervals.iter_mut().enumerate() {
-            let (Some(low), Some(high), Some(start_tangent), Some(end_tangent)) = (
-                points.get(index),
-                points.get(index + 1),
-                tangents.get(index),
-                tangents.get(index + 1),
-            ) else {
-                break;
+        let mut knots = Self {
+            intervals: [top_slot; INTERVAL_SLOTS],
+            warp: [0.0; 2],
+            top_kpa: top.pressure_kpa,
+            cells: [SeedCell::EMPTY; SEED_CELLS],
+        };
+        let forward = MonotoneCubic::new(&curve.pressures_kpa(), &curve.relative_changes());
+        for ((slot, segment), point) in knots
+            .intervals
+            .iter_mut()
+            .zip(forward.segments())
+            .zip(curve.points())
+        {
+            *slot = IntervalData {
+                coefficients: segment.coefficients,
+                start_kpa: point.pressure_kpa,
+                error_bound_kpa: f32::INFINITY,
             };
-            let width_kpa = high.pressure_kpa - low.pressure_kpa;
-            let rise = high.relative_change - low.relative_change;
-            let start_slope = width_kpa * start_tangent;
-            let end_slope = width_kpa * end_tangent;
-            data.index = index as u8;
-            data.higher_coefficients = [
-                start_slope,
-                3.0 * rise - 2.0 * start_slope - end_slope,
-                start_slope + end_slope - 2.0 * rise,
-            ];
         }
-        for index in 0..MAX_CURVE_POINTS - 1 {
-            if let (Some(interval), Some(data)) = (
-                knots.interval(points, index),
-                knots.intervals.get(index).copied(),
-            ) {
-                if let Some(slot) = knots.intervals.get_mut(index) {
-                    *slot = IntervalData {
-                        error_bound_kpa: error_bound_kpa(&interval),
-                        ..data
-                    };
-                }
+        for index in 0..INTERVAL_SLOTS {
+            let bound = knots
+                .segment(index)
+                .map_or(f32::INFINITY, |(segment, _)| error_bound_kpa(&segment));
+            if let Some(slot) = knots.intervals.get_mut(index) {
+                slot.error_bound_kpa = bound;
             }
         }
-        let top = curve.top().relative_change;
-        if top > 0.0 {
-            knots.hints_per_relative_change = HINT_CELLS as f32 / top;
-            let hint_width = f64::from(top) / HINT_CELLS as f64;
-            knots.interval_hints = core::array::from_fn(|hint| {
-                // A reading of this cell is at least its start less the rounding of its
-                // position (far below a hundredth of a cell).
-                let lowest = ((hint as f64 - 0.01) * hint_width).max(0.0) as f32;
-                u8::try_from(interval_index(points, lowest)).unwrap_or(0)
-            });
+        if top.relative_change > 0.0 {
+            knots.warp = knots.warp(f64::from(top.relative_change));
+            let points = curve.points();
+            let cells: [SeedCell; SEED_CELLS] =
+                core::array::from_fn(|cell| knots.seed_cell(points, cell));
+            knots.cells = cells;
         }
-        knots.fill_seed_table(curve);
         knots
     }
 
-    /// Shares the seed table's cells among the intervals (at least one each, the rest where a
-    /// cell spans the most kPa) and fills each cell (module doc, stage 1).
-    fn fill_seed_table(&mut self, curve: &CalibrationCurve) {
-        let points = curve.points();
-        let intervals = points.len().saturating_sub(1).min(SEED_CELLS);
-        let mut counts = [0usize; MAX_CURVE_POINTS - 1];
-        for count in counts.iter_mut().take(intervals) {
-            *count = 1;
-        }
-        let width_kpa = |index: usize| match (points.get(index), points.get(index + 1)) {
-            (Some(low), Some(high)) => high.pressure_kpa - low.pressure_kpa,
-            _ => 0.0,
+    /// Interval `index`'s cubic as a segment and its data (`None` past the last interval).
+    #[inline(always)]
+    fn segment(&self, index: usize) -> Option<(CubicSegment, &IntervalData)> {
+        let data = self.intervals.get(index)?;
+        let next = self.intervals.get(index + 1)?;
+        let width_kpa = next.start_kpa - data.start_kpa;
+        // The top point's slot and the padding after it have zero width.
+        let segment = CubicSegment {
+            x_start: 0.0,
+            width: width_kpa,
+            coefficients: data.coefficients,
         };
-        for _ in intervals..SEED_CELLS {
-            let widest = (0..intervals).max_by(|a, b| {
-                let per_cell = |index: usize| {
-                    width_kpa(index) / counts.get(index).copied().unwrap_or(1).max(1) as f32
-                };
-                per_cell(*a).total_cmp(&per_cell(*b))
-            });
-            if let Some(count) = widest.and_then(|index| counts.get_mut(index)) {
-                *count += 1;
+        (width_kpa > 0.0).then_some((segment, data))
+    }
+
+    /// The grid's warp (module doc, stage 1), `a y / (1 - b y)` as `[1 / a, b / a]`: `b` such
+    /// that the inverse's slope at the top over its slope at 0 is the warp's (within
+    /// `1 / 16 ..= 16`), `a` such that the top is a little inside the last cell rather than past
+    /// the grid.
+    fn warp(&self, top: f64) -> [f32; 2] {
+        let slope = |index: usize, local: f32| {
+            self.segment(index)
+                .map_or(0.0, |(segment, _)| f64::from(segment.slope_at(local)))
+        };
+        let last = self
+            .intervals
+            .iter()
+            .filter(|data| data.coefficients[0].is_finite())
+            .count();
+        let end = self
+            .segment(last.saturating_sub(1))
+            .map_or(0.0, |(segment, _)| segment.width);
+        // NaN (no slope at all) gives 1/16, a warp like any other.
+        let ratio = clamp_f32(
+            (slope(0, 0.0) / slope(last.saturating_sub(1), end)) as f32,
+            1.0 / 16.0,
+            16.0,
+        );
+        let b = (1.0 - 1.0 / f64::from(libm::sqrtf(ratio))) / top;
+        let a = SEED_CELLS as f64 * (1.0 - 1.0 / 262_144.0) * (1.0 - b * top) / top;
+        [(1.0 / a) as f32, (b / a) as f32]
+    }
+
+    /// The reading at position `position` of the grid (the warp's inverse), in f64.
+    fn unwarped(&self, position: f64) -> f64 {
+        let [alpha, beta] = self.warp.map(f64::from);
+        position * alpha / (1.0 + beta * position)
+    }
+
+    /// Cell `cell` of the seed grid (module doc, stage 1).
+    fn seed_cell(&self, points: &[CurvePoint], cell: usize) -> SeedCell {
+        let top = points
+            .last()
+            .map_or(0.0, |point| f64::from(point.relative_change));
+        let [alpha, beta] = self.warp.map(f64::from);
+        let at = |position: f64| self.unwarped(position).max(0.0).min(top);
+        let root = |position: f64| {
+            let relative_change = at(position) as f32;
+            let index = interval_index(points, relative_change);
+            self.root(index, relative_change)
+                .map_or(f64::from(self.top_kpa), |(local, data)| {
+                    f64::from(data.start_kpa) + local
+                })
+        };
+        // Through the roots at the four Chebyshev points of the cell (Newton's divided
+        // differences, expanded).
+        let [u0, u1, u2, u3] = CHEBYSHEV_POINTS;
+        let [p0, p1, p2, p3] = CHEBYSHEV_POINTS.map(|u| root(cell as f64 + u));
+        let (d01, d12, d23) = (
+            (p1 - p0) / (u1 - u0),
+            (p2 - p1) / (u2 - u1),
+            (p3 - p2) / (u3 - u2),
+        );
+        let (d012, d123) = ((d12 - d01) / (u2 - u0), (d23 - d12) / (u3 - u1));
+        let d0123 = (d123 - d012) / (u3 - u0);
+        let seed = [
+            (p0 - u0 * d01 + u0 * u1 * d012 - u0 * u1 * u2 * d0123) as f32,
+            (d01 - (u0 + u1) * d012 + (u0 * u1 + u0 * u2 + u1 * u2) * d0123) as f32,
+            (d012 - (u0 + u1 + u2) * d0123) as f32,
+            d0123 as f32,
+        ];
+        // The sides: the readings of the cell lie in `low ..= high`, below the knot in the
+        // interval holding `low`, at or above it in the next.
+        let (low, high) = (
+            at(cell as f64 - CELL_MARGIN),
+            at(cell as f64 + 1.0 + CELL_MARGIN),
+        );
+        let index = interval_index(points, low as f32);
+        let last_inner = points.len().saturating_sub(2);
+        let knot = points
+            .get(index + 1)
+            .map_or(top, |point| f64::from(point.relative_change));
+        let inner_knots = points
+            .iter()
+            .enumerate()
+            .filter(|(k, point)| {
+                *k > index && *k <= last_inner && f64::from(point.relative_change) <= high
+            })
+            .count();
+        let knot_position = knot / (alpha - beta * knot) - cell as f64;
+        let below = (knot_position + CELL_MARGIN).clamp(0.0, 1.0);
+        let above = (knot_position - CELL_MARGIN).clamp(0.0, 1.0);
+        let below_limit = self.max_step_squared(index, (low, high.min(knot)), &seed, (0.0, below));
+        let max_step_squared = match inner_knots {
+            // No reading of the cell is at or above the knot (the top's slot is +inf).
+            0 => below_limit,
+            1 => {
+                below_limit.min(self.max_step_squared(index + 1, (knot, high), &seed, (above, 1.0)))
             }
-        }
-        let mut next_cell = 0usize;
-        for index in 0..intervals {
-            let (Some(interval), Some(low), Some(&count)) = (
-                self.interval(points, index),
-                points.get(index),
-                counts.get(index),
-            ) else {
-                continue;
-            };
-            let rise = interval.cubic.value_at(1.0) - low.relative_change;
-            if let Some(data) = self.intervals.get_mut(index) {
-                data.cells_per_relative_change = if rise > 0.0 { count as f32 / rise } else { 0.0 };
-                data.first_cell = next_cell as u8;
-                data.last_cell = (next_cell + count - 1) as u8;
-            }
-            for cell in 0..count {
-                let filled = seed_cell(&interval, low.relative_change, rise, cell, count);
-                if let Some(slot) = self.seed_cells.get_mut(next_cell + cell) {
-                    *slot = filled;
-                }
-            }
-            next_cell += count;
+            // Past a second knot the readings belong to a later interval than the next.
+            _ => f32::NEG_INFINITY,
+        };
+        SeedCell {
+            seed,
+            max_step_squared,
+            interval: u8::try_from(index).unwrap_or(0),
         }
     }
 
-    /// Interval `index`'s end points and data (`None` past the last interval).
-    #[inline(always)]
-    fn parts<'a>(
-        &'a self,
-        points: &'a [CurvePoint],
+    /// The root of `relative_change` in interval `index` (local pressure, to the bracket's
+    /// resolution) and the interval's data.
+    fn root(&self, index: usize, relative_change: f32) -> Option<(f64, &IntervalData)> {
+        let (segment, data) = self.segment(index)?;
+        let local = solve_bracketed(
+            &segment,
+            f32::INFINITY,
+            0.0,
+            relative_change,
+            0.5 * segment.width,
+        );
+        Some((f64::from(local), data))
+    }
+
+    /// `ACCEPTED_ERROR_KPA / B` rounded down, `B` over the reach in interval `index` of a cell's
+    /// readings in `low ..= high` and of the cell's seeds at positions `first ..= last` (module
+    /// doc, stage 1); `-inf` where the reach's checks fail.
+    fn max_step_squared(
+        &self,
         index: usize,
-    ) -> Option<(&'a CurvePoint, &'a CurvePoint, &'a IntervalData)> {
-        Some((
-            points.get(index)?,
-            points.get(index + 1)?,
-            self.intervals.get(index)?,
-        ))
-    }
-
-    /// Interval `index`'s cubic (`None` past the last interval).
-    #[inline(always)]
-    fn interval(&self, points: &[CurvePoint], index: usize) -> Option<UnitInterval> {
-        let (low, high, data) = self.parts(points, index)?;
-        let [c1, c2, c3] = data.higher_coefficients;
-        Some(UnitInterval {
-            cubic: CubicSegment {
-                x_start: 0.0,
-                width: 1.0,
-                coefficients: [low.relative_change, c1, c2, c3],
-            },
-            start_kpa: low.pressure_kpa,
-            width_kpa: high.pressure_kpa - low.pressure_kpa,
-        })
+        (low, high): (f64, f64),
+        seed: &[f32; 4],
+        (first, last): (f64, f64),
+    ) -> f32 {
+        let Some((segment, data)) = self.segment(index) else {
+            return f32::NEG_INFINITY;
+        };
+        let (Some((low_root, _)), Some((high_root, _))) =
+            (self.root(index, low as f32), self.root(index, high as f32))
+        else {
+            return f32::NEG_INFINITY;
+        };
+        let start_kpa = f64::from(data.start_kpa);
+        let seed = seed.map(f64::from);
+        let (seed_low, seed_high) = cubic_range(seed, first, last);
+        let seed_margin = SEED_MARGIN
+            * (seed.iter().map(|c| c.abs()).sum::<f64>() + f64::from(self.top_kpa).abs());
+        let root_margin = ROOT_MARGIN * f64::from(segment.width);
+        let reach_low = (low_root - root_margin).min(seed_low - start_kpa - seed_margin);
+        let reach_high = (high_root + root_margin).max(seed_high - start_kpa + seed_margin);
+        let cubic = segment.coefficients.map(f64::from);
+        let [c0, c1, c2, c3] = cubic;
+        let value = |s: f64| c0 + s * (c1 + s * (c2 + s * c3));
+        // The reach holds the root of every reading of the side.
+        if !(value(reach_low) <= low && value(reach_high) >= high) {
+            return f32::NEG_INFINITY;
+        }
+        let (slope_min, slope_max) = derivative_range(cubic, reach_low, reach_high);
+        let curvature = |s: f64| (2.0 * c2 + 6.0 * c3 * s).abs();
+        let bound = bound_kpa(
+            curvature(reach_low).max(curvature(reach_high)),
+            slope_min,
+            slope_max,
+        );
+        if bound.is_finite() {
+            // Rounded down: the f32 product `step^2` and this limit's rounding stay on the
+            // safe side of `B step^2 <= ACCEPTED_ERROR_KPA`.
+            let limit = f64::from(ACCEPTED_ERROR_KPA) / f64::from(bound) * (1.0 - 1.0e-6);
+            (limit as f32).min(f32::MAX)
+        } else {
+            f32::NEG_INFINITY
+        }
     }
 
     /// Pressure for a relative change (module doc: both stages). `curve` must be the one the
@@ -364,129 +424,135 @@ impl CubicKnots {
         self.solve(curve, relative_change).0
     }
 
-    /// A reading's interval (its points and data), seed cell and position in that cell.
-    #[inline(always)]
-    fn lookup<'a>(&'a self, points: &'a [CurvePoint], relative_change: f32) -> Option<Lookup<'a>> {
-        // The scan from the hint's interval (a saturating conversion: NaN and negative readings
-        // start at the first interval, those past the top at the last hint).
-        let hint = (relative_change * self.hints_per_relative_change) as usize;
-        let start = self
-            .interval_hints
-            .get(hint.min(HINT_CELLS - 1))
-            .copied()
-            .unwrap_or(0);
-        let index = interval_index_from(points, relative_change, usize::from(start));
-        self.cell_of(points, index, relative_change)
+    /// [`CubicKnots::pressure_kpa`] for generic callers, compiled in their crate, which the
+    /// firmware builds for size: outlining the fast path's short sequences into shared functions
+    /// there costs the M4 more instructions (a call and a return each) than this one call.
+    #[inline(never)]
+    fn pressure_kpa_called(&self, curve: &CalibrationCurve, relative_change: f32) -> f32 {
+        self.pressure_kpa(curve, relative_change)
     }
 
-    /// [`CubicKnots::lookup`] once the reading's interval is known.
+    /// A reading's position in the grid, in cells (module doc, stage 1).
     #[inline(always)]
-    fn cell_of<'a>(
-        &'a self,
-        points: &'a [CurvePoint],
-        index: usize,
-        relative_change: f32,
-    ) -> Option<Lookup<'a>> {
-        let (low, high, data) = self.parts(points, index)?;
-        let position = (relative_change - low.relative_change) * data.cells_per_relative_change;
-        // Saturating again: NaN and negative positions are the first cell, those past the
-        // interval's end the last (the seed is then clamped into the interval).
-        let local =
-            (position as usize).min(usize::from(data.last_cell.saturating_sub(data.first_cell)));
-        let cell = self.seed_cells.get(usize::from(data.first_cell) + local)?;
-        Some(Lookup {
-            low,
-            high,
-            data,
-            cell,
-            u: position - local as f32,
-        })
+    fn position(&self, relative_change: f32) -> f32 {
+        let [alpha, beta] = self.warp;
+        relative_change / (alpha - beta * relative_change)
+    }
+
+    /// The first Newton step from the reading's seed: the pressure when the cell's bound
+    /// accepts it, else what the rest of the search needs. The scalar path and the host's batch
+    /// both take it, so they agree bit for bit.
+    #[inline(always)]
+    fn first_step(&self, relative_change: f32) -> Result<f32, Miss> {
+        // Signed, so that positions of -1 or less (below 0, or past the warp's pole) are off
+        // the grid, like those past it.
+        let position = self.position(relative_change);
+        let whole = position as i32;
+        // Reinterpreted: a negative `whole` is far past the grid.
+        let cell_index = whole as u32 as usize;
+        let Some(cell) = self.cells.get(cell_index) else {
+            return Err(OFF_GRID);
+        };
+        let seed_kpa = cell.seed(position - whole as f32);
+        // Masked, so that the slot and the next are in bounds without a check.
+        let first = usize::from(cell.interval) & INTERVAL_MASK;
+        let (Some(data), Some(next)) = (self.intervals.get(first), self.intervals.get(first + 1))
+        else {
+            return Err(OFF_GRID);
+        };
+        let above = relative_change >= next.coefficients[0];
+        let data = if above { next } else { data };
+        // Not clamped into the interval: the cell's bound holds over the reach of its seeds.
+        let local = seed_kpa - data.start_kpa;
+        // `f` and `f'` together by Horner's rule (the second column of the synthetic division).
+        let [c0, c1, c2, c3] = data.coefficients;
+        let high = c2 + local * c3;
+        let middle = c1 + local * high;
+        let slope = middle + local * (high + local * c3);
+        let step = (c0 + local * middle - relative_change) / slope;
+        let next_kpa = data.start_kpa + (local - step);
+        if step * step <= cell.max_step_squared {
+            // Within the bound of the root, which is in `0 ..= top`: clamped there on the bits,
+            // which takes fewer M4 instructions than comparing floats (an accepted step is not
+            // NaN; a non-negative f32 orders as its bits do, a negative one is negative as i32).
+            let bits = (next_kpa.to_bits() as i32).max(0);
+            Ok(f32::from_bits(
+                bits.min(self.top_kpa.to_bits() as i32) as u32
+            ))
+        } else {
+            Err((cell_index, first + usize::from(above), next_kpa))
+        }
     }
 
     /// [`CubicKnots::pressure_kpa`] with the number of Newton steps taken outside the bracketed
     /// stage (one more than [`FAST_NEWTON_STEPS`]: the bracketed stage ran).
     #[inline(always)]
     fn solve(&self, curve: &CalibrationCurve, relative_change: f32) -> (f32, usize) {
-        let Some(lookup) = self.lookup(curve.points(), relative_change) else {
-            return (0.0, 0);
-        };
-        match lookup.first_step(relative_change) {
+        match self.first_step(relative_change) {
             Ok(pressure_kpa) => (pressure_kpa, 1),
-            Err(next) => {
-                self.solve_further(curve, usize::from(lookup.data.index), relative_change, next)
+            Err((cell, interval, next_kpa)) => {
+                self.solve_further(curve, relative_change, cell, interval, next_kpa)
             }
         }
     }
 
-    /// The rest of the search when the first step from the seed was not accepted: at most
-    /// [`FAST_NEWTON_STEPS`] `- 1` more steps judged by the interval's bound, then the
-    /// bracketed stage, from `t` in interval `index`. Apart from the hot path, which then keeps
-    /// few values live.
+    /// The rest of the search when the first step was not accepted: the interval from a scan,
+    /// at most [`FAST_NEWTON_STEPS`] `- 1` more steps judged by the interval's bound, then the
+    /// bracketed stage. Apart from the hot path, which then keeps few values live.
     #[cold]
     #[inline(never)]
     fn solve_further(
         &self,
         curve: &CalibrationCurve,
-        index: usize,
         relative_change: f32,
-        mut t: f32,
+        cell_index: usize,
+        first_interval: usize,
+        first_kpa: f32,
     ) -> (f32, usize) {
-        let (Some(interval), Some(data)) = (
-            self.interval(curve.points(), index),
-            self.intervals.get(index),
-        ) else {
+        let cell = self.cells.get(cell_index);
+        let scan_from = cell.map_or(0, |cell| usize::from(cell.interval));
+        let index = interval_index_from(curve.points(), relative_change, scan_from);
+        let Some((segment, data)) = self.segment(index) else {
             return (0.0, 0);
         };
-        let bound = data.error_bound_kpa;
-        let top_pressure_kpa = curve.top().pressure_kpa;
-        let cubic = &interval.cubic;
-        for steps in 2..=FAST_NEWTON_STEPS {
-            let step = (cubic.value_at(t) - relative_change) / cubic.slope_at(t);
-            let next = clamp_f32(t - step, 0.0, 1.0);
-            if bound * step * step <= ACCEPTED_ERROR_KPA {
-                return (interval.pressure_kpa(next, top_pressure_kpa), steps);
+        let clamped = |kpa: f32| clamp_f32(kpa - data.start_kpa, 0.0, segment.width);
+        let mut local = clamped(first_kpa);
+        if index != first_interval {
+            // The first step was in another interval's cubic: start from the seed instead where
+            // that is closer.
+            if let Some(cell) = cell {
+                let position = self.position(relative_change);
+                let seed = clamped(cell.seed(position - cell_index as f32));
+                let residual = |local: f32| (segment.value_at(local) - relative_change).abs();
+                if residual(seed) < residual(local) {
+                    local = seed;
+                }
             }
-            t = next;
         }
-        let t = solve_bracketed(cubic, bound, ACCEPTED_ERROR_KPA, relative_change, t);
+        let bound = data.error_bound_kpa;
+        for steps in 2..=FAST_NEWTON_STEPS {
+            let step = (segment.value_at(local) - relative_change) / segment.slope_at(local);
+            let next = clamp_f32(local - step, 0.0, segment.width);
+            if bound * step * step <= ACCEPTED_ERROR_KPA {
+                return (clamp_pressure(data.start_kpa + next, self.top_kpa), steps);
+            }
+            local = next;
+        }
+        let local = solve_bracketed(&segment, bound, ACCEPTED_ERROR_KPA, relative_change, local);
         (
-            interval.pressure_kpa(t, top_pressure_kpa),
+            clamp_pressure(data.start_kpa + local, self.top_kpa),
             FAST_NEWTON_STEPS + 1,
         )
     }
 
     /// Pressures for many relative changes, in place: bit for bit what
     /// [`CubicKnots::pressure_kpa`] gives for each (tested), arranged for a host converting a
-    /// recording: the interval found by a branchless search (a random reading would mispredict
-    /// the scan's branches), then the same first step as the scalar path, each value straight
-    /// after its lookup (gathering the lookups into per-lane columns first, for vector
-    /// arithmetic, cost more in stalled loads than the vectors saved). A value whose first step
-    /// is not accepted goes through [`CubicKnots::pressure_kpa`] itself.
+    /// recording: the same first step as the scalar path, whose lookup has no branch for a
+    /// random reading to mispredict, each value straight after its lookup (gathering the lookups
+    /// into per-lane columns first, for vector arithmetic, cost more in stalled loads than the
+    /// vectors saved). A value whose first step is not accepted goes through
+    /// [`CubicKnots::pressure_kpa`] itself.
     pub(crate) fn pressures_kpa(&self, curve: &CalibrationCurve, values: &mut [f32]) {
-        let points = curve.points();
-        // The inner points' dC/C0 (every point but the first and the last), then +inf: the
-        // branchless search below counts those at or below a reading.
-        let mut inner_starts = [f32::INFINITY; MAX_CURVE_POINTS];
-        let last_index = points.len().saturating_sub(2);
-        for (start, point) in inner_starts
-            .iter_mut()
-            .zip(points.get(1..=last_index).unwrap_or(&[]))
-        {
-            *start = point.relative_change;
-        }
-        let points = curve.points();
-        // For strictly increasing points the count of inner points at or below a value is the
-        // interval the scan of `lookup` stops at (NaN counts none, as the scan moves past none;
-        // the padding counts only for +inf, which the scan puts in the last interval). Counted
-        // over all sixteen at once (vector compares): no branch for a random reading to
-        // mispredict, and no chain of dependent loads.
-        let interval_of = |value: f32| {
-            inner_starts
-                .iter()
-                .map(|start| usize::from(value >= *start))
-                .sum::<usize>()
-                .min(last_index)
-        };
         // Four values at a time, stage by stage: each value's lookup, seed, step and test are
         // one long chain of dependent operations, which the core overlaps only when the chains
         // of several values are next to each other in the program.
@@ -495,13 +561,7 @@ impl CubicKnots {
             let Ok(group) = <&mut [f32; BATCH_GROUP]>::try_from(group) else {
                 continue;
             };
-            let lookups = group.map(|value| self.cell_of(points, interval_of(value), value));
-            let mut steps = [Err(0.0); BATCH_GROUP];
-            for ((step, lookup), value) in steps.iter_mut().zip(&lookups).zip(group.iter()) {
-                if let Some(lookup) = lookup {
-                    *step = lookup.first_step(*value);
-                }
-            }
+            let steps = group.map(|value| self.first_step(value));
             for (value, step) in group.iter_mut().zip(steps) {
                 *value = match step {
                     Ok(pressure_kpa) => pressure_kpa,
@@ -521,20 +581,19 @@ impl CubicKnots {
         curve: &CalibrationCurve,
         relative_change: f32,
     ) -> f32 {
-        let points = curve.points();
-        let index = interval_index(points, relative_change);
-        match (self.interval(points, index), self.intervals.get(index)) {
-            (Some(interval), Some(data)) => {
-                let t = solve_bracketed(
-                    &interval.cubic,
+        let index = interval_index(curve.points(), relative_change);
+        match self.segment(index) {
+            Some((segment, data)) => {
+                let local = solve_bracketed(
+                    &segment,
                     data.error_bound_kpa,
                     0.0,
                     relative_change,
-                    0.5,
+                    0.5 * segment.width,
                 );
-                interval.pressure_kpa(t, curve.top().pressure_kpa)
+                clamp_pressure(data.start_kpa + local, self.top_kpa)
             }
-            _ => 0.0,
+            None => 0.0,
         }
     }
 }
@@ -542,90 +601,49 @@ impl CubicKnots {
 /// Values [`CubicKnots::pressures_kpa`] takes together.
 const BATCH_GROUP: usize = 4;
 
-/// `pressure_kpa`, or `end_kpa` where rounding took it past (module doc, stage 1).
-#[inline(always)]
-fn end_clamped(pressure_kpa: f32, end_kpa: f32) -> f32 {
-    if pressure_kpa > end_kpa {
-        end_kpa
-    } else {
-        pressure_kpa
+/// Smallest and largest derivative of the cubic `coefficients` over `low ..= high` (not clamped
+/// to an interval): a quadratic, extreme at the ends or at its vertex.
+fn derivative_range(coefficients: [f64; 4], low: f64, high: f64) -> (f64, f64) {
+    let [_, c1, c2, c3] = coefficients;
+    let slope = |s: f64| c1 + s * (2.0 * c2 + s * 3.0 * c3);
+    let (at_low, at_high) = (slope(low), slope(high));
+    let (mut min, mut max) = (at_low.min(at_high), at_low.max(at_high));
+    if c3 != 0.0 {
+        let vertex = -c2 / (3.0 * c3);
+        if vertex > low && vertex < high {
+            min = min.min(slope(vertex));
+            max = max.max(slope(vertex));
+        }
     }
+    (min, max)
 }
 
-/// Cell `cell` of `count` equal cells in dC/C0 of an interval starting at `start`, rising by
-/// `rise`: the Hermite cubic of the inverse through its ends (each solved to the bracket's
-/// resolution) with their slopes, capped at three times the cell's secant so that the seed is
-/// monotone; and the error bound over the cell's reach (its readings and its seeds, with a
-/// margin for rounding).
-fn seed_cell(
-    interval: &UnitInterval,
-    start: f32,
-    rise: f32,
-    cell: usize,
-    count: usize,
-) -> SeedCell {
-    let cubic = &interval.cubic;
-    let cell_rise = f64::from(rise) / count as f64;
-    let root = |fraction: f64| {
-        let relative_change = (f64::from(start) + cell_rise * fraction) as f32;
-        let t = solve_bracketed(cubic, f32::INFINITY, 0.0, relative_change, 0.5);
-        // dt/d(dC/C0), scaled to the cell; infinite at a flat spot of the curve.
-        (f64::from(t), cell_rise / f64::from(cubic.slope_at(t)))
-    };
-    let (t_start, slope_start) = root(cell as f64);
-    let (t_end, slope_end) = root(cell as f64 + 1.0);
-    let secant = t_end - t_start;
-    let capped = |slope: f64| {
-        if slope.is_finite() && slope >= 0.0 {
-            slope.min(3.0 * secant)
-        } else {
-            secant
-        }
-    };
-    let (a, b) = (capped(slope_start), capped(slope_end));
-    // A reading of this cell lies within a hundredth of a cell of it (rounding of its
-    // position), its root and the seed (monotone between the ends up to rounding) within the
-    // margin of the roots there.
-    const MARGIN: f64 = 1.0e-4;
-    let reach_low = (root(cell as f64 - 0.01).0 - MARGIN).max(0.0);
-    let reach_high = (root(cell as f64 + 1.01).0 + MARGIN).min(1.0);
-    let (slope_min, slope_max) = cubic.slope_range(reach_low, reach_high);
-    let [_, _, c2, c3] = cubic.coefficients.map(f64::from);
-    let curvature = |t: f64| (2.0 * c2 + 6.0 * c3 * t).abs();
-    SeedCell {
-        unit_seed: [
-            t_start as f32,
-            a as f32,
-            (3.0 * secant - 2.0 * a - b) as f32,
-            (a + b - 2.0 * secant) as f32,
-        ],
-        bound_kpa: bound_kpa(
-            interval.width_kpa,
-            curvature(reach_low).max(curvature(reach_high)),
-            slope_min,
-            slope_max,
-        ),
+/// Bounds of the cubic `coefficients` over `low ..= high`: its ends where it is monotone there,
+/// else the ends widened by the largest slope times the width.
+fn cubic_range(coefficients: [f64; 4], low: f64, high: f64) -> (f64, f64) {
+    let [c0, c1, c2, c3] = coefficients;
+    let value = |u: f64| c0 + u * (c1 + u * (c2 + u * c3));
+    let (at_low, at_high) = (value(low), value(high));
+    let (slope_min, slope_max) = derivative_range(coefficients, low, high);
+    if slope_min >= 0.0 {
+        (at_low, at_high)
+    } else {
+        let spread = (high - low) * slope_max.max(-slope_min);
+        (at_low.min(at_high) - spread, at_low.max(at_high) + spread)
     }
 }
 
 /// The fast path's error bound of an interval (module doc), from its f32 coefficients in f64;
 /// infinite where the slope reaches 0.
-fn error_bound_kpa(interval: &UnitInterval) -> f32 {
-    let cubic = &interval.cubic;
-    let (slope_min, slope_max) = cubic.slope_range(0.0, 1.0);
-    bound_kpa(
-        interval.width_kpa,
-        cubic.curvature_max(),
-        slope_min,
-        slope_max,
-    )
+fn error_bound_kpa(segment: &CubicSegment) -> f32 {
+    let (slope_min, slope_max) = segment.slope_range(0.0, f64::from(segment.width));
+    bound_kpa(segment.curvature_max(), slope_min, slope_max)
 }
 
-/// `B = w K M^2 / (2 m^3)` (module doc, stage 1) in f32; infinite where `m` is not positive or
+/// `B = K M^2 / (2 m^3)` (module doc, stage 1) in f32; infinite where `m` is not positive or
 /// `B` is too large to be of use.
-fn bound_kpa(width_kpa: f32, curvature_max: f64, slope_min: f64, slope_max: f64) -> f32 {
-    let bound = f64::from(width_kpa) * curvature_max * slope_max * slope_max
-        / (2.0 * slope_min * slope_min * slope_min);
+fn bound_kpa(curvature_max: f64, slope_min: f64, slope_max: f64) -> f32 {
+    let bound = curvature_max * slope_max * slope_max / (2.0 * slope_min * slope_min * slope_min);
     if slope_min > 0.0 && bound.is_finite() && bound < 1.0e30 {
         bound as f32
     } else {
@@ -712,7 +730,7 @@ impl MonotoneCubicInverse {
 impl InverseCurve for MonotoneCubicInverse {
     #[inline]
     fn pressure_kpa(&self, relative_change: f32) -> f32 {
-        self.knots.pressure_kpa(&self.curve, relative_change)
+        self.knots.pressure_kpa_called(&self.curve, relative_change)
     }
 }
 
@@ -776,30 +794,60 @@ mod tests {
     }
 
     #[test]
-    fn every_interval_has_cells_and_each_seed_runs_from_0_to_1_upward() {
+    fn the_seeds_are_near_the_roots_and_each_cell_starts_in_its_interval() {
         let curve = CalibrationCurve::article_default();
         let knots = CubicKnots::new(&curve);
-        let intervals = curve.points().len() - 1;
-        let mut next_first = 0;
-        for data in &knots.intervals[..intervals] {
-            assert_eq!(usize::from(data.first_cell), next_first);
-            assert!(data.last_cell >= data.first_cell);
-            next_first = usize::from(data.last_cell) + 1;
-            let mut previous = -1.0e-6;
-            for cell in
-                &knots.seed_cells[usize::from(data.first_cell)..=usize::from(data.last_cell)]
-            {
-                for step in 0..=8 {
-                    let seed = cell.seed(step as f32 / 8.0);
-                    assert!(seed >= previous - 1.0e-6, "{seed} after {previous}");
-                    previous = seed;
-                }
-            }
+        let points = curve.points();
+        for (index, cell) in knots.cells.iter().enumerate() {
+            let start = points[usize::from(cell.interval)].relative_change;
             assert!(
-                (previous - 1.0).abs() < 1.0e-5,
-                "the interval's seeds end at {previous}"
+                f64::from(start) <= knots.unwarped(index as f64),
+                "cell {index}"
+            );
+            for step in 0..=64 {
+                let u = step as f64 / 64.0;
+                let relative_change = knots.unwarped(index as f64 + u) as f32;
+                let solved = knots.solved_pressure_kpa(&curve, relative_change);
+                let seed = cell.seed(u as f32);
+                assert!(
+                    (seed - solved).abs() < 0.02,
+                    "cell {index} at {u}: {seed} vs {solved}"
+                );
+            }
+            // The article's knots are more than a cell apart: every cell has a bound.
+            assert!(cell.max_step_squared > 0.0, "cell {index}");
+        }
+        // The top is in the last cell, not past the grid.
+        let top = curve.top();
+        assert!(knots.position(top.relative_change) < SEED_CELLS as f32);
+        assert!(knots.first_step(top.relative_change).is_ok());
+        assert_eq!(core::mem::size_of::<CubicKnots>(), 972);
+    }
+
+    #[test]
+    fn a_cell_with_several_knots_is_solved_by_the_rest_of_the_search() {
+        // Points crowded into one cell: its readings past the first knot never take the first
+        // step's result, and every reading still meets the bracket's answer.
+        let points = [
+            CurvePoint::new(0.0, 0.0),
+            CurvePoint::new(20.0, 0.2),
+            CurvePoint::new(20.5, 0.2010),
+            CurvePoint::new(21.0, 0.2020),
+            CurvePoint::new(50.0, 0.3),
+        ];
+        let Ok(curve) = CalibrationCurve::new(&points, 0) else {
+            panic!("refused");
+        };
+        let knots = CubicKnots::new(&curve);
+        assert!(knots.cells.iter().any(|cell| cell.max_step_squared < 0.0));
+        for step in 0..=3_000 {
+            let relative_change = 0.3 * step as f32 / 3_000.0;
+            let got = knots.pressure_kpa(&curve, relative_change);
+            let solved = knots.solved_pressure_kpa(&curve, relative_change);
+            assert!(
+                (got - solved).abs() <= 2.0e-4,
+                "{relative_change}: {got} vs {solved}"
             );
         }
-        assert_eq!(next_first, SEED_CELLS);
     }
 }
