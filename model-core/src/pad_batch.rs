@@ -14,13 +14,16 @@ use crate::temperature::TemperatureUsed;
 /// keep a host core busy, little enough for its stack.
 pub const BATCH_SAMPLE_SETS: usize = 64;
 
+// A set's position in a batch is kept in a byte.
+const _: () = assert!(BATCH_SAMPLE_SETS <= 256);
+
 impl PadModel {
     /// [`PadModel::process`] of every sample set in turn, handing each output to `each` in
     /// order with its set's position: the same outputs bit for bit (tested), faster when a host
     /// converts a recording,
     /// because the tier's inverses of up to [`BATCH_SAMPLE_SETS`] sets run together per taxel
     /// (nothing the sets change depends on them). It holds those sets' outputs on the stack
-    /// (about 7 KB): a host's path; the device calls `process`.
+    /// (about 6 KB): a host's path; the device calls `process`.
     pub fn process_all<I>(&mut self, samples: I, mut each: impl FnMut(usize, &PadOutput))
     where
         I: IntoIterator<Item = SampleInput>,
@@ -34,65 +37,74 @@ impl PadModel {
                 flags: TaxelFlags::empty(),
             },
         };
-        let mut outputs = [(unset, 0u8); BATCH_SAMPLE_SETS];
+        let mut outputs = [unset; BATCH_SAMPLE_SETS];
         let mut position = 0;
         loop {
+            // Per taxel, the dC/C0 of the sets whose pressure is left to the inverse and those
+            // sets' places, written as `process_with` meets them: no second pass over the
+            // outputs to gather them.
+            let mut columns = [InverseColumn::EMPTY; TAXEL_COUNT];
             let mut count = 0;
-            for (slot, sample) in outputs.iter_mut().zip(samples.by_ref()) {
-                // The pressures of in-range taxels are left to `invert_batch`.
-                let mut needs_inverse = 0u8;
-                let output = self.process_with(&sample, |taxel, _, _, _| {
-                    needs_inverse |= 1 << taxel;
+            for (set, (slot, sample)) in outputs.iter_mut().zip(samples.by_ref()).enumerate() {
+                *slot = self.process_with(&sample, |taxel, _, _, relative_change| {
+                    if let Some(column) = columns.get_mut(taxel) {
+                        column.push(set, relative_change);
+                    }
                     0.0
                 });
-                *slot = (output, needs_inverse);
                 count += 1;
             }
             let outputs = outputs.get_mut(..count).unwrap_or_default();
             if outputs.is_empty() {
                 return;
             }
-            self.invert_batch(outputs);
-            for (output, _) in outputs.iter() {
+            for (taxel, ((model, calibration), column)) in
+                self.taxel_models().zip(&mut columns).enumerate()
+            {
+                let values = column.values.get_mut(..column.count).unwrap_or_default();
+                model.inverse().pressures_kpa(calibration.curve(), values);
+                for (pressure_kpa, set) in values.iter().zip(&column.sets) {
+                    if let Some(slot) = outputs
+                        .get_mut(usize::from(*set))
+                        .and_then(|output| output.taxels.get_mut(taxel))
+                    {
+                        *slot = slot.with_pressure_kpa(*pressure_kpa);
+                    }
+                }
+            }
+            for output in outputs.iter() {
                 each(position, output);
                 position += 1;
             }
         }
     }
+}
 
-    /// Fills in the pressures [`PadModel::process_all`] left to the inverse, taxel by taxel
-    /// across the sets.
-    fn invert_batch(&self, outputs: &mut [(PadOutput, u8)]) {
-        for (taxel, (model, calibration)) in self.taxel_models().enumerate() {
-            let needs = |needs_inverse: u8| needs_inverse & (1 << taxel) != 0;
-            let mut values = [0.0f32; BATCH_SAMPLE_SETS];
-            let mut count = 0;
-            for (output, needs_inverse) in outputs.iter() {
-                if let (true, Some(slot), Some(value)) = (
-                    needs(*needs_inverse),
-                    values.get_mut(count),
-                    output
-                        .taxels
-                        .get(taxel)
-                        .and_then(TaxelOutput::relative_change),
-                ) {
-                    *slot = value;
-                    count += 1;
-                }
-            }
-            let values = values.get_mut(..count).unwrap_or_default();
-            model.inverse().pressures_kpa(calibration.curve(), values);
-            let mut pressures_kpa = values.iter();
-            for (output, needs_inverse) in outputs.iter_mut() {
-                if !needs(*needs_inverse) {
-                    continue;
-                }
-                if let (Some(slot), Some(pressure_kpa)) =
-                    (output.taxels.get_mut(taxel), pressures_kpa.next())
-                {
-                    *slot = slot.with_pressure_kpa(*pressure_kpa);
-                }
-            }
+/// One taxel's readings of a batch that need the inverse: their dC/C0 (replaced by the
+/// pressures) and the positions of their sets.
+struct InverseColumn {
+    values: [f32; BATCH_SAMPLE_SETS],
+    sets: [u8; BATCH_SAMPLE_SETS],
+    count: usize,
+}
+
+impl InverseColumn {
+    const EMPTY: Self = Self {
+        values: [0.0; BATCH_SAMPLE_SETS],
+        sets: [0; BATCH_SAMPLE_SETS],
+        count: 0,
+    };
+
+    /// Adds set `set`'s dC/C0 (a batch holds at most [`BATCH_SAMPLE_SETS`] sets, so it fits).
+    #[inline(always)]
+    fn push(&mut self, set: usize, relative_change: f32) {
+        if let (Some(value), Some(slot)) = (
+            self.values.get_mut(self.count),
+            self.sets.get_mut(self.count),
+        ) {
+            *value = relative_change;
+            *slot = set as u8;
+            self.count += 1;
         }
     }
 }
