@@ -825,6 +825,43 @@ mod tests {
     }
 
     #[test]
+    fn a_reading_below_zero_is_zero_pressure() {
+        // The model classifies such readings before the inverse, but the inverse is public:
+        // just below 0 a reading is in the first cell at a negative position (outside the
+        // cells' proven reach), further below off the grid; either way it must give 0 kPa, as
+        // the other tiers' clamp does.
+        let curves = [
+            CalibrationCurve::article_default(),
+            CalibrationCurve::new(
+                &[
+                    CurvePoint::new(0.0, 0.0),
+                    CurvePoint::new(1.0, 0.2),
+                    CurvePoint::new(50.0, 0.25),
+                ],
+                0,
+            )
+            .unwrap_or_else(|_| panic!("refused")),
+        ];
+        for curve in &curves {
+            let knots = CubicKnots::new(curve);
+            for step in 1..=2_000 {
+                let relative_change = -(step as f32) * 1.0e-5 * libm::powf(1.01, step as f32);
+                let got = knots.pressure_kpa(curve, relative_change);
+                assert!(got == 0.0, "{relative_change}: {got} kPa");
+            }
+            // At 0 itself the root is the curve's start: the step lands within rounding of it.
+            for zero in [0.0f32, -0.0] {
+                let got = knots.pressure_kpa(curve, zero);
+                assert!(
+                    (0.0..=ACCEPTED_ERROR_KPA).contains(&got),
+                    "{zero}: {got} kPa"
+                );
+            }
+            assert_eq!(knots.pressure_kpa(curve, f32::NEG_INFINITY), 0.0);
+        }
+    }
+
+    #[test]
     fn a_cell_with_several_knots_is_solved_by_the_rest_of_the_search() {
         // Points crowded into one cell: its readings past the first knot never take the first
         // step's result, and every reading still meets the bracket's answer.
