@@ -246,15 +246,20 @@ impl PadRun {
                 assumed = Some((reading.contact, contact.force));
                 contact.in_contact = reading.contact;
             }
-            **reading = PadReading {
-                pressure_kpa: report.output.taxels.map(|taxel| taxel.pressure_kpa()),
-                flags: report.output.taxels.map(|taxel| taxel.flags()),
-                force_n: contact.force_n(),
-                centre_of_pressure_mm: contact.centre_of_pressure_mm(),
-                partial: contact.partial(),
-                contact: contact.in_contact,
-                ..**reading
-            };
+            // Field by field: no whole reading built and copied back per set.
+            for ((pressure_kpa, flags), taxel) in reading
+                .pressure_kpa
+                .iter_mut()
+                .zip(&mut reading.flags)
+                .zip(&report.output.taxels)
+            {
+                *pressure_kpa = taxel.pressure_kpa();
+                *flags = taxel.flags();
+            }
+            reading.force_n = contact.force_n();
+            reading.centre_of_pressure_mm = contact.centre_of_pressure_mm();
+            reading.partial = contact.partial();
+            reading.contact = contact.in_contact;
         };
         match inputs {
             // One set (a row at a time, as `taxel convert` reads a file) needs no batch.

@@ -18,7 +18,7 @@ use crate::calibration::CalibrationCurve;
 #[derive(Debug, Clone, PartialEq)]
 pub struct ActiveInverse(Active);
 
-// The default tier is the largest by design (its seed table: `cubic.rs`), and the one a pad
+// The default tier is the largest by design (its seed grid: `cubic.rs`), and the one a pad
 // usually holds; without an allocator there is nothing to box it into. `pad.rs` asserts the size.
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
