@@ -13,7 +13,7 @@ use crate::inverse::Tier;
 pub const MEASURED_INSTRUCTIONS: [(Tier, u32); 7] = [
     (Tier::Linear, 115),
     (Tier::PiecewiseLinear, 171),
-    (Tier::MonotoneCubic, 160),
+    (Tier::MonotoneCubic, 166),
     (Tier::Saturating, 174),
     (Tier::SaturatingMicromath, 166),
     (Tier::Table, 167),

@@ -9,6 +9,11 @@ use super::{
 use crate::bounds::clamp_f32;
 use crate::calibration::{CalibrationCurve, CurvePoint};
 
+/// The longest first step a cell accepts, kPa, whatever its bound (which is 0 on a straight
+/// interval): the f32 rounding of a step's arithmetic grows with the step (about 2^-24 of it,
+/// through the cubic's terms at its start), and is far below [`ACCEPTED_ERROR_KPA`] up to this.
+const MAX_ACCEPTED_STEP_KPA: f32 = 4.0;
+
 /// A cell's reach past its ends, and past its knot, in cells: far more than the rounding of a
 /// reading's position (a few ulps of it).
 const CELL_MARGIN: f64 = 0.01;
@@ -238,7 +243,7 @@ impl CubicKnots {
             // Rounded down: the f32 product `step^2` and this limit's rounding stay on the
             // safe side of `B step^2 <= ACCEPTED_ERROR_KPA`.
             let limit = f64::from(ACCEPTED_ERROR_KPA) / f64::from(bound) * (1.0 - 1.0e-6);
-            (limit as f32).min(f32::MAX)
+            (limit as f32).min(MAX_ACCEPTED_STEP_KPA * MAX_ACCEPTED_STEP_KPA)
         } else {
             f32::NEG_INFINITY
         }
