@@ -228,11 +228,14 @@ impl CubicKnots {
         if !(position >= 0.0) {
             return Err(OFF_GRID);
         }
-        let cell_index = position as usize;
+        // Through u32, which the M4 converts to and from in one instruction each and x86-64 in
+        // a few (a u64, which usize is there, in many).
+        let whole = position as u32;
+        let cell_index = whole as usize;
         let Some(cell) = self.cells.get(cell_index) else {
             return Err(OFF_GRID);
         };
-        let seed_kpa = cell.seed(position - cell_index as f32);
+        let seed_kpa = cell.seed(position - whole as f32);
         // Masked, so that the slot and the next are in bounds without a check.
         let first = usize::from(cell.interval) & INTERVAL_MASK;
         let (Some(data), Some(next)) = (self.intervals.get(first), self.intervals.get(first + 1))
