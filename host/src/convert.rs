@@ -243,23 +243,40 @@ impl ConversionEngine {
             // A row at a time: no lists to make.
             if let Some(reading) = &mut row.reading {
                 let run = self.run(row.device, row.pad)?;
-                run.process(&mut [(row.sequence, reading)], timed);
+                run.process(&mut [(row.sequence, reading)][..], timed);
             }
             return Ok(());
         }
+        // Every row one pad's, each with a reading (a Python conversion's blocks of one pad):
+        // the rows go in as they are, with no list of them made.
+        if let Some(first) = rows.first() {
+            let (device, pad) = (first.device, first.pad);
+            if rows
+                .iter()
+                .all(|row| row.reading.is_some() && (row.device, row.pad) == (device, pad))
+            {
+                self.run(device, pad)?
+                    .process(&mut pad_run::OnePadRows(rows), timed);
+                return Ok(());
+            }
+        }
         let mut pads: Vec<(u32, u8)> = Vec::new();
         for row in rows.iter() {
-            if row.reading.is_some() && !pads.contains(&(row.device, row.pad)) {
-                pads.push((row.device, row.pad));
+            let key = (row.device, row.pad);
+            // The pad of the row before, most often: no search.
+            if row.reading.is_some() && pads.last() != Some(&key) && !pads.contains(&key) {
+                pads.push(key);
             }
         }
         for (device, pad) in pads {
-            let mut readings: Vec<(u32, &mut PadReading)> = rows
-                .iter_mut()
-                .filter(|row| (row.device, row.pad) == (device, pad))
-                .filter_map(|row| row.reading.as_mut().map(|reading| (row.sequence, reading)))
-                .collect();
-            self.run(device, pad)?.process(&mut readings, timed);
+            let mut readings: Vec<(u32, &mut PadReading)> = Vec::with_capacity(rows.len());
+            readings.extend(
+                rows.iter_mut()
+                    .filter(|row| (row.device, row.pad) == (device, pad))
+                    .filter_map(|row| row.reading.as_mut().map(|reading| (row.sequence, reading))),
+            );
+            self.run(device, pad)?
+                .process(readings.as_mut_slice(), timed);
         }
         Ok(())
     }

@@ -131,6 +131,57 @@ fn rows(readings: &[Reading]) -> Vec<PadRow> {
         .collect()
 }
 
+/// Converts `rows` in blocks of `block_sizes` (in turn) and one at a time, and checks both give
+/// the same rows and warnings.
+fn blocks_match_one_at_a_time(
+    rows: &[PadRow],
+    changes: &[u32],
+    block_sizes: &[usize],
+    timed: bool,
+    tare_rows: u16,
+) -> Result<(), TestCaseError> {
+    let directory = tempfile::tempdir().map_err(|error| TestCaseError::fail(error.to_string()))?;
+    let states = recorded_states(changes, directory.path());
+    // Device 0 follows its recorded baselines and device 1, without a state, tares on its
+    // first row; or every pad tares on its first `tare_rows` rows.
+    let settings = ConvertSettings {
+        tare_rows: (tare_rows > 1).then_some(tare_rows),
+        ..ConvertSettings::default()
+    };
+    let mut one_by_one = ConversionEngine::new(settings.clone(), states.clone());
+    let mut want = rows.to_vec();
+    for row in &mut want {
+        if timed {
+            one_by_one
+                .convert(row)
+                .map_err(|error| TestCaseError::fail(error.to_string()))?;
+        } else {
+            one_by_one
+                .convert_untimed(row)
+                .map_err(|error| TestCaseError::fail(error.to_string()))?;
+        }
+    }
+    let mut blocks = ConversionEngine::new(settings, states);
+    let mut got = rows.to_vec();
+    let mut start = 0;
+    for size in block_sizes.iter().cycle() {
+        if start >= got.len() {
+            break;
+        }
+        let end = (start + size).min(got.len());
+        blocks
+            .convert_rows(&mut got[start..end], timed)
+            .map_err(|error| TestCaseError::fail(error.to_string()))?;
+        start = end;
+    }
+    for (index, (got, want)) in got.iter().zip(&want).enumerate() {
+        // Debug prints every float exactly, so equal text is equal bits.
+        prop_assert_eq!(format!("{got:?}"), format!("{want:?}"), "row {}", index);
+    }
+    prop_assert_eq!(blocks.finish(), one_by_one.finish());
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
 
@@ -142,41 +193,26 @@ proptest! {
         timed in any::<bool>(),
         tare_rows in 1u16..=STILL_SETS as u16,
     ) {
-        let directory = tempfile::tempdir().map_err(|error| TestCaseError::fail(error.to_string()))?;
         let changes: Vec<u32> = changes.into_iter().collect();
-        let states = recorded_states(&changes, directory.path());
-        // Device 0 follows its recorded baselines and device 1, without a state, tares on its
-        // first row; or every pad tares on its first `tare_rows` rows.
-        let settings = ConvertSettings {
-            tare_rows: (tare_rows > 1).then_some(tare_rows),
-            ..ConvertSettings::default()
-        };
-        let mut one_by_one = ConversionEngine::new(settings.clone(), states.clone());
-        let mut want = rows(&readings);
-        for row in &mut want {
-            if timed {
-                one_by_one.convert(row).map_err(|error| TestCaseError::fail(error.to_string()))?;
-            } else {
-                one_by_one.convert_untimed(row).map_err(|error| TestCaseError::fail(error.to_string()))?;
-            }
-        }
-        let mut blocks = ConversionEngine::new(settings, states);
-        let mut got = rows(&readings);
-        let mut start = 0;
-        for size in block_sizes.iter().cycle() {
-            if start >= got.len() {
-                break;
-            }
-            let end = (start + size).min(got.len());
-            blocks
-                .convert_rows(&mut got[start..end], timed)
-                .map_err(|error| TestCaseError::fail(error.to_string()))?;
-            start = end;
-        }
-        for (index, (got, want)) in got.iter().zip(&want).enumerate() {
-            // Debug prints every float exactly, so equal text is equal bits.
-            prop_assert_eq!(format!("{got:?}"), format!("{want:?}"), "row {}", index);
-        }
-        prop_assert_eq!(blocks.finish(), one_by_one.finish());
+        blocks_match_one_at_a_time(&rows(&readings), &changes, &block_sizes, timed, tare_rows)?;
+    }
+
+    /// One pad's rows alone (as Python converts one pad): blocks whose rows all hold a reading
+    /// go in as they are, the others (a missing frame) as lists of the pad's readings.
+    #[test]
+    fn one_pad_blocks_convert_as_rows_one_at_a_time(
+        readings in prop::collection::vec(reading(), 4..1200),
+        changes in prop::collection::btree_set(0u32..300, 1..4),
+        block_sizes in prop::collection::vec(1usize..150, 1..8),
+        timed in any::<bool>(),
+        tare_rows in 1u16..=STILL_SETS as u16,
+        device in 0u32..2,
+    ) {
+        let changes: Vec<u32> = changes.into_iter().collect();
+        let rows: Vec<PadRow> = rows(&readings)
+            .into_iter()
+            .filter(|row| (row.device, row.pad) == (device, 0))
+            .collect();
+        blocks_match_one_at_a_time(&rows, &changes, &block_sizes, timed, tare_rows)?;
     }
 }

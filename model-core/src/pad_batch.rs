@@ -23,12 +23,29 @@ impl PadModel {
     /// converts a recording,
     /// because the tier's inverses of up to [`BATCH_SAMPLE_SETS`] sets run together per taxel
     /// (nothing the sets change depends on them). It holds those sets' outputs on the stack
-    /// (about 6 KB): a host's path; the device calls `process`.
+    /// (about 7 KB): a host's path; the device calls `process`.
     pub fn process_all<I>(&mut self, samples: I, mut each: impl FnMut(usize, &PadOutput))
     where
         I: IntoIterator<Item = SampleInput>,
     {
         let mut samples = samples.into_iter();
+        self.process_all_in(
+            &mut samples,
+            |samples, _| samples.next(),
+            |_, position, output, _| each(position, output),
+        );
+    }
+
+    /// [`PadModel::process_all`] of the sets `sample(context, position)` gives in turn (until
+    /// `None`), made as they are needed, with each output and its set's time handed to
+    /// `each(context, position, ...)`, which may change `context` (where the sets are read
+    /// from, e.g. to write the results beside them).
+    pub(crate) fn process_all_in<C: ?Sized>(
+        &mut self,
+        context: &mut C,
+        mut sample: impl FnMut(&mut C, usize) -> Option<SampleInput>,
+        mut each: impl FnMut(&mut C, usize, &PadOutput, Option<u64>),
+    ) {
         let unset = PadOutput {
             taxels: [TaxelOutput::fault(TaxelFlags::empty(), None); TAXEL_COUNT],
             temperature: TemperatureUsed {
@@ -38,6 +55,7 @@ impl PadModel {
             },
         };
         let mut outputs = [unset; BATCH_SAMPLE_SETS];
+        let mut times = [None; BATCH_SAMPLE_SETS];
         let mut position = 0;
         loop {
             // Per taxel, the dC/C0 of the sets whose pressure is left to the inverse and those
@@ -45,7 +63,11 @@ impl PadModel {
             // outputs to gather them.
             let mut columns = [InverseColumn::EMPTY; TAXEL_COUNT];
             let mut count = 0;
-            for (set, (slot, sample)) in outputs.iter_mut().zip(samples.by_ref()).enumerate() {
+            for (set, (slot, time_us)) in outputs.iter_mut().zip(&mut times).enumerate() {
+                let Some(sample) = sample(context, position + set) else {
+                    break;
+                };
+                *time_us = sample.time_us;
                 *slot = self.process_with(&sample, |taxel, _, _, relative_change| {
                     if let Some(column) = columns.get_mut(taxel) {
                         column.push(set, relative_change);
@@ -72,8 +94,8 @@ impl PadModel {
                     }
                 }
             }
-            for output in outputs.iter() {
-                each(position, output);
+            for (output, time_us) in outputs.iter().zip(times) {
+                each(context, position, output, time_us);
                 position += 1;
             }
         }
@@ -118,14 +140,29 @@ impl PadPipeline {
         samples: &[SampleInput],
         mut each: impl FnMut(usize, &PadReport),
     ) {
+        self.process_all_in(
+            &mut (),
+            |_, position| samples.get(position).copied(),
+            |_, position, report| each(position, report),
+        );
+    }
+
+    /// [`PadPipeline::process_all`] of the sets `sample(context, position)` gives in turn
+    /// (until `None`), made as they are needed, with each report handed to
+    /// `each(context, position, report)`, which may change `context`: a host converting
+    /// recorded readings reads the sets from them and writes the reports back into them, with
+    /// no list of the sets made.
+    pub fn process_all_in<C: ?Sized>(
+        &mut self,
+        context: &mut C,
+        sample: impl FnMut(&mut C, usize) -> Option<SampleInput>,
+        mut each: impl FnMut(&mut C, usize, &PadReport),
+    ) {
         let (model, force_and_contact) = self.parts_mut();
-        model.process_all(samples.iter().copied(), |position, output| {
-            let time_us = samples
-                .get(position)
-                .and_then(|sample| sample.time_us)
-                .unwrap_or(0);
-            let contact = force_and_contact.update(&output.taxels, time_us);
+        model.process_all_in(context, sample, |context, position, output, time_us| {
+            let contact = force_and_contact.update(&output.taxels, time_us.unwrap_or(0));
             each(
+                context,
                 position,
                 &PadReport {
                     output: *output,

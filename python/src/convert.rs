@@ -36,6 +36,22 @@ struct Outputs<'a> {
 /// four capacitances and its temperature are all NaN (its frame missing from the set, as
 /// `taxel convert` reads a pad whose cells are all empty).
 fn pad_row(inputs: &Inputs<'_>, row: usize, pad: usize) -> PadRow {
+    let mut pad_row = PadRow {
+        host_time_us: 0,
+        device: 0,
+        pad: 0,
+        sequence: 0,
+        sync_error_us: None,
+        reading: None,
+        marker: String::new(),
+    };
+    set_pad_row(&mut pad_row, inputs, row, pad);
+    pad_row
+}
+
+/// Makes `pad_row` (a row of device 0 without host time or marker, as [`pad_row`] makes) pad
+/// `pad`'s row of set `row`: a block's rows are used again for the next block's.
+fn set_pad_row(pad_row: &mut PadRow, inputs: &Inputs<'_>, row: usize, pad: usize) {
     let first = (row * inputs.pads + pad) * TAXEL_COUNT;
     let capacitances = &inputs.capacitance_pf[first..first + TAXEL_COUNT];
     let temperature = inputs.temperature_c[row * inputs.pads + pad];
@@ -43,29 +59,23 @@ fn pad_row(inputs: &Inputs<'_>, row: usize, pad: usize) -> PadRow {
         inputs.pads > 1 && temperature.is_nan() && capacitances.iter().all(|value| value.is_nan());
     // A time given is non-negative (checked): the time cell of a recording, in µs.
     let device_time_us = inputs.time_s.map_or(0, |times| (times[row] * 1.0e6) as u64);
-    PadRow {
-        host_time_us: 0,
-        device: 0,
-        pad: pad as u8,
-        sequence: row as u32,
-        sync_error_us: None,
-        reading: (!missing).then(|| PadReading {
-            device_time_us,
-            temperature_c: (!temperature.is_nan()).then_some(temperature as f32),
-            temperature_source: TemperatureSource::None,
-            capacitance_pf: std::array::from_fn(|taxel| {
-                let value = capacitances[taxel];
-                (!value.is_nan()).then_some(value as f32)
-            }),
-            pressure_kpa: [None; TAXEL_COUNT],
-            flags: [TaxelFlags::empty(); TAXEL_COUNT],
-            force_n: None,
-            centre_of_pressure_mm: None,
-            partial: false,
-            contact: false,
+    pad_row.pad = pad as u8;
+    pad_row.sequence = row as u32;
+    pad_row.reading = (!missing).then(|| PadReading {
+        device_time_us,
+        temperature_c: (!temperature.is_nan()).then_some(temperature as f32),
+        temperature_source: TemperatureSource::None,
+        capacitance_pf: std::array::from_fn(|taxel| {
+            let value = capacitances[taxel];
+            (!value.is_nan()).then_some(value as f32)
         }),
-        marker: String::new(),
-    }
+        pressure_kpa: [None; TAXEL_COUNT],
+        flags: [TaxelFlags::empty(); TAXEL_COUNT],
+        force_n: None,
+        centre_of_pressure_mm: None,
+        partial: false,
+        contact: false,
+    });
 }
 
 /// Why a conversion stopped.
@@ -95,12 +105,14 @@ fn run_rows(
         signals
             .tick_rows((end_row - first_row) as u32)
             .map_err(Stopped::Interrupted)?;
-        block.clear();
-        block.extend(
-            (first_row..end_row)
-                .flat_map(|row| (0..inputs.pads).map(move |pad| (row, pad)))
-                .map(|(row, pad)| pad_row(inputs, row, pad)),
-        );
+        // The last block's rows are made this block's in place: only what differs is written.
+        let mut pad_rows =
+            (first_row..end_row).flat_map(|row| (0..inputs.pads).map(move |pad| (row, pad)));
+        block.truncate((end_row - first_row) * inputs.pads);
+        for (slot, (row, pad)) in block.iter_mut().zip(pad_rows.by_ref()) {
+            set_pad_row(slot, inputs, row, pad);
+        }
+        block.extend(pad_rows.map(|(row, pad)| pad_row(inputs, row, pad)));
         engine
             .convert_rows(&mut block, inputs.time_s.is_some())
             .map_err(Stopped::Engine)?;
@@ -118,16 +130,21 @@ fn run_rows(
                 .zip(flags.chunks_exact_mut(TAXEL_COUNT)),
         );
         for (pad_row, (pressures, flags)) in cells {
-            for taxel in 0..TAXEL_COUNT {
-                let (pressure, flag_bits) = match &pad_row.reading {
-                    Some(reading) => (
-                        reading.pressure_kpa[taxel].map_or(f64::NAN, f64::from),
-                        reading.flags[taxel].bits(),
-                    ),
-                    None => (f64::NAN, 0),
-                };
-                pressures[taxel] = pressure;
-                flags[taxel] = flag_bits;
+            match &pad_row.reading {
+                Some(reading) => {
+                    let taxels = pressures
+                        .iter_mut()
+                        .zip(flags.iter_mut())
+                        .zip(reading.pressure_kpa.iter().zip(&reading.flags));
+                    for ((pressure, flag_bits), (pressure_kpa, taxel_flags)) in taxels {
+                        *pressure = pressure_kpa.map_or(f64::NAN, f64::from);
+                        *flag_bits = taxel_flags.bits();
+                    }
+                }
+                None => {
+                    pressures.fill(f64::NAN);
+                    flags.fill(0);
+                }
             }
         }
     }

@@ -10,7 +10,7 @@ use model_core::{
 
 use super::{PadOptions, TareSource};
 use crate::device_state::BaselineChange;
-use crate::schema::PadReading;
+use crate::schema::{PadReading, PadRow};
 use wire::TemperatureSource;
 
 /// Flags a recording's sample frames carry that come from the acquisition, not the model, and
@@ -31,6 +31,39 @@ fn new_model(options: &PadOptions) -> anyhow::Result<PadModel> {
         pad.start_tare(rows);
     }
     Ok(pad)
+}
+
+/// A pad's readings in order, each with its set's sequence number.
+pub(super) trait PadReadings {
+    /// Reading `index` and its sequence number (`None` past the end).
+    fn reading(&self, index: usize) -> Option<(u32, &PadReading)>;
+    /// Reading `index`, to replace its outputs.
+    fn reading_mut(&mut self, index: usize) -> Option<&mut PadReading>;
+}
+
+impl PadReadings for [(u32, &mut PadReading)] {
+    fn reading(&self, index: usize) -> Option<(u32, &PadReading)> {
+        self.get(index)
+            .map(|(sequence, reading)| (*sequence, &**reading))
+    }
+
+    fn reading_mut(&mut self, index: usize) -> Option<&mut PadReading> {
+        self.get_mut(index).map(|(_, reading)| &mut **reading)
+    }
+}
+
+/// Rows that are all one pad's and all hold a reading (a row without one ends them).
+pub(super) struct OnePadRows<'a>(pub(super) &'a mut [PadRow]);
+
+impl PadReadings for OnePadRows<'_> {
+    fn reading(&self, index: usize) -> Option<(u32, &PadReading)> {
+        let row = self.0.get(index)?;
+        row.reading.as_ref().map(|reading| (row.sequence, reading))
+    }
+
+    fn reading_mut(&mut self, index: usize) -> Option<&mut PadReading> {
+        self.0.get_mut(index)?.reading.as_mut()
+    }
 }
 
 /// Installs the recorded baselines in force at each sample's sequence number.
@@ -55,6 +88,10 @@ impl RecordedBaselines {
     /// The index of the baselines that apply from `sequence` on (the first ones when the data
     /// has no sequence numbers), when they are not the ones installed.
     fn change_at(&self, sequence: Option<u32>) -> Option<usize> {
+        // Conversions without recorded baselines ask this of every row.
+        if self.changes.is_empty() {
+            return None;
+        }
         let wanted = match sequence {
             Some(sequence) => self
                 .changes
@@ -148,8 +185,6 @@ pub(super) struct PadRun {
     last_temperature_sensor: Option<TemperatureSource>,
     // No reading has been processed yet.
     first: bool,
-    // The model inputs of a batch (kept to reuse their memory).
-    inputs: Vec<SampleInput>,
     // Rows before this sequence number may have been computed with another state than the
     // recorded one; how many came.
     recorded_from_sequence: u32,
@@ -170,7 +205,6 @@ impl PadRun {
             tare_watch: TareWatch::default(),
             last_temperature_sensor: None,
             first: true,
-            inputs: Vec::new(),
             recorded_from_sequence: options.recorded_from_sequence,
             rows_before_recorded_state: 0,
         })
@@ -185,60 +219,69 @@ impl PadRun {
     /// Readings between changes of the model's state from outside (recorded baselines that
     /// apply from a sequence number, a change of temperature sensor) go through the pipeline's
     /// batch path together: the same results as one by one (tested), faster.
-    pub(super) fn process(&mut self, readings: &mut [(u32, &mut PadReading)], timed: bool) {
-        let mut inputs = std::mem::take(&mut self.inputs);
-        inputs.clear();
-        let mut pending_from = 0;
-        for index in 0..readings.len() {
-            let Some((sequence, reading)) = readings.get(index) else {
-                break;
-            };
-            let (sequence, source) = (*sequence, reading.temperature_source);
-            if sequence < self.recorded_from_sequence {
-                self.rows_before_recorded_state += 1;
-            }
-            if self.first
-                || self.baselines.change_at(Some(sequence)).is_some()
-                || self.temperature_sensor_changes(source)
-            {
-                let pending = readings.get_mut(pending_from..index).unwrap_or_default();
-                self.run_batch(&inputs, pending);
-                inputs.clear();
-                pending_from = index;
-                self.baselines
-                    .before_sample(self.pipeline.model_mut(), Some(sequence));
-            }
+    pub(super) fn process<R: PadReadings + ?Sized>(&mut self, readings: &mut R, timed: bool) {
+        let mut start = 0;
+        while let Some((sequence, reading)) = readings.reading(start) {
+            // A batch's first reading: what changes the model's state before it goes in first
+            // (recorded baselines install only when they change).
+            let source = reading.temperature_source;
+            self.count_recorded_state(sequence);
+            self.baselines
+                .before_sample(self.pipeline.model_mut(), Some(sequence));
             self.note_temperature_sensor(source);
-            if let Some((_, reading)) = readings.get(index) {
-                let input = reading_input(reading);
-                inputs.push(if timed {
-                    input.at_time_us(reading.device_time_us)
-                } else {
-                    input
-                });
+            let mut end = start + 1;
+            // The first reading goes through alone, so the contact state it sets up is in place
+            // before the second.
+            if !self.first {
+                while let Some((sequence, reading)) = readings.reading(end) {
+                    let source = reading.temperature_source;
+                    if self.baselines.change_at(Some(sequence)).is_some()
+                        || self.temperature_sensor_changes(source)
+                    {
+                        break;
+                    }
+                    self.count_recorded_state(sequence);
+                    self.note_temperature_sensor(source);
+                    end += 1;
+                }
             }
-            if self.first {
-                let first = readings.get_mut(index..=index).unwrap_or_default();
-                self.run_batch(&inputs, first);
-                inputs.clear();
-                pending_from = index + 1;
-            }
+            self.run_batch(readings, start..end, timed);
+            start = end;
         }
-        let pending = readings.get_mut(pending_from..).unwrap_or_default();
-        self.run_batch(&inputs, pending);
-        self.inputs = inputs;
     }
 
-    /// `inputs` (the model inputs of `readings`) through the pipeline together; the results
-    /// replace `readings`' outputs.
-    fn run_batch(&mut self, inputs: &[SampleInput], readings: &mut [(u32, &mut PadReading)]) {
-        if inputs.is_empty() {
+    /// Counts a row that may come from before the recorded state.
+    fn count_recorded_state(&mut self, sequence: u32) {
+        if sequence < self.recorded_from_sequence {
+            self.rows_before_recorded_state += 1;
+        }
+    }
+
+    /// Readings `sets` through the pipeline together (their model inputs made as they are
+    /// needed); the results replace their outputs.
+    fn run_batch<R: PadReadings + ?Sized>(
+        &mut self,
+        readings: &mut R,
+        sets: std::ops::Range<usize>,
+        timed: bool,
+    ) {
+        if sets.is_empty() {
             return;
         }
         let first = std::mem::take(&mut self.first);
         let mut assumed = None;
-        let mut write = |position: usize, report: &PadReport| {
-            let Some((_, reading)) = readings.get_mut(position) else {
+        let start = sets.start;
+        let sample = |readings: &mut R, position: usize| {
+            let index = start + position;
+            if !sets.contains(&index) {
+                return None;
+            }
+            readings
+                .reading(index)
+                .map(|(_, reading)| reading_input(reading, timed))
+        };
+        let mut write = |readings: &mut R, position: usize, report: &PadReport| {
+            let Some(reading) = readings.reading_mut(start + position) else {
                 return;
             };
             let mut contact = report.contact;
@@ -261,10 +304,14 @@ impl PadRun {
             reading.partial = contact.partial();
             reading.contact = contact.in_contact;
         };
-        match inputs {
-            // One set (a row at a time, as `taxel convert` reads a file) needs no batch.
-            [input] => write(0, &self.pipeline.process(input)),
-            _ => self.pipeline.process_all(inputs, write),
+        // One set (a row at a time, as `taxel convert` reads a file) needs no batch.
+        if sets.len() == 1 {
+            if let Some(input) = sample(readings, 0) {
+                let report = self.pipeline.process(&input);
+                write(readings, 0, &report);
+            }
+        } else {
+            self.pipeline.process_all_in(readings, sample, write);
         }
         // The first reading goes through alone, so the contact state it sets up is in place
         // before the second.
@@ -316,22 +363,24 @@ impl PadRun {
     }
 }
 
-/// The model input of a recorded reading: its capacitances and temperature, the acquisition's
-/// flags kept, and a converter error (or an empty capacitance) read as no reading.
-fn reading_input(reading: &PadReading) -> SampleInput {
-    let mut input = SampleInput::new(
-        [TaxelReading::Unavailable; TAXEL_COUNT],
-        reading.temperature_c.filter(|value| !value.is_nan()),
-    );
-    for taxel in 0..TAXEL_COUNT {
-        let acquisition_flags = reading.flags[taxel].intersection(ACQUISITION_FLAGS);
-        input.reading_flags[taxel] = acquisition_flags;
-        if let (false, Some(capacitance_pf)) = (
-            acquisition_flags.contains(TaxelFlags::CONVERTER_ERROR),
-            reading.capacitance_pf[taxel],
-        ) {
-            input.readings[taxel] = TaxelReading::CapacitancePf(capacitance_pf);
+/// The model input of a recorded reading: its capacitances and temperature (and with `timed`
+/// its device time), the acquisition's flags kept, and a converter error (or an empty
+/// capacitance) read as no reading.
+fn reading_input(reading: &PadReading, timed: bool) -> SampleInput {
+    let reading_flags = reading
+        .flags
+        .map(|flags| flags.intersection(ACQUISITION_FLAGS));
+    let mut taxels = reading_flags.iter().zip(reading.capacitance_pf);
+    let readings = std::array::from_fn(|_| match taxels.next() {
+        Some((flags, Some(capacitance_pf))) if !flags.contains(TaxelFlags::CONVERTER_ERROR) => {
+            TaxelReading::CapacitancePf(capacitance_pf)
         }
+        _ => TaxelReading::Unavailable,
+    });
+    SampleInput {
+        readings,
+        reading_flags,
+        temperature_c: reading.temperature_c.filter(|value| !value.is_nan()),
+        time_us: timed.then_some(reading.device_time_us),
     }
-    input
 }
