@@ -329,30 +329,17 @@ impl CubicKnots {
 
     /// Pressures for many relative changes, in place: bit for bit what
     /// [`CubicKnots::pressure_kpa`] gives for each (tested), arranged for a host converting a
-    /// recording: the same first step as the scalar path, whose lookup has no branch for a
-    /// random reading to mispredict, each value straight after its lookup (gathering the lookups
-    /// into per-lane columns first, for vector arithmetic, cost more in stalled loads than the
-    /// vectors saved). A value whose first step is not accepted goes through
-    /// [`CubicKnots::pressure_kpa`] itself.
+    /// recording: the first step (whose lookup has no branch for a random reading to
+    /// mispredict) inlined into a plain loop, whose values' independent chains the core
+    /// overlaps by itself (taking them four at a time, stage by stage, ran no faster and cost
+    /// 25 more host instructions a sample set); a value whose first step is not accepted goes
+    /// through [`CubicKnots::pressure_kpa`] itself.
     pub(crate) fn pressures_kpa(&self, curve: &CalibrationCurve, values: &mut [f32]) {
-        // Four values at a time, stage by stage: each value's lookup, seed, step and test are
-        // one long chain of dependent operations, which the core overlaps only when the chains
-        // of several values are next to each other in the program.
-        let mut groups = values.chunks_exact_mut(BATCH_GROUP);
-        for group in &mut groups {
-            let Ok(group) = <&mut [f32; BATCH_GROUP]>::try_from(group) else {
-                continue;
+        for value in values.iter_mut() {
+            *value = match self.first_step(*value) {
+                Ok(pressure_kpa) => pressure_kpa,
+                Err(_) => self.pressure_kpa(curve, *value),
             };
-            let steps = group.map(|value| self.first_step(value));
-            for (value, step) in group.iter_mut().zip(steps) {
-                *value = match step {
-                    Ok(pressure_kpa) => pressure_kpa,
-                    Err(_) => self.pressure_kpa(curve, *value),
-                };
-            }
-        }
-        for value in groups.into_remainder() {
-            *value = self.pressure_kpa(curve, *value);
         }
     }
 
@@ -379,9 +366,6 @@ impl CubicKnots {
         }
     }
 }
-
-/// Values [`CubicKnots::pressures_kpa`] takes together.
-const BATCH_GROUP: usize = 4;
 
 /// Stage 2 of the module doc: the bracketed, safeguarded Newton iteration from `s`, in the
 /// segment's local coordinate.
