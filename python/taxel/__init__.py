@@ -171,7 +171,10 @@ def convert(
     pads = taxels // 4
     temperature = np.asarray(temp_c, dtype=np.float64)
     if temperature.shape == (rows,):
-        temperature = np.repeat(temperature[:, None], pads, axis=1)
+        # One pad: a view with a second axis (no copy of a million temperatures).
+        temperature = (
+            temperature[:, None] if pads == 1 else np.repeat(temperature[:, None], pads, axis=1)
+        )
     elif temperature.shape != (rows, pads):
         raise ConvertError(
             f"temp_c has shape {temperature.shape}; it must be ({rows},) or ({rows}, {pads})"
