@@ -162,8 +162,8 @@ pub(super) fn targets(data: &ReportData) -> Vec<Target> {
                 let host = lookup(&data.host_convert, close)?;
                 (close != tier).then(|| {
                     format!(
-                        "; {} (fastest within {FAST_TIER_DISTANCE_KPA} kPa of the default on \
-                         the M4): {:.1} M/s",
+                        "; {} (on the M4 the fastest `TaxelModel::convert` within \
+                         {FAST_TIER_DISTANCE_KPA} kPa of the default): {:.1} M/s",
                         close.name(),
                         host.per_second() / 1e6
                     )
