@@ -35,20 +35,12 @@ impl CubicSegment {
     /// interval), from the coefficients in f64: the derivative is a quadratic, so its extremes
     /// are at the ends or at its vertex.
     pub fn slope_range(&self, s_low: f64, s_high: f64) -> (f64, f64) {
-        let [_, c1, c2, c3] = self.coefficients.map(f64::from);
         let width = f64::from(self.width);
-        let (s_low, s_high) = (s_low.clamp(0.0, width), s_high.clamp(0.0, width));
-        let slope = |s: f64| c1 + s * (2.0 * c2 + s * 3.0 * c3);
-        let (at_low, at_high) = (slope(s_low), slope(s_high));
-        let (mut low, mut high) = (at_low.min(at_high), at_low.max(at_high));
-        if c3 != 0.0 {
-            let vertex = -c2 / (3.0 * c3);
-            if vertex > s_low && vertex < s_high {
-                low = low.min(slope(vertex));
-                high = high.max(slope(vertex));
-            }
-        }
-        (low, high)
+        derivative_range(
+            self.coefficients.map(f64::from),
+            s_low.clamp(0.0, width),
+            s_high.clamp(0.0, width),
+        )
     }
 
     /// Largest |second derivative| over the interval (it is linear in `s`), in f64.
@@ -203,6 +195,24 @@ impl MonotoneCubic {
             None => self.y_end,
         }
     }
+}
+
+/// Smallest and largest derivative of the cubic `coefficients` (constant first, in the local
+/// coordinate) over `low ..= high`, not clamped to an interval, in f64: the derivative is a
+/// quadratic, so its extremes are at the ends or at its vertex.
+pub(crate) fn derivative_range(coefficients: [f64; 4], low: f64, high: f64) -> (f64, f64) {
+    let [_, c1, c2, c3] = coefficients;
+    let slope = |s: f64| c1 + s * (2.0 * c2 + s * 3.0 * c3);
+    let (at_low, at_high) = (slope(low), slope(high));
+    let (mut min, mut max) = (at_low.min(at_high), at_low.max(at_high));
+    if c3 != 0.0 {
+        let vertex = -c2 / (3.0 * c3);
+        if vertex > low && vertex < high {
+            min = min.min(slope(vertex));
+            max = max.max(slope(vertex));
+        }
+    }
+    (min, max)
 }
 
 #[cfg(test)]

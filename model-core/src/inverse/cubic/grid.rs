@@ -8,6 +8,7 @@ use super::{
 };
 use crate::bounds::clamp_f32;
 use crate::calibration::{CalibrationCurve, CurvePoint};
+use crate::monotone_cubic::derivative_range;
 
 /// The longest first step a cell accepts, kPa, whatever its bound (which is 0 on a straight
 /// interval): the f32 rounding of a step's arithmetic grows with the step (about 2^-24 of it,
@@ -248,23 +249,6 @@ impl CubicKnots {
             f32::NEG_INFINITY
         }
     }
-}
-
-/// Smallest and largest derivative of the cubic `coefficients` over `low ..= high` (not clamped
-/// to an interval): a quadratic, extreme at the ends or at its vertex.
-fn derivative_range(coefficients: [f64; 4], low: f64, high: f64) -> (f64, f64) {
-    let [_, c1, c2, c3] = coefficients;
-    let slope = |s: f64| c1 + s * (2.0 * c2 + s * 3.0 * c3);
-    let (at_low, at_high) = (slope(low), slope(high));
-    let (mut min, mut max) = (at_low.min(at_high), at_low.max(at_high));
-    if c3 != 0.0 {
-        let vertex = -c2 / (3.0 * c3);
-        if vertex > low && vertex < high {
-            min = min.min(slope(vertex));
-            max = max.max(slope(vertex));
-        }
-    }
-    (min, max)
 }
 
 /// Bounds of the cubic `coefficients` over `low ..= high`: its ends where it is monotone there,
