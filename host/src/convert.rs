@@ -243,22 +243,9 @@ impl ConversionEngine {
             // A row at a time: no lists to make.
             if let Some(reading) = &mut row.reading {
                 let run = self.run(row.device, row.pad)?;
-                run.process(&mut [(row.sequence, reading)][..], timed);
+                run.process(&mut [(row.sequence, reading)], timed);
             }
             return Ok(());
-        }
-        // Every row one pad's, each with a reading (a Python conversion's blocks of one pad):
-        // the rows go in as they are, with no list of them made.
-        if let Some(first) = rows.first() {
-            let (device, pad) = (first.device, first.pad);
-            if rows
-                .iter()
-                .all(|row| row.reading.is_some() && (row.device, row.pad) == (device, pad))
-            {
-                self.run(device, pad)?
-                    .process(&mut pad_run::OnePadRows(rows), timed);
-                return Ok(());
-            }
         }
         let mut pads: Vec<(u32, u8)> = Vec::new();
         for row in rows.iter() {
@@ -275,8 +262,7 @@ impl ConversionEngine {
                     .filter(|row| (row.device, row.pad) == (device, pad))
                     .filter_map(|row| row.reading.as_mut().map(|reading| (row.sequence, reading))),
             );
-            self.run(device, pad)?
-                .process(readings.as_mut_slice(), timed);
+            self.run(device, pad)?.process(&mut readings, timed);
         }
         Ok(())
     }

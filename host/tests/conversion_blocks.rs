@@ -197,8 +197,8 @@ proptest! {
         blocks_match_one_at_a_time(&rows(&readings), &changes, &block_sizes, timed, tare_rows)?;
     }
 
-    /// One pad's rows alone (as Python converts one pad): blocks whose rows all hold a reading
-    /// go in as they are, the others (a missing frame) as lists of the pad's readings.
+    /// One pad's rows alone (as Python converts one pad), blocks with and without a missing
+    /// frame: the same rows as one at a time.
     #[test]
     fn one_pad_blocks_convert_as_rows_one_at_a_time(
         readings in prop::collection::vec(reading(), 4..1200),

@@ -10,7 +10,7 @@ use model_core::{
 
 use super::{PadOptions, TareSource};
 use crate::device_state::BaselineChange;
-use crate::schema::{PadReading, PadRow};
+use crate::schema::PadReading;
 use wire::TemperatureSource;
 
 /// Flags a recording's sample frames carry that come from the acquisition, not the model, and
@@ -31,39 +31,6 @@ fn new_model(options: &PadOptions) -> anyhow::Result<PadModel> {
         pad.start_tare(rows);
     }
     Ok(pad)
-}
-
-/// A pad's readings in order, each with its set's sequence number.
-pub(super) trait PadReadings {
-    /// Reading `index` and its sequence number (`None` past the end).
-    fn reading(&self, index: usize) -> Option<(u32, &PadReading)>;
-    /// Reading `index`, to replace its outputs.
-    fn reading_mut(&mut self, index: usize) -> Option<&mut PadReading>;
-}
-
-impl PadReadings for [(u32, &mut PadReading)] {
-    fn reading(&self, index: usize) -> Option<(u32, &PadReading)> {
-        self.get(index)
-            .map(|(sequence, reading)| (*sequence, &**reading))
-    }
-
-    fn reading_mut(&mut self, index: usize) -> Option<&mut PadReading> {
-        self.get_mut(index).map(|(_, reading)| &mut **reading)
-    }
-}
-
-/// Rows that are all one pad's and all hold a reading (a row without one ends them).
-pub(super) struct OnePadRows<'a>(pub(super) &'a mut [PadRow]);
-
-impl PadReadings for OnePadRows<'_> {
-    fn reading(&self, index: usize) -> Option<(u32, &PadReading)> {
-        let row = self.0.get(index)?;
-        row.reading.as_ref().map(|reading| (row.sequence, reading))
-    }
-
-    fn reading_mut(&mut self, index: usize) -> Option<&mut PadReading> {
-        self.0.get_mut(index)?.reading.as_mut()
-    }
 }
 
 /// Installs the recorded baselines in force at each sample's sequence number.
@@ -219,9 +186,10 @@ impl PadRun {
     /// Readings between changes of the model's state from outside (recorded baselines that
     /// apply from a sequence number, a change of temperature sensor) go through the pipeline's
     /// batch path together: the same results as one by one (tested), faster.
-    pub(super) fn process<R: PadReadings + ?Sized>(&mut self, readings: &mut R, timed: bool) {
+    pub(super) fn process(&mut self, readings: &mut [(u32, &mut PadReading)], timed: bool) {
         let mut start = 0;
-        while let Some((sequence, reading)) = readings.reading(start) {
+        while let Some((sequence, reading)) = readings.get(start) {
+            let sequence = *sequence;
             // A batch's first reading: what changes the model's state before it goes in first
             // (recorded baselines install only when they change).
             let source = reading.temperature_source;
@@ -233,7 +201,8 @@ impl PadRun {
             // The first reading goes through alone, so the contact state it sets up is in place
             // before the second.
             if !self.first {
-                while let Some((sequence, reading)) = readings.reading(end) {
+                while let Some((sequence, reading)) = readings.get(end) {
+                    let sequence = *sequence;
                     let source = reading.temperature_source;
                     if self.baselines.change_at(Some(sequence)).is_some()
                         || self.temperature_sensor_changes(source)
@@ -259,9 +228,9 @@ impl PadRun {
 
     /// Readings `sets` through the pipeline together (their model inputs made as they are
     /// needed); the results replace their outputs.
-    fn run_batch<R: PadReadings + ?Sized>(
+    fn run_batch(
         &mut self,
-        readings: &mut R,
+        readings: &mut [(u32, &mut PadReading)],
         sets: std::ops::Range<usize>,
         timed: bool,
     ) {
@@ -271,39 +240,40 @@ impl PadRun {
         let first = std::mem::take(&mut self.first);
         let mut assumed = None;
         let start = sets.start;
-        let sample = |readings: &mut R, position: usize| {
+        let sample = |readings: &mut [(u32, &mut PadReading)], position: usize| {
             let index = start + position;
             if !sets.contains(&index) {
                 return None;
             }
             readings
-                .reading(index)
+                .get(index)
                 .map(|(_, reading)| reading_input(reading, timed))
         };
-        let mut write = |readings: &mut R, position: usize, report: &PadReport| {
-            let Some(reading) = readings.reading_mut(start + position) else {
-                return;
+        let mut write =
+            |readings: &mut [(u32, &mut PadReading)], position: usize, report: &PadReport| {
+                let Some((_, reading)) = readings.get_mut(start + position) else {
+                    return;
+                };
+                let mut contact = report.contact;
+                if first && position == 0 {
+                    assumed = Some((reading.contact, contact.force));
+                    contact.in_contact = reading.contact;
+                }
+                // Field by field: no whole reading built and copied back per set.
+                for ((pressure_kpa, flags), taxel) in reading
+                    .pressure_kpa
+                    .iter_mut()
+                    .zip(&mut reading.flags)
+                    .zip(&report.output.taxels)
+                {
+                    *pressure_kpa = taxel.pressure_kpa();
+                    *flags = taxel.flags();
+                }
+                reading.force_n = contact.force_n();
+                reading.centre_of_pressure_mm = contact.centre_of_pressure_mm();
+                reading.partial = contact.partial();
+                reading.contact = contact.in_contact;
             };
-            let mut contact = report.contact;
-            if first && position == 0 {
-                assumed = Some((reading.contact, contact.force));
-                contact.in_contact = reading.contact;
-            }
-            // Field by field: no whole reading built and copied back per set.
-            for ((pressure_kpa, flags), taxel) in reading
-                .pressure_kpa
-                .iter_mut()
-                .zip(&mut reading.flags)
-                .zip(&report.output.taxels)
-            {
-                *pressure_kpa = taxel.pressure_kpa();
-                *flags = taxel.flags();
-            }
-            reading.force_n = contact.force_n();
-            reading.centre_of_pressure_mm = contact.centre_of_pressure_mm();
-            reading.partial = contact.partial();
-            reading.contact = contact.in_contact;
-        };
         // One set (a row at a time, as `taxel convert` reads a file) needs no batch.
         if sets.len() == 1 {
             if let Some(input) = sample(readings, 0) {
