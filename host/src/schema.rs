@@ -110,6 +110,28 @@ pub struct PadReading {
 }
 
 impl PadReading {
+    /// A reading not converted yet: its device time, temperature and capacitances, no
+    /// pressures, flags, force or contact (what a recording of readings alone holds).
+    pub fn unconverted(
+        device_time_us: u64,
+        temperature_c: Option<f32>,
+        temperature_source: TemperatureSource,
+        capacitance_pf: [Option<f32>; TAXEL_COUNT],
+    ) -> Self {
+        Self {
+            device_time_us,
+            temperature_c,
+            temperature_source,
+            capacitance_pf,
+            pressure_kpa: [None; TAXEL_COUNT],
+            flags: [TaxelFlags::empty(); TAXEL_COUNT],
+            force_n: None,
+            centre_of_pressure_mm: None,
+            partial: false,
+            contact: false,
+        }
+    }
+
     /// What a sample frame says.
     pub fn from_frame(frame: &SampleFrame) -> Self {
         let value = |number: f32| (!number.is_nan()).then_some(number);

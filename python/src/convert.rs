@@ -3,7 +3,7 @@
 //! pad with the calibration and tier given, and a tare on the mean of each pad's first
 //! `tare_rows` readable rows.
 
-use model_core::{TaxelFlags, TAXEL_COUNT};
+use model_core::TAXEL_COUNT;
 use numpy::ndarray::{Ix1, Ix2};
 use numpy::{PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -61,20 +61,16 @@ fn set_pad_row(pad_row: &mut PadRow, inputs: &Inputs<'_>, row: usize, pad: usize
     let device_time_us = inputs.time_s.map_or(0, |times| (times[row] * 1.0e6) as u64);
     pad_row.pad = pad as u8;
     pad_row.sequence = row as u32;
-    pad_row.reading = (!missing).then(|| PadReading {
-        device_time_us,
-        temperature_c: (!temperature.is_nan()).then_some(temperature as f32),
-        temperature_source: TemperatureSource::None,
-        capacitance_pf: std::array::from_fn(|taxel| {
-            let value = capacitances[taxel];
-            (!value.is_nan()).then_some(value as f32)
-        }),
-        pressure_kpa: [None; TAXEL_COUNT],
-        flags: [TaxelFlags::empty(); TAXEL_COUNT],
-        force_n: None,
-        centre_of_pressure_mm: None,
-        partial: false,
-        contact: false,
+    pad_row.reading = (!missing).then(|| {
+        PadReading::unconverted(
+            device_time_us,
+            (!temperature.is_nan()).then_some(temperature as f32),
+            TemperatureSource::None,
+            std::array::from_fn(|taxel| {
+                let value = capacitances[taxel];
+                (!value.is_nan()).then_some(value as f32)
+            }),
+        )
     });
 }
 

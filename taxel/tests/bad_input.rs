@@ -37,18 +37,12 @@ fn row(sequence: u32, time_us: u64, capacitance_pf: [Option<f32>; TAXEL_COUNT]) 
         pad: 0,
         sequence,
         sync_error_us: Some(250),
-        reading: Some(PadReading {
-            device_time_us: time_us,
-            temperature_c: Some(25.0),
-            temperature_source: TemperatureSource::Tmp117,
+        reading: Some(PadReading::unconverted(
+            time_us,
+            Some(25.0),
+            TemperatureSource::Tmp117,
             capacitance_pf,
-            pressure_kpa: [None; TAXEL_COUNT],
-            flags: [TaxelFlags::empty(); TAXEL_COUNT],
-            force_n: None,
-            centre_of_pressure_mm: None,
-            partial: false,
-            contact: false,
-        }),
+        )),
         marker: String::new(),
     }
 }

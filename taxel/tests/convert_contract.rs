@@ -32,22 +32,12 @@ fn reading(
     temperature_c: Option<f32>,
     capacitance_pf: [Option<f32>; TAXEL_COUNT],
 ) -> PadReading {
-    PadReading {
-        device_time_us: time_us,
-        temperature_c,
-        temperature_source: if temperature_c.is_some() {
-            TemperatureSource::Tmp117
-        } else {
-            TemperatureSource::None
-        },
-        capacitance_pf,
-        pressure_kpa: [None; TAXEL_COUNT],
-        flags: [TaxelFlags::empty(); TAXEL_COUNT],
-        force_n: None,
-        centre_of_pressure_mm: None,
-        partial: false,
-        contact: false,
-    }
+    let temperature_source = if temperature_c.is_some() {
+        TemperatureSource::Tmp117
+    } else {
+        TemperatureSource::None
+    };
+    PadReading::unconverted(time_us, temperature_c, temperature_source, capacitance_pf)
 }
 
 /// Device `device` pad `pad`'s row of set `sequence`.

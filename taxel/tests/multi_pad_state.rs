@@ -15,7 +15,7 @@ use std::process::{Command, Output};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use model_core::{BaselineRecord, Calibration, TaxelFlags, TAXEL_COUNT};
+use model_core::{BaselineRecord, Calibration, TAXEL_COUNT};
 use taxel_host::calibration_transfer::{pull, pull_baselines, upload_to_pads};
 use taxel_host::device_link::DeviceLink;
 use taxel_host::device_state::{BaselineChange, RecordedDeviceState, RecordedPadState};
@@ -662,18 +662,12 @@ fn a_pad_without_a_recorded_state_converts_with_the_defaults_and_says_so() {
                     pad,
                     sequence,
                     sync_error_us: Some(500),
-                    reading: Some(PadReading {
-                        device_time_us: 100_000 * u64::from(sequence),
-                        temperature_c: Some(25.0),
-                        temperature_source: TemperatureSource::Tmp117,
-                        capacitance_pf: [Some(capacitance_pf), Some(4.5), Some(4.5), Some(4.5)],
-                        pressure_kpa: [None; TAXEL_COUNT],
-                        flags: [TaxelFlags::empty(); TAXEL_COUNT],
-                        force_n: None,
-                        centre_of_pressure_mm: None,
-                        partial: false,
-                        contact: false,
-                    }),
+                    reading: Some(PadReading::unconverted(
+                        100_000 * u64::from(sequence),
+                        Some(25.0),
+                        TemperatureSource::Tmp117,
+                        [Some(capacitance_pf), Some(4.5), Some(4.5), Some(4.5)],
+                    )),
                     marker: String::new(),
                 })
                 .unwrap();
