@@ -17,8 +17,8 @@
 //! cheapest), `table` and `monotone-cubic` (the default, the reference curve). `table` is both
 //! cheaper and more accurate than every other tier, so none of those can be what a use case
 //! needs: `piecewise-linear`, `saturating`, `saturating-micromath` (a choice of logarithm, not
-//! another model) and `polynomial` are research tiers. They are built only with the feature `research-tiers` (host tools,
-//! the M4 benchmark, the reports). Without it [`Tier`] still names all seven (the wire
+//! another model) and `polynomial` are research tiers. They are built only with the feature
+//! `research-tiers` (host tools, the M4 benchmark, the reports). Without it [`Tier`] still names all seven (the wire
 //! protocol and recordings carry their ids), but a research tier is refused:
 //! [`ActiveInverse::new`] and [`TaxelInverses::active`] give `None`,
 //! [`TaxelInverses::supports`] is false, and use-case selection never offers one (see
