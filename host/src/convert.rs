@@ -54,6 +54,10 @@ pub struct ConvertSettings {
     pub calibration: Option<Calibration>,
     /// Ignore the recording's device states.
     pub no_device_state: bool,
+    /// Compute only the pressures and flags: force, centre of pressure, partial and contact
+    /// are left empty (`None`, false). For a caller that reads nothing else; the pressures and
+    /// flags are the same either way (nothing in them depends on the rest).
+    pub pressures_only: bool,
 }
 
 /// Where the baselines come from.
@@ -216,8 +220,8 @@ impl ConversionEngine {
                 }
                 let options = PadOptions::resolve(&self.settings, recorded.as_ref())
                     .with_context(|| format!("device {device} pad {pad}"))?;
-                let run =
-                    PadRun::new(&options).with_context(|| format!("device {device} pad {pad}"))?;
+                let run = PadRun::new(&options, self.settings.pressures_only)
+                    .with_context(|| format!("device {device} pad {pad}"))?;
                 Ok(slot.insert(run))
             }
         }

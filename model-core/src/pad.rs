@@ -536,6 +536,33 @@ impl PadModel {
         sample: &SampleInput,
         mut in_range: impl FnMut(usize, &TaxelModel, &TaxelCalibration, f32) -> f32,
     ) -> PadOutput {
+        let (temperature, conditions) = self.conditions(sample);
+        let tracking = self.tracking;
+        let mut taxels = self.taxels.iter_mut().zip(self.calibration.taxels());
+        let mut inputs = sample.readings.iter().zip(sample.reading_flags);
+        // Four taxels, four calibrations, four readings: every call finds its three.
+        let converted = core::array::from_fn(|index| match (taxels.next(), inputs.next()) {
+            (Some((taxel, calibration)), Some((reading, flags))) => taxel.convert(
+                calibration,
+                reading,
+                flags,
+                &conditions,
+                &tracking,
+                |model, relative_change| in_range(index, model, calibration, relative_change),
+            ),
+            _ => (TaxelOutput::fault(TaxelFlags::NOT_TARED, None), None),
+        });
+        self.advance_tare(&converted.map(|(_, tare)| tare), temperature.temperature_c);
+        PadOutput {
+            taxels: converted.map(|(output, _)| output),
+            temperature,
+        }
+    }
+
+    /// What every taxel of `sample` is converted under: the temperature used (the temperature
+    /// state moves on) and the conditions it gives.
+    #[inline(always)]
+    fn conditions(&mut self, sample: &SampleInput) -> (TemperatureUsed, Conditions) {
         let tare_temperature_c = self
             .taxels
             .iter()
@@ -561,25 +588,74 @@ impl PadModel {
             temperature_flags: temperature.flags,
             taring: matches!(self.tare, Tare::Running(_)),
         };
+        (temperature, conditions)
+    }
+
+    /// Whether a taxel's conversion in one set is independent of the other taxels' readings in
+    /// the sets before it: no tare is averaging (whose end sets every baseline) and no
+    /// baseline tracking runs. Then sample sets can be converted taxel by taxel
+    /// ([`PadModel::process_columns`]).
+    #[cfg(feature = "batch")]
+    pub(crate) fn taxels_independent(&self) -> bool {
+        !matches!(self.tare, Tare::Running(_)) && !self.tracking.enabled
+    }
+
+    /// [`PadModel::process_with`] of every set of `samples` into `outputs`, when
+    /// [`PadModel::taxels_independent`]: the temperature of every set first (it depends only on
+    /// the sets before), then each taxel over every set, its calibration, baseline and
+    /// thresholds read once. The same outputs and state bit for bit (the same functions, in
+    /// another order that nothing they read depends on), and for a host several times faster.
+    /// `in_range(taxel, set, dC/C0)` gives an in-range reading's pressure.
+    #[cfg(feature = "batch")]
+    #[inline(always)]
+    pub(crate) fn process_columns(
+        &mut self,
+        samples: &[SampleInput],
+        outputs: &mut [PadOutput],
+        mut in_range: impl FnMut(usize, usize, f32) -> f32,
+    ) {
+        let mut inverse_ratios = [1.0f32; crate::pad_batch::BATCH_SAMPLE_SETS];
+        for ((sample, output), inverse_ratio) in samples
+            .iter()
+            .zip(outputs.iter_mut())
+            .zip(&mut inverse_ratios)
+        {
+            let (temperature, conditions) = self.conditions(sample);
+            output.temperature = temperature;
+            *inverse_ratio = conditions.inverse_permittivity_ratio;
+        }
+        let thresholds = *self.calibration.thresholds();
         let tracking = self.tracking;
-        let mut taxels = self.taxels.iter_mut().zip(self.calibration.taxels());
-        let mut inputs = sample.readings.iter().zip(sample.reading_flags);
-        // Four taxels, four calibrations, four readings: every call finds its three.
-        let converted = core::array::from_fn(|index| match (taxels.next(), inputs.next()) {
-            (Some((taxel, calibration)), Some((reading, flags))) => taxel.convert(
-                calibration,
-                reading,
-                flags,
-                &conditions,
-                &tracking,
-                |model, relative_change| in_range(index, model, calibration, relative_change),
-            ),
-            _ => (TaxelOutput::fault(TaxelFlags::NOT_TARED, None), None),
-        });
-        self.advance_tare(&converted.map(|(_, tare)| tare), temperature.temperature_c);
-        PadOutput {
-            taxels: converted.map(|(output, _)| output),
-            temperature,
+        for (taxel, (state, calibration)) in self
+            .taxels
+            .iter_mut()
+            .zip(self.calibration.taxels())
+            .enumerate()
+        {
+            let sets = samples.iter().zip(outputs.iter_mut()).zip(&inverse_ratios);
+            for (set, ((sample, output), inverse_ratio)) in sets.enumerate() {
+                let (Some(reading), Some(flags), Some(slot)) = (
+                    sample.readings.get(taxel),
+                    sample.reading_flags.get(taxel),
+                    output.taxels.get_mut(taxel),
+                ) else {
+                    continue;
+                };
+                let conditions = Conditions {
+                    inverse_permittivity_ratio: *inverse_ratio,
+                    thresholds,
+                    temperature_flags: output.temperature.flags,
+                    taring: false,
+                };
+                (*slot, _) = state.convert(
+                    calibration,
+                    reading,
+                    *flags,
+                    &conditions,
+                    &tracking,
+                    |_, relative_change| in_range(taxel, set, relative_change),
+                );
+            }
         }
     }
 

@@ -7,6 +7,7 @@ use crate::calibration::TAXEL_COUNT;
 use crate::flags::TaxelFlags;
 use crate::pad::{PadModel, PadOutput, SampleInput};
 use crate::pad_pipeline::{PadPipeline, PadReport};
+use crate::reading::TaxelReading;
 use crate::taxel::TaxelOutput;
 use crate::temperature::TemperatureUsed;
 
@@ -40,7 +41,7 @@ impl PadModel {
     /// `None`), made as they are needed, with each output and its set's time handed to
     /// `each(context, position, ...)`, which may change `context` (where the sets are read
     /// from, e.g. to write the results beside them).
-    pub(crate) fn process_all_in<C: ?Sized>(
+    pub fn process_all_in<C: ?Sized>(
         &mut self,
         context: &mut C,
         mut sample: impl FnMut(&mut C, usize) -> Option<SampleInput>,
@@ -55,30 +56,54 @@ impl PadModel {
             },
         };
         let mut outputs = [unset; BATCH_SAMPLE_SETS];
-        let mut times = [None; BATCH_SAMPLE_SETS];
+        let mut samples =
+            [SampleInput::new([TaxelReading::Unavailable; TAXEL_COUNT], None); BATCH_SAMPLE_SETS];
         let mut position = 0;
         loop {
-            // Per taxel, the dC/C0 of the sets whose pressure is left to the inverse and those
-            // sets' places, written as `process_with` meets them: no second pass over the
-            // outputs to gather them.
-            let mut columns = [InverseColumn::EMPTY; TAXEL_COUNT];
             let mut count = 0;
-            for (set, (slot, time_us)) in outputs.iter_mut().zip(&mut times).enumerate() {
+            for (set, slot) in samples.iter_mut().enumerate() {
                 let Some(sample) = sample(context, position + set) else {
                     break;
                 };
-                *time_us = sample.time_us;
-                *slot = self.process_with(&sample, |taxel, _, _, relative_change| {
+                *slot = sample;
+                count += 1;
+            }
+            let (Some(samples), Some(outputs)) = (samples.get(..count), outputs.get_mut(..count))
+            else {
+                return;
+            };
+            if samples.is_empty() {
+                return;
+            }
+            // Per taxel, the dC/C0 of the sets whose pressure is left to the inverse and those
+            // sets' places, written as the conversion meets them: no second pass over the
+            // outputs to gather them.
+            let mut columns = [InverseColumn::EMPTY; TAXEL_COUNT];
+            // Set by set while a tare averages (its end changes every taxel's baseline), then
+            // the rest taxel by taxel.
+            let mut first_independent = 0;
+            for (set, (sample, output)) in samples.iter().zip(outputs.iter_mut()).enumerate() {
+                if self.taxels_independent() {
+                    break;
+                }
+                *output = self.process_with(sample, |taxel, _, _, relative_change| {
                     if let Some(column) = columns.get_mut(taxel) {
                         column.push(set, relative_change);
                     }
                     0.0
                 });
-                count += 1;
+                first_independent = set + 1;
             }
-            let outputs = outputs.get_mut(..count).unwrap_or_default();
-            if outputs.is_empty() {
-                return;
+            if let (Some(samples), Some(outputs)) = (
+                samples.get(first_independent..),
+                outputs.get_mut(first_independent..),
+            ) {
+                self.process_columns(samples, outputs, |taxel, set, relative_change| {
+                    if let Some(column) = columns.get_mut(taxel) {
+                        column.push(first_independent + set, relative_change);
+                    }
+                    0.0
+                });
             }
             for (taxel, ((model, calibration), column)) in
                 self.taxel_models().zip(&mut columns).enumerate()
@@ -94,8 +119,8 @@ impl PadModel {
                     }
                 }
             }
-            for (output, time_us) in outputs.iter().zip(times) {
-                each(context, position, output, time_us);
+            for (output, sample) in outputs.iter().zip(samples) {
+                each(context, position, output, sample.time_us);
                 position += 1;
             }
         }

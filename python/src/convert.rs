@@ -252,6 +252,8 @@ pub fn convert_arrays<'py>(
         tier,
         calibration,
         no_device_state: true,
+        // `convert` returns pressures and flags only.
+        pressures_only: true,
     };
     let inputs = Inputs {
         pads,

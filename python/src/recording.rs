@@ -280,6 +280,7 @@ pub fn convert_recording_rows(
         tier,
         calibration: calibration.map(|calibration| calibration.model().clone()),
         no_device_state: !use_device_state,
+        pressures_only: false,
     };
     let states = if use_device_state {
         RecordedStates::beside(&path).map_err(|error| anyhow_error(&error, ErrorKind::Convert))?

@@ -4,8 +4,8 @@
 //! and what the tare said. One [`PadRun`] per pad of each device.
 
 use model_core::{
-    BaselineRecord, ContactConfig, ForceAndContact, PadModel, PadPipeline, PadReport, PadRole,
-    SampleInput, TareStatus, TaxelFlags, TaxelReading, TAXEL_COUNT, TAXEL_NAMES,
+    BaselineRecord, ContactConfig, ForceAndContact, PadModel, PadOutput, PadPipeline, PadReport,
+    PadRole, SampleInput, TareStatus, TaxelFlags, TaxelReading, TAXEL_COUNT, TAXEL_NAMES,
 };
 
 use super::{PadOptions, TareSource};
@@ -156,11 +156,14 @@ pub(super) struct PadRun {
     // recorded one; how many came.
     recorded_from_sequence: u32,
     rows_before_recorded_state: u64,
+    // Only pressures and flags are computed (`ConvertSettings::pressures_only`).
+    pressures_only: bool,
 }
 
 impl PadRun {
-    /// A fresh run with a pad's calibration, tier and baselines.
-    pub(super) fn new(options: &PadOptions) -> anyhow::Result<Self> {
+    /// A fresh run with a pad's calibration, tier and baselines; with `pressures_only` it
+    /// computes pressures and flags and leaves force, centre of pressure and contact empty.
+    pub(super) fn new(options: &PadOptions, pressures_only: bool) -> anyhow::Result<Self> {
         let force_and_contact = ForceAndContact::new(
             PadRole::Unspecified,
             options.geometry,
@@ -174,6 +177,7 @@ impl PadRun {
             first: true,
             recorded_from_sequence: options.recorded_from_sequence,
             rows_before_recorded_state: 0,
+            pressures_only,
         })
     }
 
@@ -238,7 +242,6 @@ impl PadRun {
             return;
         }
         let first = std::mem::take(&mut self.first);
-        let mut assumed = None;
         let start = sets.start;
         let sample = |readings: &mut [(u32, &mut PadReading)], position: usize| {
             let index = start + position;
@@ -249,6 +252,26 @@ impl PadRun {
                 .get(index)
                 .map(|(_, reading)| reading_input(reading, timed))
         };
+        if self.pressures_only {
+            let write = |readings: &mut [(u32, &mut PadReading)],
+                         position: usize,
+                         output: &PadOutput,
+                         _: Option<u64>| {
+                if let Some((_, reading)) = readings.get_mut(start + position) {
+                    write_pressures(reading, output);
+                    reading.force_n = None;
+                    reading.centre_of_pressure_mm = None;
+                    reading.partial = false;
+                    reading.contact = false;
+                }
+            };
+            self.pipeline
+                .model_mut()
+                .process_all_in(readings, sample, write);
+            self.tare_watch.observe(self.pipeline.model());
+            return;
+        }
+        let mut assumed = None;
         let mut write =
             |readings: &mut [(u32, &mut PadReading)], position: usize, report: &PadReport| {
                 let Some((_, reading)) = readings.get_mut(start + position) else {
@@ -259,16 +282,7 @@ impl PadRun {
                     assumed = Some((reading.contact, contact.force));
                     contact.in_contact = reading.contact;
                 }
-                // Field by field: no whole reading built and copied back per set.
-                for ((pressure_kpa, flags), taxel) in reading
-                    .pressure_kpa
-                    .iter_mut()
-                    .zip(&mut reading.flags)
-                    .zip(&report.output.taxels)
-                {
-                    *pressure_kpa = taxel.pressure_kpa();
-                    *flags = taxel.flags();
-                }
+                write_pressures(reading, &report.output);
                 reading.force_n = contact.force_n();
                 reading.centre_of_pressure_mm = contact.centre_of_pressure_mm();
                 reading.partial = contact.partial();
@@ -330,6 +344,20 @@ impl PadRun {
         }
         warnings.extend(self.tare_watch.finish(self.pipeline.model()));
         warnings
+    }
+}
+
+/// Writes the model's pressures and flags into `reading`, field by field (no whole reading
+/// built and copied back per set).
+fn write_pressures(reading: &mut PadReading, output: &PadOutput) {
+    for ((pressure_kpa, flags), taxel) in reading
+        .pressure_kpa
+        .iter_mut()
+        .zip(&mut reading.flags)
+        .zip(&output.taxels)
+    {
+        *pressure_kpa = taxel.pressure_kpa();
+        *flags = taxel.flags();
     }
 }
 

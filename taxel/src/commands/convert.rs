@@ -155,6 +155,7 @@ pub fn run(args: &ConvertArgs) -> anyhow::Result<ExitCode> {
         tier: args.tier,
         calibration,
         no_device_state: args.no_device_state,
+        pressures_only: false,
     };
     let (states, raw_device) = match &args.raw {
         Some(raw) => {
