@@ -30,6 +30,7 @@ use crate::pad_set::PadSetAssembler;
 use crate::recorder::device_file;
 use crate::schema::{self, PadReading, PadRow, RowReader, RowWriter, SchemaError};
 use pad_run::PadRun;
+pub use pad_run::PadSets;
 
 /// Exit status when at least one input row could not be read.
 pub const EXIT_BAD_ROWS: u8 = 3;
@@ -247,7 +248,7 @@ impl ConversionEngine {
             // A row at a time: no lists to make.
             if let Some(reading) = &mut row.reading {
                 let run = self.run(row.device, row.pad)?;
-                run.process(&mut [(row.sequence, reading)], timed);
+                run.process(&mut [(row.sequence, reading)][..], timed);
             }
             return Ok(());
         }
@@ -266,8 +267,26 @@ impl ConversionEngine {
                     .filter(|row| (row.device, row.pad) == (device, pad))
                     .filter_map(|row| row.reading.as_mut().map(|reading| (row.sequence, reading))),
             );
-            self.run(device, pad)?.process(&mut readings, timed);
+            self.run(device, pad)?
+                .process(readings.as_mut_slice(), timed);
         }
+        Ok(())
+    }
+
+    /// Converts sets of one pad of one device that the caller holds in its own form (see
+    /// [`PadSets`]: the Python package's arrays), in order after the pad's sets converted
+    /// before, exactly as [`convert_rows`](Self::convert_rows) converts rows holding them.
+    pub fn convert_sets<S: PadSets + ?Sized>(
+        &mut self,
+        device: u32,
+        pad: u8,
+        sets: &mut S,
+        timed: bool,
+    ) -> anyhow::Result<()> {
+        if sets.is_empty() {
+            return Ok(());
+        }
+        self.run(device, pad)?.process(sets, timed);
         Ok(())
     }
 

@@ -4,12 +4,12 @@
 //! `tare_rows` readable rows.
 
 use model_core::TAXEL_COUNT;
+use model_core::{PadContact, PadOutput, SampleInput, TaxelReading};
 use numpy::ndarray::{Ix1, Ix2};
 use numpy::{PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use taxel_host::console::error_message;
-use taxel_host::convert::{ConversionEngine, ConvertSettings, RecordedStates};
-use taxel_host::schema::{PadReading, PadRow};
+use taxel_host::convert::{ConversionEngine, ConvertSettings, PadSets, RecordedStates};
 use wire::TemperatureSource;
 
 use crate::arrays::{c_order_values, float64_c_array};
@@ -32,46 +32,90 @@ struct Outputs<'a> {
     flags: &'a mut [u16],
 }
 
-/// Pad `pad`'s row of set `row` as the schema holds it: `None` when, with several pads, its
-/// four capacitances and its temperature are all NaN (its frame missing from the set, as
-/// `taxel convert` reads a pad whose cells are all empty).
-fn pad_row(inputs: &Inputs<'_>, row: usize, pad: usize) -> PadRow {
-    let mut pad_row = PadRow {
-        host_time_us: 0,
-        device: 0,
-        pad: 0,
-        sequence: 0,
-        sync_error_us: None,
-        reading: None,
-        marker: String::new(),
-    };
-    set_pad_row(&mut pad_row, inputs, row, pad);
-    pad_row
+/// One pad's sets among a block of rows, as the conversion engine reads and writes them: read
+/// from the input arrays, the results written into the output arrays (no rows made).
+struct PadColumns<'a, 'b> {
+    inputs: &'a Inputs<'a>,
+    outputs: &'b mut Outputs<'a>,
+    pad: usize,
+    /// The rows whose frame of the pad is present, in order: with several pads, a row whose
+    /// four capacitances and temperature are all NaN has none (its frame missing from the
+    /// set, as `taxel convert` reads a pad whose cells are all empty).
+    rows: &'b [u32],
 }
 
-/// Makes `pad_row` (a row of device 0 without host time or marker, as [`pad_row`] makes) pad
-/// `pad`'s row of set `row`: a block's rows are used again for the next block's.
-fn set_pad_row(pad_row: &mut PadRow, inputs: &Inputs<'_>, row: usize, pad: usize) {
-    let first = (row * inputs.pads + pad) * TAXEL_COUNT;
-    let capacitances = &inputs.capacitance_pf[first..first + TAXEL_COUNT];
-    let temperature = inputs.temperature_c[row * inputs.pads + pad];
-    let missing =
-        inputs.pads > 1 && temperature.is_nan() && capacitances.iter().all(|value| value.is_nan());
-    // A time given is non-negative (checked): the time cell of a recording, in µs.
-    let device_time_us = inputs.time_s.map_or(0, |times| (times[row] * 1.0e6) as u64);
-    pad_row.pad = pad as u8;
-    pad_row.sequence = row as u32;
-    pad_row.reading = (!missing).then(|| {
-        PadReading::unconverted(
-            device_time_us,
-            (!temperature.is_nan()).then_some(temperature as f32),
+impl PadColumns<'_, '_> {
+    /// The first cell of set `index` (in the capacitance, pressure and flags arrays).
+    fn first_cell(&self, index: usize) -> Option<(usize, usize)> {
+        let row = *self.rows.get(index)? as usize;
+        Some((row, (row * self.inputs.pads + self.pad) * TAXEL_COUNT))
+    }
+}
+
+impl PadSets for PadColumns<'_, '_> {
+    fn len(&self) -> usize {
+        self.rows.len()
+    }
+
+    fn identity(&self, index: usize) -> (u32, TemperatureSource) {
+        (
+            self.rows.get(index).copied().unwrap_or_default(),
             TemperatureSource::None,
-            std::array::from_fn(|taxel| {
-                let value = capacitances[taxel];
-                (!value.is_nan()).then_some(value as f32)
-            }),
         )
-    });
+    }
+
+    fn input(&self, index: usize, timed: bool) -> SampleInput {
+        let empty = SampleInput::new([TaxelReading::Unavailable; TAXEL_COUNT], None);
+        let Some((row, first)) = self.first_cell(index) else {
+            return empty;
+        };
+        let (Some(capacitances), Some(temperature)) = (
+            self.inputs.capacitance_pf.get(first..first + TAXEL_COUNT),
+            self.inputs
+                .temperature_c
+                .get(row * self.inputs.pads + self.pad),
+        ) else {
+            return empty;
+        };
+        // An empty (NaN) cell is no reading, as an empty cell of a recording.
+        let readings = std::array::from_fn(|taxel| match capacitances.get(taxel) {
+            Some(value) if !value.is_nan() => TaxelReading::CapacitancePf(*value as f32),
+            _ => TaxelReading::Unavailable,
+        });
+        let temperature_c = (!temperature.is_nan()).then_some(*temperature as f32);
+        // A time given is non-negative (checked): the time cell of a recording, in µs.
+        let time_us = self
+            .inputs
+            .time_s
+            .filter(|_| timed)
+            .and_then(|times| times.get(row))
+            .map(|time_s| (time_s * 1.0e6) as u64);
+        SampleInput {
+            time_us,
+            ..SampleInput::new(readings, temperature_c)
+        }
+    }
+
+    fn recorded_contact(&self, _: usize) -> bool {
+        false
+    }
+
+    fn write(&mut self, index: usize, output: &PadOutput, _: Option<&PadContact>) {
+        let Some((_, first)) = self.first_cell(index) else {
+            return;
+        };
+        let cells = first..first + TAXEL_COUNT;
+        let (Some(pressures), Some(flags)) = (
+            self.outputs.pressure_kpa.get_mut(cells.clone()),
+            self.outputs.flags.get_mut(cells),
+        ) else {
+            return;
+        };
+        for ((pressure, flag_bits), taxel) in pressures.iter_mut().zip(flags).zip(&output.taxels) {
+            *pressure = taxel.pressure_kpa().map_or(f64::NAN, f64::from);
+            *flag_bits = taxel.flags().bits();
+        }
+    }
 }
 
 /// Why a conversion stopped.
@@ -84,71 +128,68 @@ enum Stopped {
 
 /// Sample sets converted together: enough for the pipelines' batch path, few enough to look for
 /// Ctrl-C often.
-const SETS_PER_BLOCK: usize = 256;
+const SETS_PER_BLOCK: usize = 4096;
 
-/// Runs every row of every pad through `engine`, in set order, into `outputs` (a missing frame's
-/// pressures NaN and flags 0), looking for Ctrl-C as it goes.
-fn run_rows(
+/// Runs every row of every pad through `engine`, in set order, into `outputs` (a missing
+/// frame's pressures NaN and flags 0), looking for Ctrl-C as it goes.
+fn run_rows<'a>(
     engine: &mut ConversionEngine,
-    inputs: &Inputs<'_>,
-    outputs: &mut Outputs<'_>,
+    inputs: &'a Inputs<'a>,
+    outputs: &mut Outputs<'a>,
 ) -> Result<(), Stopped> {
     let rows = inputs.temperature_c.len() / inputs.pads.max(1);
     let mut signals = SignalCheck::new();
-    let mut block: Vec<PadRow> = Vec::with_capacity(SETS_PER_BLOCK * inputs.pads);
+    let mut present: Vec<u32> = Vec::with_capacity(SETS_PER_BLOCK);
     for first_row in (0..rows).step_by(SETS_PER_BLOCK) {
         let end_row = (first_row + SETS_PER_BLOCK).min(rows);
         signals
             .tick_rows((end_row - first_row) as u32)
             .map_err(Stopped::Interrupted)?;
-        // The last block's rows are made this block's in place: only what differs is written.
-        let mut pad_rows =
-            (first_row..end_row).flat_map(|row| (0..inputs.pads).map(move |pad| (row, pad)));
-        block.truncate((end_row - first_row) * inputs.pads);
-        for (slot, (row, pad)) in block.iter_mut().zip(pad_rows.by_ref()) {
-            set_pad_row(slot, inputs, row, pad);
-        }
-        block.extend(pad_rows.map(|(row, pad)| pad_row(inputs, row, pad)));
-        engine
-            .convert_rows(&mut block, inputs.time_s.is_some())
-            .map_err(Stopped::Engine)?;
-        let first_cell = first_row * inputs.pads * TAXEL_COUNT;
-        let cells = first_cell..first_cell + block.len() * TAXEL_COUNT;
-        let (Some(pressures), Some(flags)) = (
-            outputs.pressure_kpa.get_mut(cells.clone()),
-            outputs.flags.get_mut(cells),
-        ) else {
-            // Never: the outputs have a cell for every input's (shapes checked). The arrays are
-            // not zeroed, so no block may be skipped without an error.
-            return Err(Stopped::Engine(anyhow::anyhow!(
-                "the output arrays have fewer cells than the input"
-            )));
-        };
-        let cells = block.iter().zip(
-            pressures
-                .chunks_exact_mut(TAXEL_COUNT)
-                .zip(flags.chunks_exact_mut(TAXEL_COUNT)),
-        );
-        for (pad_row, (pressures, flags)) in cells {
-            match &pad_row.reading {
-                Some(reading) => {
-                    let taxels = pressures
-                        .iter_mut()
-                        .zip(flags.iter_mut())
-                        .zip(reading.pressure_kpa.iter().zip(&reading.flags));
-                    for ((pressure, flag_bits), (pressure_kpa, taxel_flags)) in taxels {
-                        *pressure = pressure_kpa.map_or(f64::NAN, f64::from);
-                        *flag_bits = taxel_flags.bits();
+        for pad in 0..inputs.pads {
+            present.clear();
+            for row in first_row..end_row {
+                if inputs.pads > 1 && frame_missing(inputs, row, pad) {
+                    let first = (row * inputs.pads + pad) * TAXEL_COUNT;
+                    let cells = first..first + TAXEL_COUNT;
+                    if let (Some(pressures), Some(flags)) = (
+                        outputs.pressure_kpa.get_mut(cells.clone()),
+                        outputs.flags.get_mut(cells),
+                    ) {
+                        pressures.fill(f64::NAN);
+                        flags.fill(0);
                     }
-                }
-                None => {
-                    pressures.fill(f64::NAN);
-                    flags.fill(0);
+                } else {
+                    present.push(row as u32);
                 }
             }
+            let mut sets = PadColumns {
+                inputs,
+                outputs: &mut *outputs,
+                pad,
+                rows: &present,
+            };
+            engine
+                .convert_sets(0, pad as u8, &mut sets, inputs.time_s.is_some())
+                .map_err(Stopped::Engine)?;
         }
     }
     Ok(())
+}
+
+/// With several pads, whether pad `pad`'s frame of row `row` is missing: its four capacitances
+/// and its temperature all NaN.
+fn frame_missing(inputs: &Inputs<'_>, row: usize, pad: usize) -> bool {
+    let first = (row * inputs.pads + pad) * TAXEL_COUNT;
+    let temperature = inputs
+        .temperature_c
+        .get(row * inputs.pads + pad)
+        .copied()
+        .unwrap_or(f64::NAN);
+    temperature.is_nan()
+        && inputs
+            .capacitance_pf
+            .get(first..first + TAXEL_COUNT)
+            .is_none_or(|values| values.iter().all(|value| value.is_nan()))
 }
 
 /// A new C-ordered array of `shape` whose values are not set (numpy's `empty`: its memory is
@@ -165,11 +206,47 @@ fn empty_array<'py, T: numpy::Element>(
     Ok(array)
 }
 
+/// `array`, given as `out`'s `name`, when it can take the results: a writable, C-ordered array
+/// of `dtype` and `shape`.
+fn output_array<'py, T: numpy::Element>(
+    array: Bound<'py, PyAny>,
+    shape: [usize; 2],
+    name: &str,
+    dtype: &str,
+) -> PyResult<Bound<'py, PyArray2<T>>> {
+    let wrong = |what: String| {
+        taxel_error(
+            ErrorKind::Convert,
+            format!("out's {name} array {what}: it must be a writable, C-ordered {dtype} array of shape ({}, {})", shape[0], shape[1]),
+        )
+    };
+    let Ok(array) = array.downcast_into::<numpy::PyUntypedArray>() else {
+        return Err(wrong("is not a numpy array".to_owned()));
+    };
+    if array.shape() != shape {
+        return Err(wrong(format!("has shape {:?}", array.shape())));
+    }
+    let found = array.dtype().to_string();
+    let Ok(array) = array.into_any().downcast_into::<PyArray2<T>>() else {
+        return Err(wrong(format!("has dtype {found}")));
+    };
+    if !array.is_c_contiguous() {
+        return Err(wrong("is not C-ordered".to_owned()));
+    }
+    let writeable: bool = array.getattr("flags")?.getattr("writeable")?.extract()?;
+    if !writeable {
+        return Err(wrong("is read-only".to_owned()));
+    }
+    Ok(array)
+}
+
 /// Converts checked, contiguous arrays (the Python wrapper `taxel.convert` checks and shapes
 /// them): `capacitance_pf` (N, 4 × pads), `temp_c` (N, pads), `time_s` (N,) or None. Returns
-/// pressures (N, taxels) float64, flags (N, taxels) uint16 and the tare's warnings.
+/// pressures (N, taxels) float64, flags (N, taxels) uint16 and the tare's warnings; the
+/// pressures and flags are written into `out` (pressure, flags) when given (checked: their
+/// dtypes, shape, C order, writable, not overlapping the inputs), else into new arrays.
 #[pyfunction]
-#[pyo3(signature = (capacitance_pf, temp_c, time_s, calibration, tier, tare_rows))]
+#[pyo3(signature = (capacitance_pf, temp_c, time_s, calibration, tier, tare_rows, out=None))]
 #[allow(clippy::type_complexity)]
 pub fn convert_arrays<'py>(
     py: Python<'py>,
@@ -179,6 +256,7 @@ pub fn convert_arrays<'py>(
     calibration: Option<PyRef<'py, Calibration>>,
     tier: Option<&str>,
     tare_rows: u16,
+    out: Option<(Bound<'py, PyAny>, Bound<'py, PyAny>)>,
 ) -> PyResult<(
     Bound<'py, PyArray2<f64>>,
     Bound<'py, PyArray2<u16>>,
@@ -265,8 +343,39 @@ pub fn convert_arrays<'py>(
     // not: a fifth of the conversion's time went to first touching 4 KiB pages. Empty, not
     // zeros: every cell is written below (or the arrays are dropped with the error), and
     // zeroing 40 MB first cost about 4 ms of a million rows' conversion.
-    let pressure_kpa = empty_array::<f64>(py, [rows, taxels], "float64")?;
-    let flags = empty_array::<u16>(py, [rows, taxels], "uint16")?;
+    let (pressure_kpa, flags) = match out {
+        Some((pressure_kpa, flags)) => (
+            output_array::<f64>(pressure_kpa, [rows, taxels], "pressure", "float64")?,
+            output_array::<u16>(flags, [rows, taxels], "flags", "uint16")?,
+        ),
+        None => (
+            empty_array::<f64>(py, [rows, taxels], "float64")?,
+            empty_array::<u16>(py, [rows, taxels], "uint16")?,
+        ),
+    };
+    for (output, name) in [
+        (pressure_kpa.as_any(), "pressure"),
+        (flags.as_any(), "flags"),
+    ] {
+        for (input, input_name) in [
+            (capacitance_pf.as_any(), "capacitance_pf"),
+            (temp_c.as_any(), "temp_c"),
+        ]
+        .into_iter()
+        .chain(time_s.as_ref().map(|times| (times.as_any(), "time_s")))
+        {
+            let shared: bool = py
+                .import("numpy")?
+                .call_method1("may_share_memory", (output, input))?
+                .extract()?;
+            if shared {
+                return Err(taxel_error(
+                    ErrorKind::Convert,
+                    format!("out's {name} array shares memory with {input_name}: the results would overwrite the inputs being read"),
+                ));
+            }
+        }
+    }
     let (mut pressure_memory, mut flags_memory) = (pressure_kpa.readwrite(), flags.readwrite());
     let (Ok(pressure_slice), Ok(flags_slice)) =
         (pressure_memory.as_slice_mut(), flags_memory.as_slice_mut())

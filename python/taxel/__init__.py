@@ -135,6 +135,7 @@ def convert(
     tier: Optional[str] = None,
     tare_rows: int = 1,
     time_s: "Optional[np.typing.ArrayLike]" = None,
+    out: "Optional[Tuple[np.ndarray, np.ndarray]]" = None,
 ) -> Tuple[np.ndarray, np.ndarray]:
     """Converts capacitances to pressures with the pressure model, as ``taxel convert`` does.
 
@@ -147,7 +148,11 @@ def convert(
     without it that rule ignores the time between rows).
 
     Returns ``(pressure_kpa, flags)``: float64 and uint16 arrays of shape ``(N, taxels)``;
-    a pressure is NaN where the model gives none, and the flags say why. Each pad has a model of
+    a pressure is NaN where the model gives none, and the flags say why. With ``out=(pressure,
+    flags)`` (as numpy's ``out=``) they are written into those arrays, which are returned: they
+    must be writable, C-ordered, float64 and uint16, of shape ``(N, taxels)``, and share no
+    memory with the inputs; converting many blocks into arrays made once saves allocating and
+    first touching new memory each time. Each pad has a model of
     its own. With several pads, a row where a pad's four capacitances and its temperature are
     all NaN is that pad's frame missing from the set (as a buffer holds it, and as ``taxel
     convert`` reads a pad whose cells are all empty): its model skips the row, which gets NaN
@@ -189,8 +194,10 @@ def convert(
         raise ConvertError(f"tare_rows must be an integer (got {tare_rows!r})")
     if not 1 <= int(tare_rows) <= 65535:
         raise ConvertError(f"tare_rows must be 1 to 65535 (got {tare_rows})")
+    if out is not None and (not isinstance(out, tuple) or len(out) != 2):
+        raise ConvertError("out must be a tuple (pressure, flags) of two arrays")
     pressure_kpa, flags, messages = _taxel.convert_arrays(
-        capacitance, temperature, times, calibration, tier, int(tare_rows)
+        capacitance, temperature, times, calibration, tier, int(tare_rows), out
     )
     for message in messages:
         warnings.warn(message, TaxelWarning, stacklevel=2)

@@ -28,6 +28,7 @@ def convert_arrays(
     calibration: Optional["Calibration"],
     tier: Optional[str],
     tare_rows: int,
+    out: Optional[Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint16]]] = None,
 ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint16], List[str]]:
     """The native half of :func:`taxel.convert` (array-likes, read as C-ordered float64)."""
 

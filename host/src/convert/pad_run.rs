@@ -4,8 +4,9 @@
 //! and what the tare said. One [`PadRun`] per pad of each device.
 
 use model_core::{
-    BaselineRecord, ContactConfig, ForceAndContact, PadModel, PadOutput, PadPipeline, PadReport,
-    PadRole, SampleInput, TareStatus, TaxelFlags, TaxelReading, TAXEL_COUNT, TAXEL_NAMES,
+    BaselineRecord, ContactConfig, ForceAndContact, PadContact, PadModel, PadOutput, PadPipeline,
+    PadReport, PadRole, SampleInput, TareStatus, TaxelFlags, TaxelReading, TAXEL_COUNT,
+    TAXEL_NAMES,
 };
 
 use super::{PadOptions, TareSource};
@@ -190,13 +191,12 @@ impl PadRun {
     /// Readings between changes of the model's state from outside (recorded baselines that
     /// apply from a sequence number, a change of temperature sensor) go through the pipeline's
     /// batch path together: the same results as one by one (tested), faster.
-    pub(super) fn process(&mut self, readings: &mut [(u32, &mut PadReading)], timed: bool) {
+    pub(super) fn process<S: PadSets + ?Sized>(&mut self, readings: &mut S, timed: bool) {
         let mut start = 0;
-        while let Some((sequence, reading)) = readings.get(start) {
-            let sequence = *sequence;
+        while start < readings.len() {
+            let (sequence, source) = readings.identity(start);
             // A batch's first reading: what changes the model's state before it goes in first
             // (recorded baselines install only when they change).
-            let source = reading.temperature_source;
             self.count_recorded_state(sequence);
             self.baselines
                 .before_sample(self.pipeline.model_mut(), Some(sequence));
@@ -205,9 +205,8 @@ impl PadRun {
             // The first reading goes through alone, so the contact state it sets up is in place
             // before the second.
             if !self.first {
-                while let Some((sequence, reading)) = readings.get(end) {
-                    let sequence = *sequence;
-                    let source = reading.temperature_source;
+                while end < readings.len() {
+                    let (sequence, source) = readings.identity(end);
                     if self.baselines.change_at(Some(sequence)).is_some()
                         || self.temperature_sensor_changes(source)
                     {
@@ -232,9 +231,9 @@ impl PadRun {
 
     /// Readings `sets` through the pipeline together (their model inputs made as they are
     /// needed); the results replace their outputs.
-    fn run_batch(
+    fn run_batch<S: PadSets + ?Sized>(
         &mut self,
-        readings: &mut [(u32, &mut PadReading)],
+        readings: &mut S,
         sets: std::ops::Range<usize>,
         timed: bool,
     ) {
@@ -243,27 +242,13 @@ impl PadRun {
         }
         let first = std::mem::take(&mut self.first);
         let start = sets.start;
-        let sample = |readings: &mut [(u32, &mut PadReading)], position: usize| {
+        let sample = |readings: &mut S, position: usize| {
             let index = start + position;
-            if !sets.contains(&index) {
-                return None;
-            }
-            readings
-                .get(index)
-                .map(|(_, reading)| reading_input(reading, timed))
+            sets.contains(&index).then(|| readings.input(index, timed))
         };
         if self.pressures_only {
-            let write = |readings: &mut [(u32, &mut PadReading)],
-                         position: usize,
-                         output: &PadOutput,
-                         _: Option<u64>| {
-                if let Some((_, reading)) = readings.get_mut(start + position) {
-                    write_pressures(reading, output);
-                    reading.force_n = None;
-                    reading.centre_of_pressure_mm = None;
-                    reading.partial = false;
-                    reading.contact = false;
-                }
+            let write = |readings: &mut S, position: usize, output: &PadOutput, _: Option<u64>| {
+                readings.write(start + position, output, None);
             };
             self.pipeline
                 .model_mut()
@@ -272,22 +257,15 @@ impl PadRun {
             return;
         }
         let mut assumed = None;
-        let mut write =
-            |readings: &mut [(u32, &mut PadReading)], position: usize, report: &PadReport| {
-                let Some((_, reading)) = readings.get_mut(start + position) else {
-                    return;
-                };
-                let mut contact = report.contact;
-                if first && position == 0 {
-                    assumed = Some((reading.contact, contact.force));
-                    contact.in_contact = reading.contact;
-                }
-                write_pressures(reading, &report.output);
-                reading.force_n = contact.force_n();
-                reading.centre_of_pressure_mm = contact.centre_of_pressure_mm();
-                reading.partial = contact.partial();
-                reading.contact = contact.in_contact;
-            };
+        let mut write = |readings: &mut S, position: usize, report: &PadReport| {
+            let mut contact = report.contact;
+            if first && position == 0 {
+                let recorded = readings.recorded_contact(start);
+                assumed = Some((recorded, contact.force));
+                contact.in_contact = recorded;
+            }
+            readings.write(start + position, &report.output, Some(&contact));
+        };
         // One set (a row at a time, as `taxel convert` reads a file) needs no batch.
         if sets.len() == 1 {
             if let Some(input) = sample(readings, 0) {
@@ -347,17 +325,75 @@ impl PadRun {
     }
 }
 
-/// Writes the model's pressures and flags into `reading`, field by field (no whole reading
-/// built and copied back per set).
-fn write_pressures(reading: &mut PadReading, output: &PadOutput) {
-    for ((pressure_kpa, flags), taxel) in reading
-        .pressure_kpa
-        .iter_mut()
-        .zip(&mut reading.flags)
-        .zip(&output.taxels)
-    {
-        *pressure_kpa = taxel.pressure_kpa();
-        *flags = taxel.flags();
+/// A pad's sample sets in order, as the conversion engine reads and writes them: recorded rows
+/// (`[(sequence, reading)]`), or a caller's own columns (the Python package's arrays), so that
+/// every input goes through one [`PadRun`] without being copied into rows first.
+pub trait PadSets {
+    /// How many sets.
+    fn len(&self) -> usize;
+
+    /// True when there are none.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Set `index`'s sequence number and the sensor its temperature came from.
+    fn identity(&self, index: usize) -> (u32, TemperatureSource);
+
+    /// Set `index`'s model input: its capacitances (a converter error or an empty one read as no
+    /// reading), the acquisition's flags, its temperature and, with `timed`, its device time.
+    fn input(&self, index: usize, timed: bool) -> SampleInput;
+
+    /// The contact bit set `index` was recorded with (the first set's is the contact state the
+    /// stream started in).
+    fn recorded_contact(&self, index: usize) -> bool;
+
+    /// Writes set `index`'s results: pressures and flags, and force, centre of pressure,
+    /// partial and contact (empty without `contact`: `ConvertSettings::pressures_only`).
+    fn write(&mut self, index: usize, output: &PadOutput, contact: Option<&PadContact>);
+}
+
+impl PadSets for [(u32, &mut PadReading)] {
+    fn len(&self) -> usize {
+        <[_]>::len(self)
+    }
+
+    fn identity(&self, index: usize) -> (u32, TemperatureSource) {
+        self.get(index)
+            .map_or((0, TemperatureSource::None), |(sequence, reading)| {
+                (*sequence, reading.temperature_source)
+            })
+    }
+
+    fn input(&self, index: usize, timed: bool) -> SampleInput {
+        match self.get(index) {
+            Some((_, reading)) => reading_input(reading, timed),
+            None => SampleInput::new([TaxelReading::Unavailable; TAXEL_COUNT], None),
+        }
+    }
+
+    fn recorded_contact(&self, index: usize) -> bool {
+        self.get(index).is_some_and(|(_, reading)| reading.contact)
+    }
+
+    fn write(&mut self, index: usize, output: &PadOutput, contact: Option<&PadContact>) {
+        let Some((_, reading)) = self.get_mut(index) else {
+            return;
+        };
+        // Field by field: no whole reading built and copied back per set.
+        for ((pressure_kpa, flags), taxel) in reading
+            .pressure_kpa
+            .iter_mut()
+            .zip(&mut reading.flags)
+            .zip(&output.taxels)
+        {
+            *pressure_kpa = taxel.pressure_kpa();
+            *flags = taxel.flags();
+        }
+        reading.force_n = contact.and_then(PadContact::force_n);
+        reading.centre_of_pressure_mm = contact.and_then(PadContact::centre_of_pressure_mm);
+        reading.partial = contact.is_some_and(PadContact::partial);
+        reading.contact = contact.is_some_and(|contact| contact.in_contact);
     }
 }
 
