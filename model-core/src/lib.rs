@@ -35,6 +35,10 @@
 // No panic path: every index is checked or provably in bounds (tests may index freely).
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
+// The host's batch path asks the CPU which vector instructions it has (`inverse/cubic.rs`).
+#[cfg(all(feature = "batch", target_arch = "x86_64"))]
+extern crate std;
+
 pub mod baseline;
 mod bounds;
 pub mod calibration;
