@@ -182,8 +182,76 @@ fn blocks_match_one_at_a_time(
     Ok(())
 }
 
+/// With `pressures_only`, the rows get the pressures and flags of the whole pipeline and no
+/// force, centre of pressure, partial or contact.
+fn pressures_only_matches_the_pipeline(
+    rows: &[PadRow],
+    changes: &[u32],
+    timed: bool,
+) -> Result<(), TestCaseError> {
+    let directory = tempfile::tempdir().map_err(|error| TestCaseError::fail(error.to_string()))?;
+    let states = recorded_states(changes, directory.path());
+    let mut converted = Vec::new();
+    for pressures_only in [false, true] {
+        let settings = ConvertSettings {
+            pressures_only,
+            ..ConvertSettings::default()
+        };
+        let mut engine = ConversionEngine::new(settings, states.clone());
+        let mut got = rows.to_vec();
+        engine
+            .convert_rows(&mut got, timed)
+            .map_err(|error| TestCaseError::fail(error.to_string()))?;
+        converted.push((got, engine.finish()));
+    }
+    let [(whole, whole_warnings), (pressures, pressures_warnings)] = &converted[..] else {
+        return Err(TestCaseError::fail("two conversions"));
+    };
+    prop_assert_eq!(whole_warnings, pressures_warnings);
+    let mut forces = 0;
+    for (index, (whole, pressures)) in whole.iter().zip(pressures).enumerate() {
+        let (Some(whole), Some(pressures)) = (&whole.reading, &pressures.reading) else {
+            prop_assert_eq!(whole.reading.is_some(), pressures.reading.is_some());
+            continue;
+        };
+        forces += usize::from(whole.force_n.is_some());
+        prop_assert_eq!(
+            format!("{:?}", (whole.pressure_kpa, whole.flags)),
+            format!("{:?}", (pressures.pressure_kpa, pressures.flags)),
+            "row {}",
+            index
+        );
+        prop_assert_eq!(
+            (
+                pressures.force_n,
+                pressures.centre_of_pressure_mm,
+                pressures.partial,
+                pressures.contact
+            ),
+            (None, None, false, false),
+            "row {}",
+            index
+        );
+    }
+    prop_assert!(
+        forces > 0,
+        "the whole pipeline gave no force to compare with"
+    );
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn pressures_only_gives_the_pipelines_pressures_and_nothing_else(
+        readings in prop::collection::vec(reading(), 4..600),
+        changes in prop::collection::btree_set(0u32..300, 1..4),
+        timed in any::<bool>(),
+    ) {
+        let changes: Vec<u32> = changes.into_iter().collect();
+        pressures_only_matches_the_pipeline(&rows(&readings), &changes, timed)?;
+    }
 
     #[test]
     fn blocks_convert_as_rows_one_at_a_time(

@@ -248,3 +248,47 @@ def test_missing_pad_frames_equal_the_cli(taxel_cli, tmp_path, gripper_recording
         assert np.all(flags[row, 4 * pad : 4 * pad + 4] == 0)
     # The other pad of those sets is converted.
     assert not np.all(np.isnan(pressure[40, 0:4]))
+
+
+def test_out_takes_the_results_and_is_returned(recording):
+    capacitance, temperature, time_s = recording
+    want_pressure, want_flags = taxel.convert(capacitance, temperature, time_s=time_s, tare_rows=3)
+    # Filled with values the conversion must overwrite, cell by cell.
+    out = (np.full(want_pressure.shape, -7.0), np.full(want_flags.shape, 0xABCD, dtype=np.uint16))
+    pressure, flags = taxel.convert(capacitance, temperature, time_s=time_s, tare_rows=3, out=out)
+    assert pressure is out[0] and flags is out[1]
+    np.testing.assert_array_equal(pressure, want_pressure)
+    np.testing.assert_array_equal(flags, want_flags)
+    # Several pads with a missing frame: its cells are written too (NaN, no flags).
+    both = np.hstack([capacitance, capacitance])
+    both[5, 4:] = np.nan
+    temperatures = np.stack([temperature, temperature], axis=1)
+    temperatures[5, 1] = np.nan
+    want_pressure, want_flags = taxel.convert(both, temperatures)
+    out = (np.full(want_pressure.shape, -7.0), np.full(want_flags.shape, 0xABCD, dtype=np.uint16))
+    taxel.convert(both, temperatures, out=out)
+    np.testing.assert_array_equal(out[0], want_pressure)
+    np.testing.assert_array_equal(out[1], want_flags)
+    assert np.isnan(out[0][5, 4:]).all() and (out[1][5, 4:] == 0).all()
+
+
+def test_out_that_cannot_take_the_results_is_refused(recording):
+    capacitance, temperature, _ = recording
+    shape = capacitance.shape
+    good_pressure, good_flags = np.empty(shape), np.empty(shape, dtype=np.uint16)
+    read_only = np.empty(shape)
+    read_only.flags.writeable = False
+    cases = [
+        ((np.empty(shape, dtype=np.float32), good_flags), "out's pressure array has dtype float32"),
+        ((good_pressure, np.empty(shape, dtype=np.int64)), "out's flags array has dtype int64"),
+        ((np.empty((shape[0], 8)), good_flags), "out's pressure array has shape \\[.*, 8\\]"),
+        ((np.empty(shape, order="F"), good_flags), "out's pressure array is not C-ordered"),
+        ((read_only, good_flags), "out's pressure array is read-only"),
+        ((good_pressure.tolist(), good_flags), "out's pressure array is not a numpy array"),
+        ((capacitance, good_flags), "out's pressure array shares memory with capacitance_pf"),
+    ]
+    for out, message in cases:
+        with pytest.raises(taxel.ConvertError, match=message):
+            taxel.convert(capacitance, temperature, out=out)
+    with pytest.raises(taxel.ConvertError, match="out must be a tuple \\(pressure, flags\\)"):
+        taxel.convert(capacitance, temperature, out=good_pressure)

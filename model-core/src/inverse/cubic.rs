@@ -300,12 +300,14 @@ impl CubicKnots {
     #[inline(always)]
     fn first_step_lane(&self, relative_change: f32) -> (f32, bool) {
         let position = self.position(relative_change);
-        // NaN and negative positions convert to 0, too large ones to u32::MAX.
-        let whole = position as u32;
-        let on_grid = position >= 0.0 && (whole as usize) < SEED_CELLS;
+        // Through i32, which vector instructions convert to and from in one each (u32 takes
+        // several): the same whole cells as `first_step`'s u32 on the grid, `0 ..= SEED_CELLS`.
+        // NaN converts to 0, too large positions to i32::MAX.
+        let whole = position as i32;
+        let on_grid = position >= 0.0 && whole < SEED_CELLS as i32;
         let cell = self
             .cells
-            .get((whole as usize).min(SEED_CELLS - 1))
+            .get(whole.clamp(0, SEED_CELLS as i32 - 1) as usize)
             .unwrap_or(&SeedCell::EMPTY);
         let seed_kpa = cell.seed(position - whole as f32);
         let first = cell.interval as usize & INTERVAL_MASK;
