@@ -247,7 +247,8 @@ fn output_array<'py, T: numpy::Element>(
 /// dtypes, shape, C order, writable, not overlapping the inputs), else into new arrays.
 #[pyfunction]
 #[pyo3(signature = (capacitance_pf, temp_c, time_s, calibration, tier, tare_rows, out=None))]
-#[allow(clippy::type_complexity)]
+// Python's keyword arguments, each a parameter.
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub fn convert_arrays<'py>(
     py: Python<'py>,
     capacitance_pf: &Bound<'py, PyAny>,
