@@ -84,6 +84,8 @@ use crate::calibration::{CalibrationCurve, MAX_CURVE_POINTS};
 use crate::monotone_cubic::{CubicSegment, MonotoneCubic};
 
 mod grid;
+#[cfg(all(feature = "batch", target_arch = "x86_64"))]
+mod lanes;
 
 /// Largest error (kPa, exact arithmetic) accepted from a Newton step of the fast path.
 pub const ACCEPTED_ERROR_KPA: f32 = 1.0e-5;
@@ -156,16 +158,6 @@ struct SeedCell {
     interval: u8,
 }
 
-impl IntervalData {
-    /// No interval (a slot past the top has zero width).
-    #[cfg(any(test, all(feature = "batch", target_arch = "x86_64")))]
-    const EMPTY: Self = Self {
-        coefficients: [0.0; 4],
-        start_kpa: 0.0,
-        error_bound_kpa: 0.0,
-    };
-}
-
 impl SeedCell {
     const EMPTY: Self = Self {
         seed: [0.0; 4],
@@ -180,11 +172,6 @@ impl SeedCell {
         c0 + u * (c1 + u * (c2 + u * c3))
     }
 }
-
-/// Readings whose first steps [`CubicKnots::pressures_kpa`] takes together: eight f32 fill an
-/// AVX2 register.
-#[cfg(all(feature = "batch", target_arch = "x86_64"))]
-const BATCH_LANES: usize = 8;
 
 /// One Newton step of `data`'s cubic from `seed_kpa` towards `relative_change`, not clamped
 /// into the interval (the cell's bound holds over the reach of its seeds): the next pressure and
@@ -292,39 +279,6 @@ impl CubicKnots {
         f32::from_bits(bits.min(self.top_kpa.to_bits() as i32) as u32)
     }
 
-    /// [`CubicKnots::first_step`] without a branch: the same pressure, and whether the cell's
-    /// bound accepts it (exactly when `first_step` gives `Ok`, with the same bits: tested), every
-    /// lookup kept in bounds by clamping its index, so that a compiler can take several
-    /// readings in one vector instruction.
-    #[cfg(any(test, all(feature = "batch", target_arch = "x86_64")))]
-    #[inline(always)]
-    fn first_step_lane(&self, relative_change: f32) -> (f32, bool) {
-        let position = self.position(relative_change);
-        // Through i32, which vector instructions convert to and from in one each (u32 takes
-        // several): the same whole cells as `first_step`'s u32 on the grid, `0 ..= SEED_CELLS`.
-        // NaN converts to 0, too large positions to i32::MAX.
-        let whole = position as i32;
-        let on_grid = position >= 0.0 && whole < SEED_CELLS as i32;
-        let cell = self
-            .cells
-            .get(whole.clamp(0, SEED_CELLS as i32 - 1) as usize)
-            .unwrap_or(&SeedCell::EMPTY);
-        let seed_kpa = cell.seed(position - whole as f32);
-        let first = cell.interval as usize & INTERVAL_MASK;
-        let next_start = self
-            .intervals
-            .get(first + 1)
-            .map_or(0.0, |next| next.coefficients[0]);
-        let above = relative_change >= next_start;
-        let data = self
-            .intervals
-            .get(first + usize::from(above))
-            .unwrap_or(&IntervalData::EMPTY);
-        let (next_kpa, step) = newton_step(data, seed_kpa, relative_change);
-        let accepted = on_grid & (step * step <= cell.max_step_squared);
-        (self.clamped_on_bits(next_kpa), accepted)
-    }
-
     /// [`CubicKnots::pressure_kpa`] with the number of Newton steps taken outside the bracketed
     /// stage (one more than [`FAST_NEWTON_STEPS`]: the bracketed stage ran).
     #[inline(always)]
@@ -388,11 +342,11 @@ impl CubicKnots {
 
     /// Pressures for many relative changes, in place: bit for bit what
     /// [`CubicKnots::pressure_kpa`] gives for each (tested), arranged for a host converting a
-    /// recording. Where the CPU has AVX2: the first step of [`BATCH_LANES`] readings at a time
-    /// without a branch ([`CubicKnots::first_step_lane`]), which the compiler turns into vector
-    /// arithmetic (1M sets of the default through `taxel.convert`: 65 -> 53 ms; with AVX-512's
-    /// gathers for the lookups, 61), then [`CubicKnots::pressure_kpa`] itself for a reading
-    /// whose first step is not accepted. Elsewhere the first step of each in a plain loop.
+    /// recording. Where the CPU has AVX2, the first steps of eight readings at a time in vector
+    /// instructions (`lanes.rs`; 1M sets of the default through `taxel.convert`: 65 -> 51 ms),
+    /// then [`CubicKnots::pressure_kpa`] itself for a reading whose first step is not accepted;
+    /// elsewhere the first step of each in a plain loop, whose values' independent chains the
+    /// core overlaps by itself.
     pub(crate) fn pressures_kpa(&self, curve: &CalibrationCurve, values: &mut [f32]) {
         #[cfg(all(feature = "batch", target_arch = "x86_64"))]
         if std::is_x86_feature_detected!("avx2") {
@@ -405,8 +359,11 @@ impl CubicKnots {
             };
             return;
         }
-        // Without AVX2 the lanes are slower than a plain loop whose values' independent chains
-        // the core overlaps by itself.
+        self.pressures_kpa_one_by_one(curve, values);
+    }
+
+    /// [`CubicKnots::pressures_kpa`] without vector instructions.
+    fn pressures_kpa_one_by_one(&self, curve: &CalibrationCurve, values: &mut [f32]) {
         for value in values.iter_mut() {
             *value = match self.first_step(*value) {
                 Ok(pressure_kpa) => pressure_kpa,
@@ -415,31 +372,32 @@ impl CubicKnots {
         }
     }
 
-    /// [`CubicKnots::pressures_kpa`] compiled with AVX2 (callable only where the CPU has it).
+    /// [`CubicKnots::pressures_kpa`] with AVX2 (callable only where the CPU has it).
     #[cfg(all(feature = "batch", target_arch = "x86_64"))]
     #[target_feature(enable = "avx2")]
     fn pressures_kpa_avx2(&self, curve: &CalibrationCurve, values: &mut [f32]) {
-        self.pressures_kpa_in_lanes(curve, values);
-    }
-
-    /// [`CubicKnots::pressures_kpa`]'s loop with AVX2.
-    #[cfg(all(feature = "batch", target_arch = "x86_64"))]
-    #[inline(always)]
-    fn pressures_kpa_in_lanes(&self, curve: &CalibrationCurve, values: &mut [f32]) {
-        for chunk in values.chunks_mut(BATCH_LANES) {
-            let mut accepted = [false; BATCH_LANES];
-            for (value, accepted) in chunk.iter_mut().zip(&mut accepted) {
-                let (pressure_kpa, ok) = self.first_step_lane(*value);
-                // A reading whose step is not accepted stays, for the rest of the search.
-                *value = if ok { pressure_kpa } else { *value };
-                *accepted = ok;
+        let tables = lanes::LaneTables::new(self);
+        let mut chunks = values.chunks_exact_mut(lanes::LANES);
+        for chunk in &mut chunks {
+            let mut readings = [0.0f32; lanes::LANES];
+            for (reading, value) in readings.iter_mut().zip(chunk.iter()) {
+                *reading = *value;
             }
-            for (value, accepted) in chunk.iter_mut().zip(accepted) {
-                if !accepted {
-                    *value = self.pressure_kpa(curve, *value);
-                }
+            let (pressures_kpa, accepted) = tables.first_steps(&readings);
+            for (lane, ((value, reading), pressure_kpa)) in chunk
+                .iter_mut()
+                .zip(readings)
+                .zip(pressures_kpa)
+                .enumerate()
+            {
+                *value = if accepted & (1 << lane) != 0 {
+                    pressure_kpa
+                } else {
+                    self.pressure_kpa(curve, reading)
+                };
             }
         }
+        self.pressures_kpa_one_by_one(curve, chunks.into_remainder());
     }
 
     /// Pressure for a relative change solved to the bracket's resolution, without the fast
@@ -712,9 +670,10 @@ mod tests {
         CalibrationCurve::new(&points, 0).unwrap_or_else(|_| panic!("refused"))
     }
 
+    #[cfg(all(feature = "batch", target_arch = "x86_64"))]
     #[test]
-    fn the_branchless_first_step_is_the_first_step() {
-        // The host's vector form accepts exactly the readings `first_step` accepts, with the
+    fn the_vector_first_step_is_the_first_step() {
+        // The host's AVX2 form accepts exactly the readings `first_step` accepts, with the
         // same bits, on the article's curve, the review's hard curves and concave curves of 4
         // to 16 points; over readings spread across the whole grid and beyond, every knot and
         // its neighbours, and NaN, infinities, zero, negatives and subnormals.
@@ -744,10 +703,16 @@ mod tests {
                 curves.push(curve);
             }
         }
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
         let mut accepted = 0usize;
         let mut compared = 0usize;
         for curve in &curves {
             let knots = CubicKnots::new(curve);
+            #[allow(unsafe_code)]
+            // SAFETY: the CPU has AVX2 (asked above).
+            let tables = unsafe { lanes::LaneTables::new(&knots) };
             let top = curve.top().relative_change;
             let mut readings = std::vec![
                 f32::NAN,
@@ -774,8 +739,19 @@ mod tests {
                     readings.push(f32::from_bits(bits.wrapping_sub(offset)));
                 }
             }
-            for reading in readings {
-                let (lane_kpa, lane_accepted) = knots.first_step_lane(reading);
+            // Each reading in every lane, among others.
+            let mut lanes_of = std::vec::Vec::new();
+            for (index, reading) in readings.iter().enumerate() {
+                let mut lane_readings = [readings[(index * 7 + 3) % readings.len()]; lanes::LANES];
+                lane_readings[index % lanes::LANES] = *reading;
+                lanes_of.push((index % lanes::LANES, lane_readings));
+            }
+            for (lane, lane_readings) in lanes_of {
+                let reading = lane_readings[lane];
+                #[allow(unsafe_code)]
+                // SAFETY: as above.
+                let (pressures, accepted_bits) = unsafe { tables.first_steps(&lane_readings) };
+                let (lane_kpa, lane_accepted) = (pressures[lane], accepted_bits & (1 << lane) != 0);
                 match knots.first_step(reading) {
                     Ok(kpa) => {
                         assert!(

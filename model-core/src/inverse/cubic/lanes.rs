@@ -1,0 +1,245 @@
+//! The default inverse's first step for eight readings at once with AVX2, for the host's batch
+//! path: [`CubicKnots::first_step`]'s operations in the same order on eight lanes, so the same
+//! bits (tested), with the grid's and the intervals' lookups done by permuting their columns
+//! held in registers instead of one load per reading (which the compiler's own vector form
+//! does, and AVX2's gathers do no faster).
+
+use core::arch::x86_64::{
+    __m256, __m256i, _mm256_add_epi32, _mm256_add_ps, _mm256_and_ps, _mm256_and_si256,
+    _mm256_blendv_ps, _mm256_castps256_ps128, _mm256_castps_si256, _mm256_castsi256_ps,
+    _mm256_cmp_ps, _mm256_cmpgt_epi32, _mm256_cvtepi32_ps, _mm256_cvttps_epi32, _mm256_div_ps,
+    _mm256_extractf128_ps, _mm256_max_epi32, _mm256_min_epi32, _mm256_movemask_ps, _mm256_mul_ps,
+    _mm256_permutevar8x32_ps, _mm256_set1_epi32, _mm256_set1_ps, _mm256_setr_ps,
+    _mm256_setzero_si256, _mm256_sub_epi32, _mm256_sub_ps, _mm_cvtss_f32, _mm_extract_ps,
+    _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
+};
+
+use super::{CubicKnots, INTERVAL_MASK, INTERVAL_SLOTS, SEED_CELLS};
+
+/// Readings a step takes together: eight f32 fill an AVX2 register.
+pub(super) const LANES: usize = 8;
+
+/// Entries of a [`Column`]: three registers of eight.
+const ENTRIES: usize = 3 * LANES;
+
+const _: () = assert!(SEED_CELLS <= ENTRIES && INTERVAL_SLOTS <= ENTRIES);
+
+/// Up to [`ENTRIES`] values (one field of every cell, or of every interval) as three
+/// registers, looked up for eight indices at once.
+#[derive(Clone, Copy)]
+struct Column([__m256; 3]);
+
+/// The three registers' choice for eight indices: the second register's lanes (index 8 and
+/// above) and the third's (16 and above), as blend masks.
+#[derive(Clone, Copy)]
+struct Parts {
+    index: __m256i,
+    second: __m256,
+    third: __m256,
+}
+
+impl Parts {
+    #[target_feature(enable = "avx2")]
+    fn of(index: __m256i) -> Self {
+        Self {
+            index,
+            second: _mm256_castsi256_ps(_mm256_cmpgt_epi32(index, _mm256_set1_epi32(7))),
+            third: _mm256_castsi256_ps(_mm256_cmpgt_epi32(index, _mm256_set1_epi32(15))),
+        }
+    }
+}
+
+impl Column {
+    /// The column of `values` (the entries past them 0).
+    #[target_feature(enable = "avx2")]
+    fn new(values: &[f32]) -> Self {
+        let mut entries = [0.0f32; ENTRIES];
+        for (entry, value) in entries.iter_mut().zip(values) {
+            *entry = *value;
+        }
+        let [e0, e1, e2, e3, e4, e5, e6, e7, e8, e9, e10, e11, e12, e13, e14, e15, e16, e17, e18, e19, e20, e21, e22, e23] =
+            entries;
+        Self([
+            _mm256_setr_ps(e0, e1, e2, e3, e4, e5, e6, e7),
+            _mm256_setr_ps(e8, e9, e10, e11, e12, e13, e14, e15),
+            _mm256_setr_ps(e16, e17, e18, e19, e20, e21, e22, e23),
+        ])
+    }
+
+    /// Lane by lane, the entry at the lane's index.
+    #[target_feature(enable = "avx2")]
+    fn at(&self, parts: Parts) -> __m256 {
+        let [low, middle, high] = self.0;
+        let low = _mm256_permutevar8x32_ps(low, parts.index);
+        let middle = _mm256_permutevar8x32_ps(middle, parts.index);
+        let high = _mm256_permutevar8x32_ps(high, parts.index);
+        _mm256_blendv_ps(
+            _mm256_blendv_ps(low, middle, parts.second),
+            high,
+            parts.third,
+        )
+    }
+}
+
+/// A [`CubicKnots`]' cells and intervals as columns, made once per batch of readings.
+pub(super) struct LaneTables {
+    /// The warp's `alpha` and `beta`, in every lane.
+    alpha: __m256,
+    beta: __m256,
+    /// The cells' seed coefficients, largest accepted step squared and interval (its bits).
+    seed: [Column; 4],
+    max_step_squared: Column,
+    interval: Column,
+    /// The intervals' coefficients and start pressures.
+    coefficients: [Column; 4],
+    start_kpa: Column,
+    /// The top point's pressure, as i32 bits, in every lane.
+    top_bits: __m256i,
+}
+
+impl LaneTables {
+    /// `knots`' tables.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn new(knots: &CubicKnots) -> Self {
+        let mut cell_fields = [[0.0f32; SEED_CELLS]; 6];
+        for (index, cell) in knots.cells.iter().enumerate() {
+            let values = [
+                cell.seed[0],
+                cell.seed[1],
+                cell.seed[2],
+                cell.seed[3],
+                cell.max_step_squared,
+                f32::from_bits(u32::from(cell.interval)),
+            ];
+            for (field, value) in cell_fields.iter_mut().zip(values) {
+                if let Some(slot) = field.get_mut(index) {
+                    *slot = value;
+                }
+            }
+        }
+        let mut interval_fields = [[0.0f32; INTERVAL_SLOTS]; 5];
+        for (index, data) in knots.intervals.iter().enumerate() {
+            let [c0, c1, c2, c3] = data.coefficients;
+            for (field, value) in interval_fields
+                .iter_mut()
+                .zip([c0, c1, c2, c3, data.start_kpa])
+            {
+                if let Some(slot) = field.get_mut(index) {
+                    *slot = value;
+                }
+            }
+        }
+        let [s0, s1, s2, s3, max_step_squared, interval] = cell_fields;
+        let [c0, c1, c2, c3, start_kpa] = interval_fields;
+        let [alpha, beta] = knots.warp;
+        Self {
+            alpha: _mm256_set1_ps(alpha),
+            beta: _mm256_set1_ps(beta),
+            seed: [
+                Column::new(&s0),
+                Column::new(&s1),
+                Column::new(&s2),
+                Column::new(&s3),
+            ],
+            max_step_squared: Column::new(&max_step_squared),
+            interval: Column::new(&interval),
+            coefficients: [
+                Column::new(&c0),
+                Column::new(&c1),
+                Column::new(&c2),
+                Column::new(&c3),
+            ],
+            start_kpa: Column::new(&start_kpa),
+            top_bits: _mm256_set1_epi32(knots.top_kpa.to_bits() as i32),
+        }
+    }
+
+    /// [`CubicKnots::first_step`] of eight readings: the pressures, and a bit per lane set where
+    /// the cell's bound accepts the step (exactly where `first_step` gives `Ok`, with these
+    /// bits).
+    #[target_feature(enable = "avx2")]
+    pub(super) fn first_steps(&self, readings: &[f32; LANES]) -> ([f32; LANES], i32) {
+        let [r0, r1, r2, r3, r4, r5, r6, r7] = *readings;
+        let y = _mm256_setr_ps(r0, r1, r2, r3, r4, r5, r6, r7);
+        let position = _mm256_div_ps(y, _mm256_sub_ps(self.alpha, _mm256_mul_ps(self.beta, y)));
+        // On the grid: `0 <= position < SEED_CELLS` (NaN is not), where truncation gives the
+        // same whole cells as `first_step`'s u32.
+        let on_grid = _mm256_and_ps(
+            _mm256_cmp_ps::<_CMP_GE_OQ>(position, _mm256_set1_ps(0.0)),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(position, _mm256_set1_ps(SEED_CELLS as f32)),
+        );
+        let zero = _mm256_setzero_si256();
+        let whole = _mm256_min_epi32(
+            _mm256_max_epi32(_mm256_cvttps_epi32(position), zero),
+            _mm256_set1_epi32(SEED_CELLS as i32 - 1),
+        );
+        let cell = Parts::of(whole);
+        let u = _mm256_sub_ps(position, _mm256_cvtepi32_ps(whole));
+        let [s0, s1, s2, s3] = self.seed.map(|column| column.at(cell));
+        let seed_kpa = _mm256_add_ps(
+            s0,
+            _mm256_mul_ps(
+                u,
+                _mm256_add_ps(
+                    s1,
+                    _mm256_mul_ps(u, _mm256_add_ps(s2, _mm256_mul_ps(u, s3))),
+                ),
+            ),
+        );
+        let first = _mm256_and_si256(
+            _mm256_castps_si256(self.interval.at(cell)),
+            _mm256_set1_epi32(INTERVAL_MASK as i32),
+        );
+        let next_start =
+            self.coefficients[0].at(Parts::of(_mm256_add_epi32(first, _mm256_set1_epi32(1))));
+        // A lane's mask is -1 where the reading is at or past the knot: one interval further.
+        let above = _mm256_cmp_ps::<_CMP_GE_OQ>(y, next_start);
+        let data = Parts::of(_mm256_sub_epi32(first, _mm256_castps_si256(above)));
+        let [c0, c1, c2, c3] = self.coefficients.map(|column| column.at(data));
+        let start_kpa = self.start_kpa.at(data);
+        // `newton_step`.
+        let local = _mm256_sub_ps(seed_kpa, start_kpa);
+        let high = _mm256_add_ps(c2, _mm256_mul_ps(local, c3));
+        let middle = _mm256_add_ps(c1, _mm256_mul_ps(local, high));
+        let slope = _mm256_add_ps(
+            middle,
+            _mm256_mul_ps(local, _mm256_add_ps(high, _mm256_mul_ps(local, c3))),
+        );
+        let step = _mm256_div_ps(
+            _mm256_sub_ps(_mm256_add_ps(c0, _mm256_mul_ps(local, middle)), y),
+            slope,
+        );
+        let next_kpa = _mm256_add_ps(start_kpa, _mm256_sub_ps(local, step));
+        let accepted = _mm256_and_ps(
+            on_grid,
+            _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_mul_ps(step, step), self.max_step_squared.at(cell)),
+        );
+        // `clamped_on_bits`.
+        let bits = _mm256_min_epi32(
+            _mm256_max_epi32(_mm256_castps_si256(next_kpa), zero),
+            self.top_bits,
+        );
+        (
+            lanes(_mm256_castsi256_ps(bits)),
+            _mm256_movemask_ps(accepted),
+        )
+    }
+}
+
+/// A register's eight values.
+#[target_feature(enable = "avx2")]
+fn lanes(values: __m256) -> [f32; LANES] {
+    let low = _mm256_castps256_ps128(values);
+    let high = _mm256_extractf128_ps::<1>(values);
+    let bits = |value: i32| f32::from_bits(value as u32);
+    [
+        _mm_cvtss_f32(low),
+        bits(_mm_extract_ps::<1>(low)),
+        bits(_mm_extract_ps::<2>(low)),
+        bits(_mm_extract_ps::<3>(low)),
+        _mm_cvtss_f32(high),
+        bits(_mm_extract_ps::<1>(high)),
+        bits(_mm_extract_ps::<2>(high)),
+        bits(_mm_extract_ps::<3>(high)),
+    ]
+}
