@@ -377,27 +377,31 @@ impl CubicKnots {
     #[target_feature(enable = "avx2")]
     fn pressures_kpa_avx2(&self, curve: &CalibrationCurve, values: &mut [f32]) {
         let tables = lanes::LaneTables::new(self);
-        let mut chunks = values.chunks_exact_mut(lanes::LANES);
-        for chunk in &mut chunks {
-            let mut readings = [0.0f32; lanes::LANES];
-            for (reading, value) in readings.iter_mut().zip(chunk.iter()) {
-                *reading = *value;
+        // A group's steps first, with no branch between them (so the core overlaps their long
+        // chains), then the rare readings whose step is not accepted, each through the rest of
+        // the search.
+        for group in values.chunks_mut(u64::BITS as usize) {
+            let mut rejected = 0u64;
+            let mut chunks = group.chunks_exact_mut(lanes::LANES);
+            for (index, chunk) in (&mut chunks).enumerate() {
+                let mut readings = [0.0f32; lanes::LANES];
+                for (reading, value) in readings.iter_mut().zip(chunk.iter()) {
+                    *reading = *value;
+                }
+                let (answers, accepted) = tables.first_steps(&readings);
+                for (value, answer) in chunk.iter_mut().zip(answers) {
+                    *value = answer;
+                }
+                rejected |= u64::from(!accepted as u8) << (index * lanes::LANES);
             }
-            let (pressures_kpa, accepted) = tables.first_steps(&readings);
-            for (lane, ((value, reading), pressure_kpa)) in chunk
-                .iter_mut()
-                .zip(readings)
-                .zip(pressures_kpa)
-                .enumerate()
-            {
-                *value = if accepted & (1 << lane) != 0 {
-                    pressure_kpa
-                } else {
-                    self.pressure_kpa(curve, reading)
-                };
+            self.pressures_kpa_one_by_one(curve, chunks.into_remainder());
+            while rejected != 0 {
+                if let Some(value) = group.get_mut(rejected.trailing_zeros() as usize) {
+                    *value = self.pressure_kpa(curve, *value);
+                }
+                rejected &= rejected - 1;
             }
         }
-        self.pressures_kpa_one_by_one(curve, chunks.into_remainder());
     }
 
     /// Pressure for a relative change solved to the bracket's resolution, without the fast

@@ -154,9 +154,9 @@ impl LaneTables {
         }
     }
 
-    /// [`CubicKnots::first_step`] of eight readings: the pressures, and a bit per lane set where
-    /// the cell's bound accepts the step (exactly where `first_step` gives `Ok`, with these
-    /// bits).
+    /// [`CubicKnots::first_step`] of eight readings: where the cell's bound accepts the step
+    /// (exactly where `first_step` gives `Ok`) its pressure (the same bits), elsewhere the
+    /// reading itself, for the rest of the search; and a bit per lane set where it accepts.
     #[target_feature(enable = "avx2")]
     pub(super) fn first_steps(&self, readings: &[f32; LANES]) -> ([f32; LANES], i32) {
         let [r0, r1, r2, r3, r4, r5, r6, r7] = *readings;
@@ -219,10 +219,8 @@ impl LaneTables {
             _mm256_max_epi32(_mm256_castps_si256(next_kpa), zero),
             self.top_bits,
         );
-        (
-            lanes(_mm256_castsi256_ps(bits)),
-            _mm256_movemask_ps(accepted),
-        )
+        let answers = _mm256_blendv_ps(y, _mm256_castsi256_ps(bits), accepted);
+        (lanes(answers), _mm256_movemask_ps(accepted))
     }
 }
 
