@@ -132,6 +132,8 @@ const SETS_PER_BLOCK: usize = 4096;
 
 /// Runs every row of every pad through `engine`, in set order, into `outputs` (a missing
 /// frame's pressures NaN and flags 0), looking for Ctrl-C as it goes.
+// Inlined into each instruction set's caller.
+#[inline(always)]
 fn run_rows<'a>(
     engine: &mut ConversionEngine,
     inputs: &'a Inputs<'a>,
@@ -174,6 +176,35 @@ fn run_rows<'a>(
         }
     }
     Ok(())
+}
+
+/// [`run_rows`], compiled for AVX2 where the CPU has it: the engine and the model inlined into
+/// it then use the wider instructions (1M rows: about 2 ms of 47 less).
+fn run_rows_for_this_cpu<'a>(
+    engine: &mut ConversionEngine,
+    inputs: &'a Inputs<'a>,
+    outputs: &mut Outputs<'a>,
+) -> Result<(), Stopped> {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx2") {
+        // The package's one unsafe operation: calling a function compiled for an instruction
+        // set extension, which Rust cannot prove the CPU has, after asking the CPU.
+        #[allow(unsafe_code)]
+        // SAFETY: the CPU has AVX2 (asked just above), the only feature the function enables.
+        return unsafe { run_rows_avx2(engine, inputs, outputs) };
+    }
+    run_rows(engine, inputs, outputs)
+}
+
+/// [`run_rows`] with AVX2 (callable only where the CPU has it).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn run_rows_avx2<'a>(
+    engine: &mut ConversionEngine,
+    inputs: &'a Inputs<'a>,
+    outputs: &mut Outputs<'a>,
+) -> Result<(), Stopped> {
+    run_rows(engine, inputs, outputs)
 }
 
 /// With several pads, whether pad `pad`'s frame of row `row` is missing: its four capacitances
@@ -393,7 +424,7 @@ pub fn convert_arrays<'py>(
                 pressure_kpa: pressure_slice,
                 flags: flags_slice,
             };
-            run_rows(&mut engine, &inputs, &mut outputs)?;
+            run_rows_for_this_cpu(&mut engine, &inputs, &mut outputs)?;
             Ok(engine.finish())
         })
         .map_err(|stopped| match stopped {

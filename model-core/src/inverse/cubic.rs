@@ -377,6 +377,7 @@ impl CubicKnots {
     #[target_feature(enable = "avx2")]
     fn pressures_kpa_avx2(&self, curve: &CalibrationCurve, values: &mut [f32]) {
         let tables = lanes::LaneTables::new(self);
+        let one_register = tables.intervals_in_one_register();
         // A group's steps first, with no branch between them (so the core overlaps their long
         // chains), then the rare readings whose step is not accepted, each through the rest of
         // the search.
@@ -388,7 +389,11 @@ impl CubicKnots {
                 for (reading, value) in readings.iter_mut().zip(chunk.iter()) {
                     *reading = *value;
                 }
-                let (answers, accepted) = tables.first_steps(&readings);
+                let (answers, accepted) = if one_register {
+                    tables.first_steps::<1>(&readings)
+                } else {
+                    tables.first_steps::<3>(&readings)
+                };
                 for (value, answer) in chunk.iter_mut().zip(answers) {
                     *value = answer;
                 }
@@ -754,7 +759,17 @@ mod tests {
                 let reading = lane_readings[lane];
                 #[allow(unsafe_code)]
                 // SAFETY: as above.
-                let (pressures, accepted_bits) = unsafe { tables.first_steps(&lane_readings) };
+                let (pressures, accepted_bits) = if tables.intervals_in_one_register() {
+                    let one = unsafe { tables.first_steps::<1>(&lane_readings) };
+                    let three = unsafe { tables.first_steps::<3>(&lane_readings) };
+                    assert_eq!(one.1, three.1, "{reading:e}");
+                    for (one, three) in one.0.iter().zip(three.0) {
+                        assert_eq!(one.to_bits(), three.to_bits(), "{reading:e}");
+                    }
+                    one
+                } else {
+                    unsafe { tables.first_steps::<3>(&lane_readings) }
+                };
                 let (lane_kpa, lane_accepted) = (pressures[lane], accepted_bits & (1 << lane) != 0);
                 match knots.first_step(reading) {
                     Ok(kpa) => {

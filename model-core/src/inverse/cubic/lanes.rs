@@ -66,18 +66,22 @@ impl Column {
         ])
     }
 
-    /// Lane by lane, the entry at the lane's index.
+    /// Lane by lane, the entry at the lane's index, which is below `8 * REGISTERS` (the
+    /// entries past the first register are looked up only when `REGISTERS` says they can be).
     #[target_feature(enable = "avx2")]
-    fn at(&self, parts: Parts) -> __m256 {
+    fn at<const REGISTERS: usize>(&self, parts: Parts) -> __m256 {
         let [low, middle, high] = self.0;
         let low = _mm256_permutevar8x32_ps(low, parts.index);
+        if REGISTERS == 1 {
+            return low;
+        }
         let middle = _mm256_permutevar8x32_ps(middle, parts.index);
+        let low = _mm256_blendv_ps(low, middle, parts.second);
+        if REGISTERS == 2 {
+            return low;
+        }
         let high = _mm256_permutevar8x32_ps(high, parts.index);
-        _mm256_blendv_ps(
-            _mm256_blendv_ps(low, middle, parts.second),
-            high,
-            parts.third,
-        )
+        _mm256_blendv_ps(low, high, parts.third)
     }
 }
 
@@ -95,6 +99,9 @@ pub(super) struct LaneTables {
     start_kpa: Column,
     /// The top point's pressure, as i32 bits, in every lane.
     top_bits: __m256i,
+    /// The interval slots a step can look up: up to the largest of the cells' intervals and
+    /// the one after it.
+    interval_slots: usize,
 }
 
 impl LaneTables {
@@ -151,14 +158,32 @@ impl LaneTables {
             ],
             start_kpa: Column::new(&start_kpa),
             top_bits: _mm256_set1_epi32(knots.top_kpa.to_bits() as i32),
+            interval_slots: knots
+                .cells
+                .iter()
+                .map(|cell| (usize::from(cell.interval) & INTERVAL_MASK) + 2)
+                .max()
+                .unwrap_or(ENTRIES),
         }
+    }
+
+    /// Whether the intervals' slots that a step can look up fit one register: on curves of up
+    /// to eight points, the usual ones, whose steps then take a third of the lookups' permutes ([`LaneTables::first_steps`] with
+    /// `INTERVALS` 1; else 3).
+    pub(super) fn intervals_in_one_register(&self) -> bool {
+        self.interval_slots <= LANES
     }
 
     /// [`CubicKnots::first_step`] of eight readings: where the cell's bound accepts the step
     /// (exactly where `first_step` gives `Ok`) its pressure (the same bits), elsewhere the
     /// reading itself, for the rest of the search; and a bit per lane set where it accepts.
+    /// `INTERVALS`: the registers the intervals' slots take (1 only when
+    /// [`LaneTables::intervals_in_one_register`]).
     #[target_feature(enable = "avx2")]
-    pub(super) fn first_steps(&self, readings: &[f32; LANES]) -> ([f32; LANES], i32) {
+    pub(super) fn first_steps<const INTERVALS: usize>(
+        &self,
+        readings: &[f32; LANES],
+    ) -> ([f32; LANES], i32) {
         let [r0, r1, r2, r3, r4, r5, r6, r7] = *readings;
         let y = _mm256_setr_ps(r0, r1, r2, r3, r4, r5, r6, r7);
         let position = _mm256_div_ps(y, _mm256_sub_ps(self.alpha, _mm256_mul_ps(self.beta, y)));
@@ -175,7 +200,7 @@ impl LaneTables {
         );
         let cell = Parts::of(whole);
         let u = _mm256_sub_ps(position, _mm256_cvtepi32_ps(whole));
-        let [s0, s1, s2, s3] = self.seed.map(|column| column.at(cell));
+        let [s0, s1, s2, s3] = self.seed.map(|column| column.at::<3>(cell));
         let seed_kpa = _mm256_add_ps(
             s0,
             _mm256_mul_ps(
@@ -187,16 +212,16 @@ impl LaneTables {
             ),
         );
         let first = _mm256_and_si256(
-            _mm256_castps_si256(self.interval.at(cell)),
+            _mm256_castps_si256(self.interval.at::<3>(cell)),
             _mm256_set1_epi32(INTERVAL_MASK as i32),
         );
-        let next_start =
-            self.coefficients[0].at(Parts::of(_mm256_add_epi32(first, _mm256_set1_epi32(1))));
+        let next_start = self.coefficients[0]
+            .at::<INTERVALS>(Parts::of(_mm256_add_epi32(first, _mm256_set1_epi32(1))));
         // A lane's mask is -1 where the reading is at or past the knot: one interval further.
         let above = _mm256_cmp_ps::<_CMP_GE_OQ>(y, next_start);
         let data = Parts::of(_mm256_sub_epi32(first, _mm256_castps_si256(above)));
-        let [c0, c1, c2, c3] = self.coefficients.map(|column| column.at(data));
-        let start_kpa = self.start_kpa.at(data);
+        let [c0, c1, c2, c3] = self.coefficients.map(|column| column.at::<INTERVALS>(data));
+        let start_kpa = self.start_kpa.at::<INTERVALS>(data);
         // `newton_step`.
         let local = _mm256_sub_ps(seed_kpa, start_kpa);
         let high = _mm256_add_ps(c2, _mm256_mul_ps(local, c3));
@@ -212,7 +237,10 @@ impl LaneTables {
         let next_kpa = _mm256_add_ps(start_kpa, _mm256_sub_ps(local, step));
         let accepted = _mm256_and_ps(
             on_grid,
-            _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_mul_ps(step, step), self.max_step_squared.at(cell)),
+            _mm256_cmp_ps::<_CMP_LE_OQ>(
+                _mm256_mul_ps(step, step),
+                self.max_step_squared.at::<3>(cell),
+            ),
         );
         // `clamped_on_bits`.
         let bits = _mm256_min_epi32(
