@@ -154,6 +154,13 @@ fn reading() -> impl Strategy<Value = Reading> {
         2 => (-0.01f32..0.01).prop_map(Reading::Relative),
         1 => any::<u32>().prop_map(Reading::Bits),
         1 => (any::<i32>(), 0u8..40).prop_map(|(code, capdac)| Reading::Raw(code, capdac)),
+        // Codes the converter gives (a negative total is a short), and its saturation codes.
+        1 => (-0x80_0000i32..=0x7F_FFFF, 0u8..=31)
+            .prop_map(|(code, capdac)| Reading::Raw(code, capdac)),
+        1 => (prop_oneof![Just(0x7F_FFFF), Just(-0x80_0000)], 0u8..=31)
+            .prop_map(|(code, capdac)| Reading::Raw(code, capdac)),
+        // Exactly 0 pF: the edge of a short.
+        1 => Just(Reading::Raw(0, 0)),
         1 => Just(Reading::Unavailable),
     ]
 }
