@@ -86,6 +86,8 @@ use crate::monotone_cubic::{CubicSegment, MonotoneCubic};
 mod grid;
 #[cfg(all(feature = "batch", target_arch = "x86_64"))]
 mod lanes;
+#[cfg(all(feature = "batch", target_arch = "x86_64"))]
+mod lanes512;
 
 /// Largest error (kPa, exact arithmetic) accepted from a Newton step of the fast path.
 pub const ACCEPTED_ERROR_KPA: f32 = 1.0e-5;
@@ -348,10 +350,20 @@ impl CubicKnots {
     /// elsewhere the first step of each in a plain loop, whose values' independent chains the
     /// core overlaps by itself.
     pub(crate) fn pressures_kpa(&self, curve: &CalibrationCurve, values: &mut [f32]) {
+        // The crate's unsafe operations: calling a function compiled for an instruction set
+        // extension, which Rust cannot prove the CPU has, after asking the CPU.
+        #[cfg(all(feature = "batch", target_arch = "x86_64"))]
+        if std::is_x86_feature_detected!("avx512f") {
+            #[allow(unsafe_code)]
+            // SAFETY: the CPU has AVX-512F (asked just above), the only feature the function
+            // enables.
+            unsafe {
+                self.pressures_kpa_avx512(curve, values)
+            };
+            return;
+        }
         #[cfg(all(feature = "batch", target_arch = "x86_64"))]
         if std::is_x86_feature_detected!("avx2") {
-            // The crate's one unsafe operation: calling a function compiled for an instruction
-            // set extension, which Rust cannot prove the CPU has, after asking the CPU.
             #[allow(unsafe_code)]
             // SAFETY: the CPU has AVX2 (asked just above), the only feature the function enables.
             unsafe {
@@ -378,26 +390,54 @@ impl CubicKnots {
     fn pressures_kpa_avx2(&self, curve: &CalibrationCurve, values: &mut [f32]) {
         let tables = lanes::LaneTables::new(self);
         let one_register = tables.intervals_in_one_register();
-        // A group's steps first, with no branch between them (so the core overlaps their long
-        // chains), then the rare readings whose step is not accepted, each through the rest of
-        // the search.
+        self.pressures_kpa_in_groups(curve, values, |readings| {
+            let (answers, accepted) = if one_register {
+                tables.first_steps::<1>(readings)
+            } else {
+                tables.first_steps::<3>(readings)
+            };
+            (answers, u64::from(accepted as u8))
+        });
+    }
+
+    /// [`CubicKnots::pressures_kpa`] with AVX-512F (callable only where the CPU has it).
+    #[cfg(all(feature = "batch", target_arch = "x86_64"))]
+    #[target_feature(enable = "avx512f")]
+    fn pressures_kpa_avx512(&self, curve: &CalibrationCurve, values: &mut [f32]) {
+        let tables = lanes512::LaneTables::new(self);
+        self.pressures_kpa_in_groups(curve, values, |readings| {
+            let (answers, accepted) = tables.first_steps(readings);
+            (answers, u64::from(accepted))
+        });
+    }
+
+    /// The first steps of groups of up to 64 readings, `L` at a time by `first_steps` (which
+    /// answers the readings whose step is accepted, keeps the others and gives a bit per
+    /// accepted lane), with no branch between them, so that the core overlaps their long
+    /// chains; then the rare readings whose step is not accepted, each through the rest of the
+    /// search, and the readings past the last `L` one by one.
+    #[cfg(all(feature = "batch", target_arch = "x86_64"))]
+    #[inline(always)]
+    fn pressures_kpa_in_groups<const L: usize>(
+        &self,
+        curve: &CalibrationCurve,
+        values: &mut [f32],
+        mut first_steps: impl FnMut(&[f32; L]) -> ([f32; L], u64),
+    ) {
+        let all_lanes = u64::MAX >> (u64::BITS as usize - L);
         for group in values.chunks_mut(u64::BITS as usize) {
             let mut rejected = 0u64;
-            let mut chunks = group.chunks_exact_mut(lanes::LANES);
+            let mut chunks = group.chunks_exact_mut(L);
             for (index, chunk) in (&mut chunks).enumerate() {
-                let mut readings = [0.0f32; lanes::LANES];
+                let mut readings = [0.0f32; L];
                 for (reading, value) in readings.iter_mut().zip(chunk.iter()) {
                     *reading = *value;
                 }
-                let (answers, accepted) = if one_register {
-                    tables.first_steps::<1>(&readings)
-                } else {
-                    tables.first_steps::<3>(&readings)
-                };
+                let (answers, accepted) = first_steps(&readings);
                 for (value, answer) in chunk.iter_mut().zip(answers) {
                     *value = answer;
                 }
-                rejected |= u64::from(!accepted as u8) << (index * lanes::LANES);
+                rejected |= (!accepted & all_lanes) << (index * L);
             }
             self.pressures_kpa_one_by_one(curve, chunks.into_remainder());
             while rejected != 0 {
@@ -722,6 +762,10 @@ mod tests {
             #[allow(unsafe_code)]
             // SAFETY: the CPU has AVX2 (asked above).
             let tables = unsafe { lanes::LaneTables::new(&knots) };
+            #[allow(unsafe_code)]
+            // SAFETY: made only where the CPU has AVX-512F (asked just here).
+            let wide_tables = std::is_x86_feature_detected!("avx512f")
+                .then(|| unsafe { lanes512::LaneTables::new(&knots) });
             let top = curve.top().relative_change;
             let mut readings = std::vec![
                 f32::NAN,
@@ -780,7 +824,28 @@ mod tests {
                         assert_eq!(lane_kpa.to_bits(), kpa.to_bits(), "{reading:e}");
                         accepted += 1;
                     }
-                    Err(_) => assert!(!lane_accepted, "{reading:e}: the lane took a refused step"),
+                    Err(_) => {
+                        assert!(!lane_accepted, "{reading:e}: the lane took a refused step");
+                        assert_eq!(lane_kpa.to_bits(), reading.to_bits(), "kept: {reading:e}");
+                    }
+                }
+                // AVX-512's sixteen lanes give what AVX2's eight give, the reading in two.
+                if let Some(wide_tables) = &wide_tables {
+                    let mut wide = [lane_readings[(lane + 1) % lanes::LANES]; lanes512::LANES];
+                    wide[..lanes::LANES].copy_from_slice(&lane_readings);
+                    wide[lanes::LANES + lane] = reading;
+                    #[allow(unsafe_code)]
+                    // SAFETY: the CPU has AVX-512F (asked above).
+                    let (answers, accepted_bits) = unsafe { wide_tables.first_steps(&wide) };
+                    for wide_lane in [lane, lanes::LANES + lane] {
+                        let wide_accepted = accepted_bits & (1 << wide_lane) != 0;
+                        assert_eq!(wide_accepted, lane_accepted, "{reading:e}");
+                        assert_eq!(
+                            answers[wide_lane].to_bits(),
+                            lane_kpa.to_bits(),
+                            "{reading:e}"
+                        );
+                    }
                 }
                 compared += 1;
             }
