@@ -385,6 +385,45 @@ impl CubicKnots {
         }
     }
 
+    /// The cells' and the intervals' fields as columns, for the vector forms' lookup tables
+    /// (`lanes.rs`, `lanes512.rs`): per cell its seed's four coefficients, its largest accepted
+    /// step squared and its interval (the index's bits as an f32); per interval slot its
+    /// cubic's four coefficients and its start pressure.
+    #[cfg(all(feature = "batch", target_arch = "x86_64"))]
+    #[allow(clippy::type_complexity)]
+    fn lane_columns(&self) -> ([[f32; SEED_CELLS]; 6], [[f32; INTERVAL_SLOTS]; 5]) {
+        let mut cell_fields = [[0.0f32; SEED_CELLS]; 6];
+        for (index, cell) in self.cells.iter().enumerate() {
+            let [s0, s1, s2, s3] = cell.seed;
+            let values = [
+                s0,
+                s1,
+                s2,
+                s3,
+                cell.max_step_squared,
+                f32::from_bits(u32::from(cell.interval)),
+            ];
+            for (field, value) in cell_fields.iter_mut().zip(values) {
+                if let Some(slot) = field.get_mut(index) {
+                    *slot = value;
+                }
+            }
+        }
+        let mut interval_fields = [[0.0f32; INTERVAL_SLOTS]; 5];
+        for (index, data) in self.intervals.iter().enumerate() {
+            let [c0, c1, c2, c3] = data.coefficients;
+            for (field, value) in interval_fields
+                .iter_mut()
+                .zip([c0, c1, c2, c3, data.start_kpa])
+            {
+                if let Some(slot) = field.get_mut(index) {
+                    *slot = value;
+                }
+            }
+        }
+        (cell_fields, interval_fields)
+    }
+
     /// [`CubicKnots::pressures_kpa`] with AVX2 (callable only where the CPU has it).
     #[cfg(all(feature = "batch", target_arch = "x86_64"))]
     #[target_feature(enable = "avx2")]

@@ -108,36 +108,8 @@ impl LaneTables {
     /// `knots`' tables.
     #[target_feature(enable = "avx2")]
     pub(super) fn new(knots: &CubicKnots) -> Self {
-        let mut cell_fields = [[0.0f32; SEED_CELLS]; 6];
-        for (index, cell) in knots.cells.iter().enumerate() {
-            let values = [
-                cell.seed[0],
-                cell.seed[1],
-                cell.seed[2],
-                cell.seed[3],
-                cell.max_step_squared,
-                f32::from_bits(u32::from(cell.interval)),
-            ];
-            for (field, value) in cell_fields.iter_mut().zip(values) {
-                if let Some(slot) = field.get_mut(index) {
-                    *slot = value;
-                }
-            }
-        }
-        let mut interval_fields = [[0.0f32; INTERVAL_SLOTS]; 5];
-        for (index, data) in knots.intervals.iter().enumerate() {
-            let [c0, c1, c2, c3] = data.coefficients;
-            for (field, value) in interval_fields
-                .iter_mut()
-                .zip([c0, c1, c2, c3, data.start_kpa])
-            {
-                if let Some(slot) = field.get_mut(index) {
-                    *slot = value;
-                }
-            }
-        }
-        let [s0, s1, s2, s3, max_step_squared, interval] = cell_fields;
-        let [c0, c1, c2, c3, start_kpa] = interval_fields;
+        let ([s0, s1, s2, s3, max_step_squared, interval], [c0, c1, c2, c3, start_kpa]) =
+            knots.lane_columns();
         let [alpha, beta] = knots.warp;
         Self {
             alpha: _mm256_set1_ps(alpha),
