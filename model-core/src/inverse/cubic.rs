@@ -130,6 +130,36 @@ pub(crate) struct CubicKnots {
     top_kpa: f32,
     /// The seed grid over `0 ..= top` in dC/C0.
     cells: [SeedCell; SEED_CELLS],
+    /// The cells and intervals as the host's vector forms look them up, made once with them.
+    #[cfg(all(feature = "batch", target_arch = "x86_64"))]
+    lane_columns: LaneColumns,
+}
+
+/// Entries of a vector lookup table: every cell of the grid, or every interval slot, padded
+/// to what two AVX-512 registers (three AVX2 registers use the first 24) hold.
+#[cfg(all(feature = "batch", target_arch = "x86_64"))]
+const LANE_ENTRIES: usize = 32;
+
+#[cfg(all(feature = "batch", target_arch = "x86_64"))]
+const _: () = assert!(SEED_CELLS <= 24 && INTERVAL_SLOTS <= 24);
+
+/// The cells' and the intervals' fields as columns, for the vector forms' lookup tables
+/// (`lanes.rs`, `lanes512.rs`): per cell its seed's four coefficients, its largest accepted
+/// step squared and its interval (the index's bits as an f32); per interval slot its cubic's
+/// four coefficients and its start pressure. Entries past the cells' or slots' count are 0.
+#[cfg(all(feature = "batch", target_arch = "x86_64"))]
+#[derive(Debug, Clone, PartialEq)]
+struct LaneColumns {
+    cells: [[f32; LANE_ENTRIES]; 6],
+    intervals: [[f32; LANE_ENTRIES]; 5],
+}
+
+#[cfg(all(feature = "batch", target_arch = "x86_64"))]
+impl LaneColumns {
+    const EMPTY: Self = Self {
+        cells: [[0.0; LANE_ENTRIES]; 6],
+        intervals: [[0.0; LANE_ENTRIES]; 5],
+    };
 }
 
 /// What the tier keeps per interval (module doc, storage).
@@ -385,14 +415,10 @@ impl CubicKnots {
         }
     }
 
-    /// The cells' and the intervals' fields as columns, for the vector forms' lookup tables
-    /// (`lanes.rs`, `lanes512.rs`): per cell its seed's four coefficients, its largest accepted
-    /// step squared and its interval (the index's bits as an f32); per interval slot its
-    /// cubic's four coefficients and its start pressure.
+    /// [`LaneColumns`] of these cells and intervals.
     #[cfg(all(feature = "batch", target_arch = "x86_64"))]
-    #[allow(clippy::type_complexity)]
-    fn lane_columns(&self) -> ([[f32; SEED_CELLS]; 6], [[f32; INTERVAL_SLOTS]; 5]) {
-        let mut cell_fields = [[0.0f32; SEED_CELLS]; 6];
+    fn gather_lane_columns(&self) -> LaneColumns {
+        let mut columns = LaneColumns::EMPTY;
         for (index, cell) in self.cells.iter().enumerate() {
             let [s0, s1, s2, s3] = cell.seed;
             let values = [
@@ -403,16 +429,16 @@ impl CubicKnots {
                 cell.max_step_squared,
                 f32::from_bits(u32::from(cell.interval)),
             ];
-            for (field, value) in cell_fields.iter_mut().zip(values) {
+            for (field, value) in columns.cells.iter_mut().zip(values) {
                 if let Some(slot) = field.get_mut(index) {
                     *slot = value;
                 }
             }
         }
-        let mut interval_fields = [[0.0f32; INTERVAL_SLOTS]; 5];
         for (index, data) in self.intervals.iter().enumerate() {
             let [c0, c1, c2, c3] = data.coefficients;
-            for (field, value) in interval_fields
+            for (field, value) in columns
+                .intervals
                 .iter_mut()
                 .zip([c0, c1, c2, c3, data.start_kpa])
             {
@@ -421,7 +447,7 @@ impl CubicKnots {
                 }
             }
         }
-        (cell_fields, interval_fields)
+        columns
     }
 
     /// [`CubicKnots::pressures_kpa`] with AVX2 (callable only where the CPU has it).

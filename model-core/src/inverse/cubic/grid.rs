@@ -50,6 +50,8 @@ impl CubicKnots {
             warp: [0.0; 2],
             top_kpa: top.pressure_kpa,
             cells: [SeedCell::EMPTY; SEED_CELLS],
+            #[cfg(all(feature = "batch", target_arch = "x86_64"))]
+            lane_columns: super::LaneColumns::EMPTY,
         };
         let forward = MonotoneCubic::new(&curve.pressures_kpa(), &curve.relative_changes());
         for ((slot, segment), point) in knots
@@ -78,6 +80,10 @@ impl CubicKnots {
             let cells: [SeedCell; SEED_CELLS] =
                 core::array::from_fn(|cell| knots.seed_cell(points, cell));
             knots.cells = cells;
+        }
+        #[cfg(all(feature = "batch", target_arch = "x86_64"))]
+        {
+            knots.lane_columns = knots.gather_lane_columns();
         }
         knots
     }

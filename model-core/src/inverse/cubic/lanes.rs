@@ -14,7 +14,7 @@ use core::arch::x86_64::{
     _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
 };
 
-use super::{CubicKnots, INTERVAL_MASK, INTERVAL_SLOTS, SEED_CELLS};
+use super::{CubicKnots, LaneColumns, INTERVAL_MASK, INTERVAL_SLOTS, LANE_ENTRIES, SEED_CELLS};
 
 /// Readings a step takes together: eight f32 fill an AVX2 register.
 pub(super) const LANES: usize = 8;
@@ -50,19 +50,14 @@ impl Parts {
 }
 
 impl Column {
-    /// The column of `values` (the entries past them 0).
+    /// The column of a table's first [`ENTRIES`] values.
     #[target_feature(enable = "avx2")]
-    fn new(values: &[f32]) -> Self {
-        let mut entries = [0.0f32; ENTRIES];
-        for (entry, value) in entries.iter_mut().zip(values) {
-            *entry = *value;
-        }
-        let [e0, e1, e2, e3, e4, e5, e6, e7, e8, e9, e10, e11, e12, e13, e14, e15, e16, e17, e18, e19, e20, e21, e22, e23] =
-            entries;
+    fn new(values: &[f32; LANE_ENTRIES]) -> Self {
+        let [low, middle, high, _]: [[f32; LANES]; 4] = bytemuck::cast(*values);
         Self([
-            _mm256_setr_ps(e0, e1, e2, e3, e4, e5, e6, e7),
-            _mm256_setr_ps(e8, e9, e10, e11, e12, e13, e14, e15),
-            _mm256_setr_ps(e16, e17, e18, e19, e20, e21, e22, e23),
+            bytemuck::cast(low),
+            bytemuck::cast(middle),
+            bytemuck::cast(high),
         ])
     }
 
@@ -108,27 +103,29 @@ impl LaneTables {
     /// `knots`' tables.
     #[target_feature(enable = "avx2")]
     pub(super) fn new(knots: &CubicKnots) -> Self {
-        let ([s0, s1, s2, s3, max_step_squared, interval], [c0, c1, c2, c3, start_kpa]) =
-            knots.lane_columns();
+        let LaneColumns {
+            cells: [s0, s1, s2, s3, max_step_squared, interval],
+            intervals: [c0, c1, c2, c3, start_kpa],
+        } = &knots.lane_columns;
         let [alpha, beta] = knots.warp;
         Self {
             alpha: _mm256_set1_ps(alpha),
             beta: _mm256_set1_ps(beta),
             seed: [
-                Column::new(&s0),
-                Column::new(&s1),
-                Column::new(&s2),
-                Column::new(&s3),
+                Column::new(s0),
+                Column::new(s1),
+                Column::new(s2),
+                Column::new(s3),
             ],
-            max_step_squared: Column::new(&max_step_squared),
-            interval: Column::new(&interval),
+            max_step_squared: Column::new(max_step_squared),
+            interval: Column::new(interval),
             coefficients: [
-                Column::new(&c0),
-                Column::new(&c1),
-                Column::new(&c2),
-                Column::new(&c3),
+                Column::new(c0),
+                Column::new(c1),
+                Column::new(c2),
+                Column::new(c3),
             ],
-            start_kpa: Column::new(&start_kpa),
+            start_kpa: Column::new(start_kpa),
             top_bits: _mm256_set1_epi32(knots.top_kpa.to_bits() as i32),
             interval_slots: knots
                 .cells

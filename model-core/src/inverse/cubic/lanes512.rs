@@ -11,13 +11,15 @@ use core::arch::x86_64::{
     _mm512_set1_ps, _mm512_setzero_si512, _mm512_sub_ps, _CMP_GE_OQ, _CMP_LE_OQ, _CMP_LT_OQ,
 };
 
-use super::{CubicKnots, INTERVAL_MASK, INTERVAL_SLOTS, SEED_CELLS};
+use super::{CubicKnots, LaneColumns, INTERVAL_MASK, INTERVAL_SLOTS, LANE_ENTRIES, SEED_CELLS};
 
 /// Readings a step takes together: sixteen f32 fill an AVX-512 register.
 pub(super) const LANES: usize = 16;
 
 /// Entries of a [`Table`]: two registers of sixteen.
 const ENTRIES: usize = 2 * LANES;
+
+const _: () = assert!(ENTRIES == LANE_ENTRIES);
 
 const _: () = assert!(SEED_CELLS <= ENTRIES && INTERVAL_SLOTS <= ENTRIES);
 
@@ -27,14 +29,10 @@ const _: () = assert!(SEED_CELLS <= ENTRIES && INTERVAL_SLOTS <= ENTRIES);
 struct Table([__m512; 2]);
 
 impl Table {
-    /// The table of `values` (the entries past them 0).
+    /// The table of a column's [`ENTRIES`] values.
     #[target_feature(enable = "avx512f")]
-    fn new(values: &[f32]) -> Self {
-        let mut entries = [[0.0f32; LANES]; 2];
-        for (entry, value) in entries.iter_mut().flatten().zip(values) {
-            *entry = *value;
-        }
-        let [low, high] = entries;
+    fn new(values: &[f32; ENTRIES]) -> Self {
+        let [low, high]: [[f32; LANES]; 2] = bytemuck::cast(*values);
         Self([bytemuck::cast(low), bytemuck::cast(high)])
     }
 
@@ -61,27 +59,29 @@ impl LaneTables {
     /// `knots`' tables.
     #[target_feature(enable = "avx512f")]
     pub(super) fn new(knots: &CubicKnots) -> Self {
-        let ([s0, s1, s2, s3, max_step_squared, interval], [c0, c1, c2, c3, start_kpa]) =
-            knots.lane_columns();
+        let LaneColumns {
+            cells: [s0, s1, s2, s3, max_step_squared, interval],
+            intervals: [c0, c1, c2, c3, start_kpa],
+        } = &knots.lane_columns;
         let [alpha, beta] = knots.warp;
         Self {
             alpha: _mm512_set1_ps(alpha),
             beta: _mm512_set1_ps(beta),
             seed: [
-                Table::new(&s0),
-                Table::new(&s1),
-                Table::new(&s2),
-                Table::new(&s3),
+                Table::new(s0),
+                Table::new(s1),
+                Table::new(s2),
+                Table::new(s3),
             ],
-            max_step_squared: Table::new(&max_step_squared),
-            interval: Table::new(&interval),
+            max_step_squared: Table::new(max_step_squared),
+            interval: Table::new(interval),
             coefficients: [
-                Table::new(&c0),
-                Table::new(&c1),
-                Table::new(&c2),
-                Table::new(&c3),
+                Table::new(c0),
+                Table::new(c1),
+                Table::new(c2),
+                Table::new(c3),
             ],
-            start_kpa: Table::new(&start_kpa),
+            start_kpa: Table::new(start_kpa),
             top_bits: _mm512_set1_epi32(knots.top_kpa.to_bits() as i32),
         }
     }
