@@ -529,11 +529,11 @@ fn host_batch_gap(out: &mut String, data: &ReportData) {
          the raw-code decode, classification, flags and its output record) is about what the \
          linear tier's whole batch costs, {:.2} ns, whose inverse is one multiply: {rest}. \
          Within the batch the default's inverse costs {:.2} ns over the linear tier's, not \
-         {:.2}: it runs per taxel on each batch of at most {} sets, so its lookup tables are \
-         made that often and its readings gathered into a column first. Next step: outputs \
-         written as columns (pressures, flags) rather than records, and batches whose inverse \
-         columns are longer; a classification eight sets an instruction (AVX2) that still \
-         made records was measured and ran slower.",
+         {:.2}: it runs per taxel on each batch of at most {} sets, whose readings are \
+         gathered into a column first and whose answers go back into the output records. \
+         Next step: outputs written as columns (pressures, flags) rather than records. \
+         Measured and slower: batches of 32 or 256 sets, and a classification eight sets an \
+         instruction (AVX2) that still made records.",
         batch.nanoseconds,
         batch.per_second() / 1e6,
         HOST_MIN_CONVERSIONS_PER_SECOND / 1e6,
