@@ -196,6 +196,8 @@ def convert(
         raise ConvertError(f"tare_rows must be 1 to 65535 (got {tare_rows})")
     if out is not None and (not isinstance(out, tuple) or len(out) != 2):
         raise ConvertError("out must be a tuple (pressure, flags) of two arrays")
+    if out is not None and np.may_share_memory(out[0], out[1]):
+        raise ConvertError("out's pressure and flags arrays share memory: each would overwrite the other")
     pressure_kpa, flags, messages = _taxel.convert_arrays(
         capacitance, temperature, times, calibration, tier, int(tare_rows), out
     )

@@ -290,5 +290,8 @@ def test_out_that_cannot_take_the_results_is_refused(recording):
     for out, message in cases:
         with pytest.raises(taxel.ConvertError, match=message):
             taxel.convert(capacitance, temperature, out=out)
+    shared = np.empty(shape)
+    with pytest.raises(taxel.ConvertError, match="out's pressure and flags arrays share memory"):
+        taxel.convert(capacitance, temperature, out=(shared, shared.view(np.uint16)[:, :4]))
     with pytest.raises(taxel.ConvertError, match="out must be a tuple \\(pressure, flags\\)"):
         taxel.convert(capacitance, temperature, out=good_pressure)
